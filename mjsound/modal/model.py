@@ -1,0 +1,240 @@
+"""`ModalModel`: what the synthesizer needs to play one object, and nothing of how it was made.
+
+A model with ``n`` modes sampled at ``p`` surface points holds
+
+* ``frequencies_hz`` (n,)        undamped natural frequencies f_i = omega_i / 2 pi, ascending
+* ``decay_per_s`` (n,)           Rayleigh decay d_i = (alpha + beta omega_i^2) / 2
+* ``damped_frequencies_hz`` (n,) sqrt(omega_i^2 - d_i^2) / 2 pi
+* ``points`` (p, 3)              surface sample points in the object frame [m]
+* ``normals`` (p, 3)             outward unit normals there
+* ``shapes`` (p, 3, n)           mass-normalised mode shapes phi_i(x) at the points [1/sqrt(kg)]
+                                 (phi^T M phi = 1): the *sound map*
+* ``radiation`` (n,)             far-field pressure at 1 m per unit modal coordinate
+                                 [Pa m / (m sqrt(kg))] (compact monopole + dipole estimate)
+* ``material``, ``method``, ``dofs``, ``seconds``, ``error_estimate_cents``, ``mass_kg``,
+  ``info`` (discretization details).
+
+An impulse J [N s] at point x excites mode i with modal velocity ``phi_i(x) . J``; the modal
+coordinate then rings as ``q_i(t) = (phi_i(x).J / omega_d) e^{-d t} sin(omega_d t)``
+[m sqrt(kg)], the surface moves by ``phi_i q_i`` and radiates ``radiation_i * q_i / r`` Pa.
+
+Models are saved as ``.npz`` without pickle: arrays plus one JSON string of metadata.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..materials import Material
+
+__all__ = ["ModalModel", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 1
+
+
+@dataclass
+class ModalModel:
+    """Modal parameters of one sounding object (see the module docstring for units)."""
+
+    frequencies_hz: np.ndarray
+    decay_per_s: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    shapes: np.ndarray
+    radiation: np.ndarray
+    material: Material
+    method: str = "unknown"
+    dofs: int = 0
+    seconds: float = 0.0
+    error_estimate_cents: float = float("nan")
+    mass_kg: float = float("nan")
+    info: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.frequencies_hz = np.asarray(self.frequencies_hz, dtype=np.float64).reshape(-1)
+        self.decay_per_s = np.asarray(self.decay_per_s, dtype=np.float64).reshape(-1)
+        self.points = np.asarray(self.points, dtype=np.float32).reshape(-1, 3)
+        self.normals = np.asarray(self.normals, dtype=np.float32).reshape(-1, 3)
+        n = len(self.frequencies_hz)
+        self.shapes = np.asarray(self.shapes, dtype=np.float32).reshape(len(self.points), 3, n)
+        self.radiation = np.asarray(self.radiation, dtype=np.float64).reshape(-1)
+        if len(self.decay_per_s) != n or len(self.radiation) != n:
+            raise ValueError("ModalModel: frequencies, decay and radiation must have the same length")
+        if len(self.normals) != len(self.points):
+            raise ValueError("ModalModel: points and normals must have the same length")
+        if n and (not np.all(np.isfinite(self.frequencies_hz)) or np.any(self.frequencies_hz <= 0)):
+            raise ValueError("ModalModel: frequencies must be finite and positive")
+        if not (np.all(np.isfinite(self.decay_per_s)) and np.all(np.isfinite(self.shapes))):
+            raise ValueError("ModalModel: decay rates and shapes must be finite")
+        self._tree = None
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def n_modes(self) -> int:
+        return len(self.frequencies_hz)
+
+    @property
+    def omega(self) -> np.ndarray:
+        """Undamped angular frequencies [rad/s]."""
+        return 2.0 * np.pi * self.frequencies_hz
+
+    @property
+    def damped_frequencies_hz(self) -> np.ndarray:
+        """sqrt(omega^2 - d^2) / 2 pi [Hz]; 0 for overdamped modes."""
+        w2 = self.omega**2 - self.decay_per_s**2
+        return np.sqrt(np.maximum(w2, 0.0)) / (2.0 * np.pi)
+
+    @property
+    def size_m(self) -> float:
+        """Longest side of the sampled surface's bounding box [m]."""
+        if len(self.points) < 2:
+            return float(self.info.get("size_m", 0.0))
+        return float(np.ptp(self.points, axis=0).max())
+
+    # ------------------------------------------------------------------ sound map
+    def nearest_points(self, points: np.ndarray) -> np.ndarray:
+        """Indices of the surface samples nearest to ``points`` (k, 3) in the object frame."""
+        from scipy.spatial import cKDTree
+
+        if self._tree is None:
+            self._tree = cKDTree(self.points)
+        _, idx = self._tree.query(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        return np.asarray(idx, dtype=np.int64)
+
+    def gains(self, points: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Modal participation ``phi_i(x) . d`` for points and direction vectors.
+
+        Parameters
+        ----------
+        points : (k, 3) array
+            Points in the object frame [m] (snapped to the nearest surface sample).
+        directions : (k, 3) array
+            Vectors in the object frame (an impulse in N s gives modal velocity in
+            m sqrt(kg)/s).
+
+        Returns
+        -------
+        (k, n) float64 array.
+        """
+        idx = self.nearest_points(points)
+        d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        return np.einsum("kcn,kc->kn", self.shapes[idx].astype(np.float64), d)
+
+    # ------------------------------------------------------------------ editing
+    def select(self, keep) -> "ModalModel":
+        """A copy with only the modes ``keep`` (boolean mask or indices)."""
+        keep = np.asarray(keep)
+        return replace(
+            self,
+            frequencies_hz=self.frequencies_hz[keep],
+            decay_per_s=self.decay_per_s[keep],
+            shapes=self.shapes[:, :, keep],
+            radiation=self.radiation[keep],
+            info=dict(self.info),
+        )
+
+    def truncated(self, f_max: float | None = None, n_modes: int | None = None) -> "ModalModel":
+        """Modes below ``f_max`` [Hz] and/or the ``n_modes`` lowest."""
+        keep = np.ones(self.n_modes, bool)
+        if f_max is not None:
+            keep &= self.frequencies_hz <= f_max
+        idx = np.flatnonzero(keep)
+        if n_modes is not None:
+            idx = idx[: max(int(n_modes), 0)]
+        return self.select(idx)
+
+    # ------------------------------------------------------------------ I/O
+    def metadata(self) -> dict:
+        return {
+            "format_version": FORMAT_VERSION,
+            "material": self.material.to_dict(),
+            "method": self.method,
+            "dofs": int(self.dofs),
+            "seconds": float(self.seconds),
+            "error_estimate_cents": float(self.error_estimate_cents),
+            "mass_kg": float(self.mass_kg),
+            "info": self.info,
+        }
+
+    def summary(self) -> dict:
+        """JSON-able summary (the ``mjsound analyze --json`` contract)."""
+        return {
+            "frequencies_hz": self.frequencies_hz.tolist(),
+            "damped_frequencies_hz": self.damped_frequencies_hz.tolist(),
+            "decay_per_s": self.decay_per_s.tolist(),
+            "n_modes": self.n_modes,
+            "method": self.method,
+            "dofs": int(self.dofs),
+            "seconds": float(self.seconds),
+            "error_estimate_cents": None
+            if not np.isfinite(self.error_estimate_cents)
+            else float(self.error_estimate_cents),
+            "mass_kg": float(self.mass_kg),
+            "material": self.material.to_dict(),
+            "n_points": int(len(self.points)),
+            "info": self.info,
+        }
+
+    def save(self, path) -> None:
+        """Write to ``path`` (.npz) atomically (temp file + rename)."""
+        path = os.fspath(path)
+        d = os.path.dirname(os.path.abspath(path)) or "."
+        os.makedirs(d, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".npz")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez_compressed(
+                    fh,
+                    frequencies_hz=self.frequencies_hz,
+                    decay_per_s=self.decay_per_s,
+                    points=self.points,
+                    normals=self.normals,
+                    shapes=self.shapes,
+                    radiation=self.radiation,
+                    meta=np.array(json.dumps(self.metadata(), default=_json_default)),
+                )
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+
+    @classmethod
+    def load(cls, path) -> "ModalModel":
+        """Read a model written by :meth:`save` (``allow_pickle=False``).
+
+        Raises ``ValueError`` for a file that is not a valid model (truncated, wrong version).
+        """
+        try:
+            with np.load(os.fspath(path), allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                if meta.get("format_version") != FORMAT_VERSION:
+                    raise ValueError(f"format version {meta.get('format_version')} != {FORMAT_VERSION}")
+                arrays = {k: z[k] for k in ("frequencies_hz", "decay_per_s", "points", "normals", "shapes", "radiation")}
+        except ValueError as exc:
+            raise ValueError(f"{path}: not a valid mjsound model ({exc})") from exc
+        except Exception as exc:  # zipfile.BadZipFile, KeyError, OSError, EOFError ...
+            raise ValueError(f"{path}: not a valid mjsound model ({type(exc).__name__}: {exc})") from exc
+        return cls(
+            **arrays,
+            material=Material(**meta["material"]),
+            method=meta["method"],
+            dofs=meta["dofs"],
+            seconds=meta["seconds"],
+            error_estimate_cents=meta["error_estimate_cents"],
+            mass_kg=meta["mass_kg"],
+            info=meta["info"],
+        )
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o)}")
