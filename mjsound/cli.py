@@ -1,0 +1,110 @@
+"""The ``mjsound`` command line. Each subcommand has ``--help``.
+
+Subcommands register themselves from their own modules (``register_cli(subparsers)``)
+so that this file stays a table of contents and nothing heavy is imported until a
+subcommand runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+__all__ = ["main", "build_parser"]
+
+
+def _add_analyze(sub):
+    p = sub.add_parser(
+        "analyze",
+        help="modal analysis of a mesh: frequencies, decay rates, sound map",
+        description=(
+            "Compute the modal model of MESH made of MATERIAL. MESH is an OBJ/STL/PLY file in "
+            "metres or a built-in shape: box:LX,LY,LZ  cylinder:RADIUS,LENGTH  sphere:RADIUS  "
+            "capsule:RADIUS,LENGTH  bowl:RADIUS,THICKNESS. With no MESH, a 20 cm aluminium bowl."
+        ),
+    )
+    p.add_argument("mesh", nargs="?", default="bowl:0.1,0.004", help="mesh file or built-in shape (default: bowl:0.1,0.004)")
+    p.add_argument("--material", "-m", default="aluminium",
+                   help="named material (steel, glass, oak, ...) or inline 'E=70e9,nu=0.33,rho=2700[,alpha=..,beta=..]'")
+    p.add_argument("--method", choices=["hex", "tet", "shell"], default="hex", help="discretization (default hex)")
+    p.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="elements per wavelength preset")
+    p.add_argument("--resolution", type=int, default=None, help="N elements along the longest side (overrides --quality)")
+    p.add_argument("--f-max", type=float, default=None, help="highest frequency in Hz (default min(20 kHz, 0.45*sample rate))")
+    p.add_argument("--sample-rate", type=float, default=None, help="output sample rate in Hz (bounds f-max below Nyquist)")
+    p.add_argument("--order", type=int, choices=[1, 2], default=2, help="tetrahedron order for --method tet")
+    p.add_argument("--thickness", type=float, default=None, help="wall thickness in m (open meshes, shell method)")
+    p.add_argument("--no-cache", action="store_true", help="neither read nor write the model cache")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("-o", "--output", default=None, help="write the model to this .npz file")
+    p.set_defaults(func=_run_analyze)
+
+
+def _run_analyze(args) -> int:
+    from .modal.analyze import analyze
+
+    t0 = time.perf_counter()
+    model = analyze(
+        args.mesh, args.material, method=args.method, quality=args.quality, f_max=args.f_max,
+        sample_rate=args.sample_rate, resolution=args.resolution, thickness=args.thickness,
+        order=args.order, cache=not args.no_cache, progress=not args.json and sys.stderr.isatty(),
+    )
+    wall = time.perf_counter() - t0
+    if args.output:
+        model.save(args.output)
+    if args.json:
+        out = model.summary()
+        out["wall_seconds"] = wall
+        print(json.dumps(out))
+        return 0
+    f = model.frequencies_hz
+    print(f"mesh       {args.mesh}")
+    print(f"material   {model.material.name} (E={model.material.E:.3g} Pa, nu={model.material.nu}, rho={model.material.rho:g} kg/m^3)")
+    print(f"method     {model.method}  {model.info.get('element', '')}  grid {model.info.get('grid', '-')}  dofs {model.dofs}")
+    print(f"modes      {model.n_modes} between 20 Hz and {model.info['f_max']:.0f} Hz "
+          f"(rigid removed: {model.info['n_rigid']}, overdamped dropped: {model.info['n_overdamped']})")
+    print(f"mass       {model.mass_kg:.4g} kg")
+    print(f"time       {model.seconds:.2f} s analysis ({model.info['solver']}, {model.info['slices']} slice(s)); {wall:.2f} s wall incl. cache")
+    err = model.error_estimate_cents
+    print(f"error est. {err:.1f} cents (vs 1.5x coarser solve)" if err == err else "error est. n/a")
+    if len(f):
+        print("first modes [Hz]: " + ", ".join(f"{x:.1f}" for x in f[:12]))
+    if args.output:
+        print(f"wrote      {args.output}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="mjsound", description="Physically based sound for MuJoCo simulations.")
+    parser.add_argument("--version", action="version", version="mjsound 0.1.0")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_analyze(sub)
+    for module in ("mjsound.synth.events", "mjsound.sim.rollout"):
+        try:
+            mod = __import__(module, fromlist=["register_cli"])
+        except ModuleNotFoundError as exc:  # an optional part that is not installed
+            if exc.name and module.startswith(exc.name):
+                continue
+            raise
+        if hasattr(mod, "register_cli"):
+            mod.register_cli(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, KeyError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        print(f"mjsound {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

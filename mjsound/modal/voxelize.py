@@ -1,0 +1,158 @@
+"""Voxel occupancy of a surface mesh on a regular grid (numba kernels).
+
+Two rules, chosen per connected component of the mesh:
+
+* **closed** components are filled by the non-zero winding rule: along each grid column
+  (parallel to z) the triangles crossed are sorted by height and a sample is inside when
+  ``w(z) = sum of -sign(n_z)`` over the crossings below it is non-zero. Overlapping
+  (self-intersecting) closed parts are therefore filled as their union, and flipped
+  orientation is still inside.
+* **open / non-manifold** components keep only the voxels their triangles pass through
+  (a shell of voxels, Picard et al. 2010, section 5.1), each with occupancy
+  ``min(1, thickness / voxel size)``.
+
+Occupancy is the fraction of ``s^3`` sub-samples inside each fine voxel, so a partly
+filled voxel is proportionally lighter and softer (Picard et al. eq. 1 with ``occ * K_i``).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+__all__ = ["winding_fill", "surface_voxels"]
+
+
+@nb.njit(cache=True)
+def _column_crossings(tri, ox, oy, dx, dy, nx, ny):
+    """Per-column (ix, iy) list of (z, sign) crossings of a vertical ray through the sample
+    centre ``(ox + (ix + 0.5) dx, oy + (iy + 0.5) dy)``. Returns CSR-style arrays."""
+    T = tri.shape[0]
+    counts = np.zeros(nx * ny, np.int64)
+    # Tiny irrational offsets keep sample columns off shared edges and vertices.
+    ex = 1.3e-7 * dx
+    ey = 0.7e-7 * dy
+    for pas in range(2):
+        if pas == 1:
+            start = np.zeros(nx * ny + 1, np.int64)
+            for c in range(nx * ny):
+                start[c + 1] = start[c] + counts[c]
+            zs = np.empty(start[-1], np.float64)
+            sg = np.empty(start[-1], np.int8)
+            fill = start[:-1].copy()
+        for t in range(T):
+            x0 = tri[t, 0, 0]; y0 = tri[t, 0, 1]; z0 = tri[t, 0, 2]
+            x1 = tri[t, 1, 0]; y1 = tri[t, 1, 1]; z1 = tri[t, 1, 2]
+            x2 = tri[t, 2, 0]; y2 = tri[t, 2, 1]; z2 = tri[t, 2, 2]
+            det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)  # 2 * signed xy area = n_z * 2A
+            if det == 0.0:
+                continue
+            xmin = min(x0, x1, x2); xmax = max(x0, x1, x2)
+            ymin = min(y0, y1, y2); ymax = max(y0, y1, y2)
+            i0 = max(int(np.floor((xmin - ox) / dx - 0.5)), 0)
+            i1 = min(int(np.ceil((xmax - ox) / dx - 0.5)), nx - 1)
+            j0 = max(int(np.floor((ymin - oy) / dy - 0.5)), 0)
+            j1 = min(int(np.ceil((ymax - oy) / dy - 0.5)), ny - 1)
+            s = 1 if det > 0 else -1
+            for i in range(i0, i1 + 1):
+                px = ox + (i + 0.5) * dx + ex
+                for j in range(j0, j1 + 1):
+                    py = oy + (j + 0.5) * dy + ey
+                    # barycentric coordinates in the xy projection
+                    l1 = ((px - x0) * (y2 - y0) - (x2 - x0) * (py - y0)) / det
+                    l2 = ((x1 - x0) * (py - y0) - (px - x0) * (y1 - y0)) / det
+                    l0 = 1.0 - l1 - l2
+                    if l0 < 0.0 or l1 < 0.0 or l2 < 0.0:
+                        continue
+                    c = i * ny + j
+                    if pas == 0:
+                        counts[c] += 1
+                    else:
+                        zs[fill[c]] = l0 * z0 + l1 * z1 + l2 * z2
+                        sg[fill[c]] = -s  # upward normal leaves the solid
+                        fill[c] += 1
+    return start, zs, sg
+
+
+@nb.njit(cache=True)
+def _fill_columns(start, zs, sg, oz, dz, nx, ny, nz, out):
+    for c in range(nx * ny):
+        a = start[c]
+        b = start[c + 1]
+        if b - a < 2:
+            continue
+        order = np.argsort(zs[a:b])
+        i = c // ny
+        j = c - i * ny
+        w = 0
+        for m in range(b - a):
+            k = a + order[m]
+            w += sg[k]
+            if w != 0 and m + 1 < b - a:
+                zlo = zs[k]
+                zhi = zs[a + order[m + 1]]
+                k0 = max(int(np.ceil((zlo - oz) / dz - 0.5)), 0)
+                k1 = min(int(np.floor((zhi - oz) / dz - 0.5)), nz - 1)
+                for kk in range(k0, k1 + 1):
+                    out[i, j, kk] = 1
+
+
+def winding_fill(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
+    """Inside/outside of sample centres ``origin + (idx + 0.5) * spacing``.
+
+    Parameters
+    ----------
+    triangles : (T, 3, 3) float array
+        Triangle corners [m].
+    origin, spacing : (3,) floats
+        Grid corner and sample spacing [m].
+    shape : (nx, ny, nz)
+        Number of samples per axis.
+
+    Returns
+    -------
+    (nx, ny, nz) uint8 array, 1 inside.
+    """
+    nx, ny, nz = (int(v) for v in shape)
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    start, zs, sg = _column_crossings(tri, float(origin[0]), float(origin[1]), float(spacing[0]), float(spacing[1]), nx, ny)
+    out = np.zeros((nx, ny, nz), np.uint8)
+    _fill_columns(start, zs, sg, float(origin[2]), float(spacing[2]), nx, ny, nz, out)
+    return out
+
+
+@nb.njit(cache=True)
+def _mark_surface(tri, ox, oy, oz, dx, dy, dz, nx, ny, nz, out):
+    step = 0.25 * min(dx, min(dy, dz))
+    for t in range(tri.shape[0]):
+        a = tri[t, 0]
+        b = tri[t, 1]
+        c = tri[t, 2]
+        lab = np.sqrt(((b - a) ** 2).sum())
+        lac = np.sqrt(((c - a) ** 2).sum())
+        lbc = np.sqrt(((c - b) ** 2).sum())
+        n = int(np.ceil(max(lab, max(lac, lbc)) / step)) + 1
+        for u in range(n + 1):
+            for v in range(n + 1 - u):
+                s1 = u / n
+                s2 = v / n
+                p = a + s1 * (b - a) + s2 * (c - a)
+                i = int((p[0] - ox) / dx)
+                j = int((p[1] - oy) / dy)
+                k = int((p[2] - oz) / dz)
+                if 0 <= i < nx and 0 <= j < ny and 0 <= k < nz:
+                    out[i, j, k] = 1
+
+
+def surface_voxels(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
+    """Voxels ``[origin + idx*spacing, origin + (idx+1)*spacing)`` touched by any triangle.
+
+    Triangles are sampled at a quarter of the smallest voxel side, so every voxel a
+    triangle crosses by more than that is marked. Returns ``(nx, ny, nz)`` uint8.
+    """
+    nx, ny, nz = (int(v) for v in shape)
+    out = np.zeros((nx, ny, nz), np.uint8)
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    _mark_surface(tri, float(origin[0]), float(origin[1]), float(origin[2]),
+                  float(spacing[0]), float(spacing[1]), float(spacing[2]), nx, ny, nz, out)
+    return out

@@ -1,0 +1,626 @@
+"""`ContactReader`: MuJoCo contacts of one step -> sound events (impact, slide, roll).
+
+What a step's data means
+------------------------
+``mj_step`` runs ``mj_forward`` at the state ``(q_k, v_k)`` of time ``t_k`` (collision
+detection, body velocities ``cvel``, constraint forces) and then integrates to ``t_{k+1}``.
+So right after ``mj_step`` the contacts, ``geom_xpos``, ``cvel`` and the contact forces all
+belong to ``t_k`` and the forces act over ``[t_k, t_{k+1})``, while ``qpos``/``qvel`` are
+already those of ``t_{k+1}``. The reader uses the ``t_k`` quantities only, so the
+velocity at a new contact is the *pre-contact* approach velocity.
+
+Impacts (design)
+----------------
+MuJoCo's soft contacts spread one impact over several physics steps; feeding the per-step
+``F dt`` to the modes would be a comb filter at the physics rate. The reader therefore emits
+**one** impact per event, at contact onset, timed at ``t_k`` (the first state that has the
+contact: the audio for ``[t_k, t_{k+1})`` is not rendered yet, so the timing is exact to the
+physics' own resolution and nothing has to be delayed). Its impulse is predicted from the
+pre-contact velocities:
+
+* the approach speeds ``v_c = -(v_rel . n)`` at the new contact points,
+* the contact-space inverse inertia ``A = J M^-1 J^T`` of those points along their normals
+  (``mj_jac`` + ``mj_solveM``: the true effective mass including rotation and
+  articulation; for a ball on the ground ``A = 1/m``),
+* the restitution ``e`` of the two acoustic materials (``sqrt(e1 e2)``, or the one known),
+
+``lambda = A^+ (1 + e) v`` (clipped to >= 0), one impulse per new contact point of the pair.
+While the event lasts (until the pair separates, comes to rest, or 0.1 s) MuJoCo's normal
+impulse ``sum F_n dt`` is accumulated and stored next to the prediction in
+:attr:`ContactReader.impacts` (an :class:`ImpactRecord` each), which is the check the tests
+use. A new impact starts at a pair's onset or, while a pair stays in contact, when a contact
+approaches faster than ``v_impact`` and more than twice as fast as the pair did the step
+before (a box slapping down on its other edge). The audible impulse follows the acoustic
+material's restitution, not MuJoCo's (which is set by ``solref``/``solimp``; the defaults are
+nearly plastic); give the contacts a matching ``solref`` when the two must agree.
+
+Sustained contact
+-----------------
+While a pair stays in contact with a positive normal force, per step and per pair:
+*slide* when the tangential slip speed ``|v_t|`` exceeds ``v_slide`` and 0.3 x the rolling
+speed, *roll* when the rolling speed ``|omega_rel,t| r`` exceeds ``v_roll``, otherwise silence
+(resting contact). Forces are summed over the pair's contacts, the point is their force-
+weighted centroid. Both bodies sound, each driven at the (shared) contact point, with
+opposite impulses.
+
+Bad input
+---------
+NaN/Inf or huge (> ``max_force`` N) contact forces and NaN velocities are clamped (to 0 or
+``max_force``) and reported once with :func:`warnings.warn`.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["ContactReader", "ContactFrame", "ImpactEvent", "ContactEvent", "ImpactRecord"]
+
+try:  # numba keeps the per-step contact work in the microseconds
+    from numba import njit as _njit
+except ImportError:  # pragma: no cover
+    def _njit(*a, **k):
+        return (lambda f: f) if not a or not callable(a[0]) else a[0]
+
+
+@_njit(cache=True, nogil=True)
+def _contact_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, fmax):
+    """Per-contact normal force, relative velocity, approach / slip / rolling speed (world)."""
+    n = geom.shape[0]
+    fn = np.zeros(n)
+    nrm = np.empty((n, 3))
+    vrel = np.empty((n, 3))
+    vapp = np.empty(n)
+    vslip = np.empty(n)
+    vroll = np.empty(n)
+    nbad = 0
+    nhuge = 0
+    for i in range(n):
+        a = adr[i]
+        f = 0.0
+        if a >= 0:
+            if pyramidal and dim[i] > 1:
+                for j in range(2 * (dim[i] - 1)):
+                    f += efc[a + j]
+            else:
+                f = efc[a]
+        if not np.isfinite(f):
+            f = 0.0
+            nbad += 1
+        elif f > fmax:
+            f = fmax
+            nhuge += 1
+        elif f < -fmax:
+            f = -fmax
+            nhuge += 1
+        ok = True
+        for c in range(3):
+            nrm[i, c] = frame[i, c]
+            if not (np.isfinite(frame[i, c]) and np.isfinite(pos[i, c])):
+                ok = False
+        v = np.zeros((2, 3))
+        w = np.zeros((2, 3))
+        for s in range(2):
+            b = gbody[geom[i, s]]
+            rb = broot[b]
+            rx = pos[i, 0] - scom[rb, 0]
+            ry = pos[i, 1] - scom[rb, 1]
+            rz = pos[i, 2] - scom[rb, 2]
+            wx, wy, wz = cvel[b, 0], cvel[b, 1], cvel[b, 2]
+            w[s, 0], w[s, 1], w[s, 2] = wx, wy, wz
+            v[s, 0] = cvel[b, 3] + wy * rz - wz * ry
+            v[s, 1] = cvel[b, 4] + wz * rx - wx * rz
+            v[s, 2] = cvel[b, 5] + wx * ry - wy * rx
+        for c in range(3):
+            vrel[i, c] = v[1, c] - v[0, c]
+            if not np.isfinite(vrel[i, c]) or not np.isfinite(w[1, c] - w[0, c]):
+                ok = False
+        if not ok:
+            nbad += 1
+            f = 0.0
+            for c in range(3):
+                vrel[i, c] = 0.0
+                w[0, c] = 0.0
+                w[1, c] = 0.0
+            nrm[i, 0], nrm[i, 1], nrm[i, 2] = 0.0, 0.0, 1.0
+            for c in range(3):
+                if not np.isfinite(pos[i, c]):
+                    pos[i, c] = 0.0
+        fn[i] = f
+        vn = vrel[i, 0] * nrm[i, 0] + vrel[i, 1] * nrm[i, 1] + vrel[i, 2] * nrm[i, 2]
+        vapp[i] = -vn
+        st = 0.0
+        for c in range(3):
+            t = vrel[i, c] - vn * nrm[i, c]
+            st += t * t
+        vslip[i] = np.sqrt(st)
+        wr = np.empty(3)
+        for c in range(3):
+            wr[c] = w[1, c] - w[0, c]
+        wn = wr[0] * nrm[i, 0] + wr[1] * nrm[i, 1] + wr[2] * nrm[i, 2]
+        wt = 0.0
+        for c in range(3):
+            t = wr[c] - wn * nrm[i, c]
+            wt += t * t
+        rad = np.inf
+        for s in range(2):
+            g = geom[i, s]
+            if not plane[g]:
+                dx = pos[i, 0] - gxpos[g, 0]
+                dy = pos[i, 1] - gxpos[g, 1]
+                dz = pos[i, 2] - gxpos[g, 2]
+                r = np.sqrt(dx * dx + dy * dy + dz * dz)
+                if r < rad:
+                    rad = r
+        if not np.isfinite(rad):
+            rad = 0.0
+        vroll[i] = np.sqrt(wt) * rad
+    return fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge
+
+
+@_njit(cache=True, nogil=True)
+def _pair_kernel(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm):
+    """Group contacts by geom pair: per pair its contacts, largest approach speed, total normal
+    force and the force-weighted slip speed, rolling speed, point and normal."""
+    n = geom.shape[0]
+    keys = np.empty(n, np.int64)
+    for i in range(n):
+        a, b = geom[i, 0], geom[i, 1]
+        keys[i] = min(a, b) * ngeom + max(a, b)
+    order = np.argsort(keys, kind="mergesort")
+    starts = np.empty(n + 1, np.int64)
+    P = 0
+    for j in range(n):
+        if j == 0 or keys[order[j]] != keys[order[j - 1]]:
+            starts[P] = j
+            P += 1
+    starts[P] = n
+    pkey = np.empty(P, np.int64)
+    vmax = np.empty(P)
+    ftot = np.zeros(P)
+    slip = np.zeros(P)
+    roll = np.zeros(P)
+    point = np.zeros((P, 3))
+    normal = np.zeros((P, 3))
+    for p in range(P):
+        i0 = order[starts[p]]
+        pkey[p] = keys[i0]
+        vm = -np.inf
+        fp = 0.0
+        for j in range(starts[p], starts[p + 1]):
+            i = order[j]
+            if vapp[i] > vm:
+                vm = vapp[i]
+            f = fn[i]
+            if f > 0:
+                fp += f
+                slip[p] += f * vslip[i]
+                roll[p] += f * vroll[i]
+                for c in range(3):
+                    point[p, c] += f * pos[i, c]
+                    normal[p, c] += f * nrm[i, c]
+        vmax[p] = vm
+        ftot[p] = fp
+        if fp > 0:
+            slip[p] /= fp
+            roll[p] /= fp
+            nn = 0.0
+            for c in range(3):
+                point[p, c] /= fp
+                nn += normal[p, c] ** 2
+            nn = np.sqrt(nn)
+            for c in range(3):
+                normal[p, c] = normal[p, c] / nn if nn > 0 else nrm[i0, c]
+    return order, starts[: P + 1], pkey, vmax, ftot, slip, roll, point, normal
+
+
+@dataclass
+class ContactFrame:
+    """All contacts of one step, as arrays over the ``n`` contacts (world frame, SI).
+
+    Attributes
+    ----------
+    geom : (n, 2) int
+        ``geom[:, 0]``, ``geom[:, 1]``; the normal points from the first to the second.
+    pos : (n, 3) contact point [m].
+    normal : (n, 3) unit normal.
+    dist : (n,) signed distance [m] (negative: penetration).
+    force_n : (n,) normal force on geom 1 along ``normal`` [N] (clamped, finite).
+    force : (n, 3) world force on geom 1 [N] (geom 0 gets the opposite).
+    vel_rel : (n, 3) velocity of geom 1's material point minus geom 0's at ``pos`` [m/s].
+    v_approach : (n,) ``-(vel_rel . normal)``; positive when closing [m/s].
+    v_slip : (n,) tangential slip speed [m/s].
+    v_roll : (n,) rolling speed ``|omega_rel,t| r`` [m/s].
+    local : (n, 2, 3) contact point in each geom's frame [m] (computed on demand).
+    """
+
+    geom: np.ndarray
+    pos: np.ndarray
+    normal: np.ndarray
+    dist: np.ndarray
+    force_n: np.ndarray
+    force: np.ndarray
+    vel_rel: np.ndarray
+    v_approach: np.ndarray
+    v_slip: np.ndarray
+    v_roll: np.ndarray
+    local: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.geom)
+
+
+@dataclass
+class ImpactEvent:
+    """One impact at one contact point.
+
+    ``impulse`` [N s] acts on ``geom2`` along ``normal`` (``geom1`` gets ``-impulse``).
+    """
+
+    time: float
+    geom1: int
+    geom2: int
+    point: np.ndarray
+    normal: np.ndarray
+    impulse: float
+    speed: float
+    effective_mass: float
+
+
+@dataclass
+class ContactEvent:
+    """Sustained contact of a pair over ``[t0, t1)``: ``kind`` is ``"slide"`` or ``"roll"``."""
+
+    kind: str
+    t0: float
+    t1: float
+    geom1: int
+    geom2: int
+    point: np.ndarray
+    normal: np.ndarray
+    force_n: float
+    speed: float
+
+
+@dataclass
+class ImpactRecord:
+    """Predicted and simulated impulse of one impact event (diagnostics).
+
+    Attributes
+    ----------
+    time : onset time [s].
+    geom1, geom2 : geom ids.
+    speed : largest pre-contact approach speed [m/s].
+    impulse_pred : emitted ``sum lambda = sum A^+ (1+e) v`` [N s].
+    impulse_sim : MuJoCo's ``sum F_n dt`` over the event [N s].
+    restitution : ``e`` used.
+    effective_mass : ``impulse_pred / ((1+e) speed)`` [kg].
+    duration : event length [s]; ``steps`` physics steps.
+    """
+
+    time: float
+    geom1: int
+    geom2: int
+    speed: float
+    impulse_pred: float
+    impulse_sim: float
+    restitution: float
+    effective_mass: float
+    duration: float = 0.0
+    steps: int = 0
+    open: bool = True
+
+
+class _Pair:
+    __slots__ = ("v_prev", "record", "calm", "t_start", "last_step")
+
+    def __init__(self):
+        self.v_prev = 0.0
+        self.record = None
+        self.calm = 0
+        self.t_start = 0.0
+        self.last_step = -1
+
+
+class ContactReader:
+    """Reads every contact after each ``mj_step`` and turns them into sound events.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    restitution : sequence of float | None, optional
+        Per-geom acoustic restitution (NaN or None entries: unknown); default 0.5 where
+        neither geom knows.
+    v_impact : float
+        Smallest approach speed that makes an impact [m/s].
+    v_slide, v_roll : float
+        Smallest slip / rolling speed that makes sliding / rolling sound [m/s].
+    max_force : float
+        Contact forces above this are clamped [N].
+    max_event_s : float
+        Longest an impact event is tracked for its ``sum F dt`` [s].
+    keep_records : int
+        How many :class:`ImpactRecord` to keep (oldest dropped).
+    """
+
+    def __init__(
+        self,
+        model,
+        restitution=None,
+        v_impact: float = 0.02,
+        v_slide: float = 0.01,
+        v_roll: float = 0.01,
+        max_force: float = 1e6,
+        max_event_s: float = 0.1,
+        keep_records: int = 10000,
+    ):
+        import mujoco
+
+        self._mj = mujoco
+        self.model = model
+        self.v_impact = float(v_impact)
+        self.v_slide = float(v_slide)
+        self.v_roll = float(v_roll)
+        self.max_force = float(max_force)
+        self.max_event_s = float(max_event_s)
+        self.keep_records = int(keep_records)
+        ng = model.ngeom
+        e = np.full(ng, np.nan)
+        if restitution is not None:
+            for g, r in enumerate(restitution):
+                if r is not None and np.isfinite(r):
+                    e[g] = float(r)
+        self.restitution = e
+        self.geom_body = np.asarray(model.geom_bodyid, dtype=np.int64)
+        self.body_root = np.asarray(model.body_rootid, dtype=np.int64)
+        T = mujoco.mjtGeom
+        self._plane = np.asarray(model.geom_type) == T.mjGEOM_PLANE
+        self._pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
+        self._jacp = np.zeros((3, model.nv))
+        self._warned = set()
+        self.impacts: list[ImpactRecord] = []
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget all pairs (call after ``mj_resetData`` or a state jump)."""
+        self._pairs: dict[int, _Pair] = {}
+        self._step = 0
+        self.impacts = []
+        self.n_impacts = 0
+        self.n_clamped = 0
+        self._prev_cvel = None
+
+    def _warn_once(self, key, msg):
+        if key not in self._warned:
+            self._warned.add(key)
+            warnings.warn(msg, RuntimeWarning, stacklevel=4)
+
+    # ------------------------------------------------------------------ reading
+    def read(self, data) -> ContactFrame | None:
+        """All contacts of the last step as a :class:`ContactFrame` (None when there are none)."""
+        n = int(data.ncon)
+        if n == 0:
+            return None
+        con = data.contact
+        geom = np.array(con.geom, dtype=np.int64)
+        pos = np.array(con.pos, dtype=np.float64)
+        frame = con.frame
+        dist = np.array(con.dist, dtype=np.float64)
+        fn, normal, vel_rel, vapp, v_slip, v_roll, nbad, nhuge = _contact_kernel(
+            geom, pos, np.ascontiguousarray(frame, dtype=np.float64), np.asarray(con.efc_address, dtype=np.int64),
+            np.asarray(con.dim, dtype=np.int64), data.efc_force, self._pyramidal, data.cvel, data.subtree_com,
+            data.geom_xpos, self.geom_body, self.body_root, self._plane, self.max_force,
+        )
+        if nbad or nhuge:
+            self.n_clamped += int(nbad + nhuge)
+            self._warn_once(
+                "force",
+                f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
+                "velocities clamped (exploding simulation?); reported once",
+            )
+        return ContactFrame(
+            geom=geom,
+            pos=pos,
+            normal=normal,
+            dist=dist,
+            force_n=fn,
+            force=fn[:, None] * normal,
+            vel_rel=vel_rel,
+            v_approach=vapp,
+            v_slip=v_slip,
+            v_roll=v_roll,
+        )
+
+    @staticmethod
+    def local_points(data, cf: ContactFrame) -> np.ndarray:
+        """Contact points in each geom's frame, (n, 2, 3) [m]."""
+        xpos = np.asarray(data.geom_xpos)[cf.geom]  # (n,2,3)
+        xmat = np.asarray(data.geom_xmat)[cf.geom].reshape(-1, 2, 3, 3)
+        d = cf.pos[:, None, :] - xpos
+        return np.einsum("nkji,nkj->nki", xmat, d)
+
+    # ------------------------------------------------------------------ events
+    def events(self, data, t0: float | None = None, t1: float | None = None, frame: ContactFrame | None = None):
+        """Read the last step's contacts and return its sound events.
+
+        Parameters
+        ----------
+        data : mujoco.MjData
+            Right after ``mj_step`` (or ``mj_forward`` for replay).
+        t0, t1 : float, optional
+            The step's time interval [s]; default ``data.time - timestep`` and ``data.time``.
+        frame : ContactFrame, optional
+            A frame already read with :meth:`read`.
+
+        Returns
+        -------
+        (impacts, contacts, frame) : (list[ImpactEvent], list[ContactEvent], ContactFrame | None)
+        """
+        dt = float(self.model.opt.timestep)
+        if t1 is None:
+            t1 = float(data.time)
+        if t0 is None:
+            t0 = t1 - dt
+        step_dt = t1 - t0
+        self._step += 1
+        step = self._step
+        cf = self.read(data) if frame is None else frame
+        impacts: list[ImpactEvent] = []
+        contacts: list[ContactEvent] = []
+        if cf is not None:
+            order, starts, pkey, vmax, ftot, slip, roll, point, normal = _pair_kernel(
+                cf.geom, self.model.ngeom, cf.force_n, cf.v_approach, cf.v_slip, cf.v_roll, cf.pos, cf.normal
+            )
+            pairs = self._pairs
+            vm_l, ft_l, sl_l, ro_l = vmax.tolist(), ftot.tolist(), slip.tolist(), roll.tolist()
+            st_l = starts.tolist()
+            for p, key in enumerate(pkey.tolist()):
+                pair = pairs.get(key)
+                if pair is None:
+                    pair = pairs[key] = _Pair()
+                idx = order[st_l[p] : st_l[p + 1]]
+                self._pair_step(data, cf, idx, pair, t0, t1, step_dt, step, impacts, contacts,
+                                vm_l[p], ft_l[p], sl_l[p], ro_l[p], point[p], normal[p])
+                pair.last_step = step
+        # pairs that lost contact this step
+        if self._pairs:
+            gone = [k for k, p in self._pairs.items() if p.last_step != step]
+            for k in gone:
+                p = self._pairs.pop(k)
+                if p.record is not None:
+                    self._close(p.record)
+        return impacts, contacts, cf
+
+    def _pair_step(self, data, cf, idx, pair, t0, t1, dt, step, impacts, contacts, vmax, ftot, slip, roll,
+                   point, normal):
+        new_contact = pair.last_step != step - 1
+        fresh = new_contact or (vmax > 2.0 * max(pair.v_prev, 0.0))
+        # ---------------------------------------------------------------- impacts
+        if fresh and vmax > self.v_impact:
+            va = cf.v_approach[idx]
+            hit = idx[va > self.v_impact]
+            if pair.record is not None:
+                self._close(pair.record)
+            self._impact(data, cf, hit, t0, impacts, pair)
+        rec = pair.record
+        if rec is not None:
+            rec.impulse_sim += ftot * dt
+            rec.steps += 1
+            rec.duration = t1 - rec.time
+            tol = max(0.02 * rec.speed, 1e-3)
+            pair.calm = pair.calm + 1 if abs(vmax) < tol else 0
+            if pair.calm >= 2 or rec.duration >= self.max_event_s:
+                self._close(rec)
+                pair.record = None
+        pair.v_prev = vmax
+        # ---------------------------------------------------------------- sustained
+        if ftot <= 0.0:
+            return
+        if slip > self.v_slide and slip > 0.3 * roll:
+            kind, speed = "slide", slip
+        elif roll > self.v_roll:
+            kind, speed = "roll", roll
+        else:
+            return
+        i0 = int(idx[0])
+        contacts.append(
+            ContactEvent(kind, t0, t1, int(cf.geom[i0, 0]), int(cf.geom[i0, 1]), point, normal, ftot, speed)
+        )
+
+    def _restitution(self, g1, g2) -> float:
+        e1, e2 = self.restitution[g1], self.restitution[g2]
+        if np.isfinite(e1) and np.isfinite(e2):
+            return float(math.sqrt(e1 * e2))
+        if np.isfinite(e1):
+            return float(e1)
+        if np.isfinite(e2):
+            return float(e2)
+        return 0.5
+
+    def _impact(self, data, cf, hit, t0, impacts, pair):
+        mj = self._mj
+        m = self.model
+        k = len(hit)
+        nv = m.nv
+        g1, g2 = int(cf.geom[hit[0], 0]), int(cf.geom[hit[0], 1])
+        b1, b2 = int(self.geom_body[g1]), int(self.geom_body[g2])
+        e = self._restitution(g1, g2)
+        v = cf.v_approach[hit]
+        lam = None
+        if nv > 0:
+            Jn = np.zeros((k, nv))
+            jp = self._jacp
+            for row, i in enumerate(hit):
+                p = cf.pos[i]
+                n = cf.normal[i]
+                gi0, gi1 = int(cf.geom[i, 0]), int(cf.geom[i, 1])
+                for sign, body in ((1.0, int(self.geom_body[gi1])), (-1.0, int(self.geom_body[gi0]))):
+                    if body == 0:
+                        continue
+                    mj.mj_jac(m, data, jp, None, p, body)
+                    Jn[row] += sign * (n @ jp)
+            if np.isfinite(Jn).all() and np.abs(Jn).max() > 0:
+                MinvJt = np.zeros((k, nv))
+                mj.mj_solveM(m, data, MinvJt, Jn)
+                A = Jn @ MinvJt.T
+                A = 0.5 * (A + A.T)
+                if np.isfinite(A).all():
+                    # rcond: near-duplicate contacts make A nearly singular; do not amplify noise
+                    lam = np.linalg.pinv(A, rcond=1e-4) @ ((1.0 + e) * v)
+                    lam = np.maximum(lam, 0.0)
+        if lam is None or not np.isfinite(lam).all():
+            # No dofs (both static) or a degenerate system: unit-free fallback with body masses.
+            m1 = m.body_subtreemass[b1] if m.body_weldid[b1] != 0 else np.inf
+            m2 = m.body_subtreemass[b2] if m.body_weldid[b2] != 0 else np.inf
+            inv = (1.0 / m1 if np.isfinite(m1) and m1 > 0 else 0.0) + (1.0 / m2 if np.isfinite(m2) and m2 > 0 else 0.0)
+            mstar = 1.0 / inv if inv > 0 else 0.0
+            lam = (1.0 + e) * v * mstar / k
+        # The effective mass never exceeds the lighter moving tree: cap the total impulse.
+        caps = [m.body_subtreemass[m.body_rootid[b]] for b in (b1, b2) if m.body_weldid[b] != 0]
+        if caps and np.isfinite(lam).all():
+            cap = (1.0 + e) * float(v.max()) * min(caps)
+            tot = float(lam.sum())
+            if tot > cap > 0:
+                lam = lam * (cap / tot)
+        jmax = self.max_force * 0.01
+        if (lam > jmax).any():
+            self.n_clamped += 1
+            self._warn_once("impulse", f"mjsound: impact impulse above {jmax:g} N s clamped; reported once")
+            lam = np.minimum(lam, jmax)
+        vmax = float(v.max())
+        total = float(lam.sum())
+        mstar = total / ((1.0 + e) * vmax) if vmax > 0 else 0.0
+        for row, i in enumerate(hit):
+            if lam[row] <= 0:
+                continue
+            impacts.append(
+                ImpactEvent(
+                    time=t0,
+                    geom1=int(cf.geom[i, 0]),
+                    geom2=int(cf.geom[i, 1]),
+                    point=cf.pos[i].copy(),
+                    normal=cf.normal[i].copy(),
+                    impulse=float(lam[row]),
+                    speed=float(v[row]),
+                    effective_mass=float(lam[row] / ((1.0 + e) * v[row])) if v[row] > 0 else 0.0,
+                )
+            )
+        rec = ImpactRecord(
+            time=t0, geom1=g1, geom2=g2, speed=vmax, impulse_pred=total, impulse_sim=0.0,
+            restitution=e, effective_mass=mstar,
+        )
+        pair.record = rec
+        pair.calm = 0
+        self.n_impacts += 1
+        self.impacts.append(rec)
+        if len(self.impacts) > self.keep_records:
+            del self.impacts[: len(self.impacts) - self.keep_records]
+
+    @staticmethod
+    def _close(rec: ImpactRecord) -> None:
+        rec.open = False

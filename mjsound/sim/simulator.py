@@ -1,0 +1,356 @@
+"""`AudioSimulator`: the per-step driver, MuJoCo contacts -> synthesizer -> audio blocks.
+
+Time alignment
+--------------
+Sample ``n`` belongs to simulation time ``n / fs``. The step that advances the simulation
+from ``t_k`` to ``t_{k+1}`` returns exactly the samples with ``t_k <= n/fs < t_{k+1}``, i.e.
+``n`` from ``ceil(t_k fs)`` to ``ceil(t_{k+1} fs) - 1``. The boundaries are computed in
+exact integer arithmetic: the timestep and the start time are turned into fractions
+(``Fraction.limit_denominator(10**9)``, which recovers 1/1000, 7/10000, 1/3000 ... exactly)
+and ``t_k = t_start + k * dt`` is never accumulated in floating point, so the total over a
+run of ``T`` seconds is ``ceil(T fs)`` (``= round(T fs)`` whenever ``T fs`` is an integer,
+e.g. any whole number of milliseconds at 48 kHz) with no drift over hours. If ``data.time``
+jumps (the user reset it, or changed the timestep) the clock re-anchors at the new time.
+
+Events found in the step ``[t_k, t_{k+1})`` are timed at ``t_k`` (see
+:mod:`mjsound.sim.contacts`), which is never earlier than what was already rendered, so the
+block is rendered right after they are queued and nothing is delayed.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from fractions import Fraction
+
+import numpy as np
+
+from .contacts import ContactReader
+from .scene import SoundScene, geom_contact_radius
+
+__all__ = ["AudioSimulator", "SampleClock"]
+
+
+class SampleClock:
+    """Maps physics steps to sample ranges exactly (no floating-point drift).
+
+    Parameters
+    ----------
+    sample_rate : int
+        Samples per second (integer) [Hz].
+    timestep : float
+        Physics step [s].
+    t_start : float
+        Simulation time of the first step's start [s].
+    """
+
+    def __init__(self, sample_rate: int, timestep: float, t_start: float = 0.0):
+        self.fs = int(sample_rate)
+        if self.fs != sample_rate or self.fs <= 0:
+            raise ValueError(f"sample_rate must be a positive integer, got {sample_rate}")
+        self.anchor(timestep, t_start)
+
+    def anchor(self, timestep: float, t_start: float) -> None:
+        """Restart counting from ``t_start`` with step ``timestep``."""
+        if not (np.isfinite(timestep) and timestep > 0):
+            raise ValueError(f"timestep must be positive, got {timestep}")
+        self.timestep = float(timestep)
+        self.t_start = float(t_start)
+        dt = Fraction(self.timestep).limit_denominator(10**9)
+        t0 = Fraction(self.t_start).limit_denominator(10**9)
+        den = dt.denominator * t0.denominator // _gcd(dt.denominator, t0.denominator)
+        self._den = den
+        self._a0 = t0.numerator * (den // t0.denominator)
+        self._b = dt.numerator * (den // dt.denominator)
+        self.k = 0
+        self.n = self.sample_at(0)
+
+    def sample_at(self, k: int) -> int:
+        """First sample at or after ``t_start + k * timestep``: ``ceil(t fs)``."""
+        num = (self._a0 + k * self._b) * self.fs
+        return -((-num) // self._den)
+
+    def time_at(self, k: int) -> float:
+        """``t_start + k * timestep`` [s] (float, for reporting)."""
+        return float(Fraction(self._a0 + k * self._b, self._den))
+
+    def advance(self) -> tuple[int, int]:
+        """Step once; returns ``(n0, n1)``, the step's samples ``n0 <= n < n1``."""
+        n0 = self.n
+        self.k += 1
+        self.n = self.sample_at(self.k)
+        return n0, self.n
+
+
+def _gcd(a: int, b: int) -> int:
+    import math
+
+    return math.gcd(a, b)
+
+
+class AudioSimulator:
+    """Sound for a running MuJoCo simulation, one audio block per physics step.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel | str
+        The model (or an MJCF path).
+    data : mujoco.MjData, optional
+        Its data (created when omitted).
+    scene : SoundScene, optional
+        A prepared scene; built with :meth:`SoundScene.from_model` otherwise.
+    sample_rate : int
+        Audio sample rate [Hz].
+    materials, microphones, budget_modes, quality, progress
+        Passed to :meth:`SoundScene.from_model` when ``scene`` is None.
+    synth_kwargs : dict, optional
+        Extra keyword arguments for :class:`mjsound.synth.synthesizer.Synthesizer`.
+    reader_kwargs : dict, optional
+        Extra keyword arguments for :class:`ContactReader` (thresholds).
+    sustained : bool
+        Drive sliding and rolling sound (default True).
+
+    Notes
+    -----
+    Call :meth:`step` right after every ``mj_step`` (or let :meth:`advance` / :meth:`run` do
+    the stepping). Each call returns ``(channels, n)`` float32 pascals: exactly the samples
+    of the step just taken. ``events`` counts what was emitted.
+
+    Examples
+    --------
+    >>> sim = AudioSimulator(model, data)            # doctest: +SKIP
+    >>> for _ in range(1000):                         # doctest: +SKIP
+    ...     mujoco.mj_step(model, data)
+    ...     block = sim.step()
+    """
+
+    def __init__(
+        self,
+        model,
+        data=None,
+        scene: SoundScene | None = None,
+        sample_rate: int = 48000,
+        materials: dict | None = None,
+        microphones=None,
+        budget_modes: int | None = None,
+        quality: str = "default",
+        progress: bool = True,
+        synth_kwargs: dict | None = None,
+        reader_kwargs: dict | None = None,
+        sustained: bool = True,
+        keep_events: int = 100_000,
+    ):
+        import mujoco
+
+        self._mj = mujoco
+        if not isinstance(model, mujoco.MjModel):
+            if scene is not None:
+                model = scene.model
+            else:
+                import os
+
+                model = mujoco.MjModel.from_xml_path(os.fspath(model))
+        self.model = model
+        self.data = data if data is not None else mujoco.MjData(model)
+        if scene is None:
+            scene = SoundScene.from_model(
+                model,
+                materials=materials,
+                microphones=microphones,
+                budget_modes=budget_modes,
+                sample_rate=sample_rate,
+                quality=quality,
+                progress=progress,
+            )
+        self.scene = scene
+        self.sample_rate = int(sample_rate)
+        self.sustained = bool(sustained)
+        self.keep_events = int(keep_events)
+        restitution = [m.restitution if m is not None else None for m in scene.geom_material]
+        self.reader = ContactReader(model, restitution=restitution, **(reader_kwargs or {}))
+        self._sounding = scene.by_geom()
+        self._names = {g: s.name for g, s in self._sounding.items()}
+        self._dynamic = [s for s in scene.sounding if s.dynamic]
+        self._radius = np.array([geom_contact_radius(model, g) for g in range(model.ngeom)])
+        m = model
+        self._other_mass = np.array(
+            [m.body_subtreemass[m.geom_bodyid[g]] if m.body_weldid[m.geom_bodyid[g]] != 0 else np.inf for g in range(m.ngeom)]
+        )
+        self.n_channels = max(1, len(scene.mic_positions))
+        self.synth = None
+        if not np.any(np.asarray(self.data.geom_xmat)):
+            mujoco.mj_kinematics(model, self.data)  # poses for add_object (state is unchanged)
+        if scene.sounding:
+            from ..synth.synthesizer import Synthesizer
+
+            kw = dict(synth_kwargs or {})
+            self.synth = Synthesizer(sample_rate=self.sample_rate, microphones=np.asarray(scene.mic_positions), **kw)
+            for s in scene.sounding:
+                self.synth.add_object(
+                    s.name,
+                    s.model,
+                    position=np.array(self.data.geom_xpos[s.geom_id]),
+                    rotation=np.array(self.data.geom_xmat[s.geom_id]).reshape(3, 3),
+                )
+        self.reset(clear_reader=True)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, clear_reader: bool = True) -> None:
+        """Silence all ringing, forget contact state and re-anchor the clock at ``data.time``."""
+        if self.synth is not None:
+            self.synth.reset()
+        if clear_reader:
+            self.reader.reset()
+        self.clock = SampleClock(self.sample_rate, float(self.model.opt.timestep), float(self.data.time))
+        self._origin = self.clock.n  # synth sample 0 is absolute sample n = origin
+        self.events = {"impact": 0, "slide": 0, "roll": 0}
+        self.event_log = []  # (time [s], kind, geom1, geom2, impulse [N s] or speed [m/s])
+        self.samples = 0
+        self.steps = 0
+        self.seconds_contacts = 0.0
+        self.seconds_synth = 0.0
+        self._mic_cache = None
+
+    # ------------------------------------------------------------------ stepping
+    def _sync_clock(self) -> None:
+        """Re-anchor when ``data.time`` or the timestep no longer match the count."""
+        dt = float(self.model.opt.timestep)
+        c = self.clock
+        t_expect = c.t_start + (c.k + 1) * c.timestep
+        if dt != c.timestep or abs(float(self.data.time) - t_expect) > 0.25 * dt:
+            # the synthesizer keeps counting where it stopped; re-map absolute samples onto it
+            n_prev = c.n
+            c.anchor(dt, float(self.data.time) - dt)
+            self._origin += c.n - n_prev
+
+    def step(self) -> np.ndarray:
+        """Process the step just taken by ``mj_step``; return its audio block.
+
+        Returns
+        -------
+        (channels, n) float32 array
+            Sound pressure at each microphone [Pa] for the samples ``t_k <= n/fs < t_{k+1}``.
+        """
+        self._sync_clock()
+        n0, n1 = self.clock.advance()
+        return self._process(n0, n1)
+
+    def _process(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> np.ndarray:
+        fs = self.sample_rate
+        if t0 is None:
+            t0 = self.clock.time_at(self.clock.k - 1)
+            t1 = self.clock.time_at(self.clock.k)
+        self.steps += 1
+        nblock = n1 - n0
+        if self.synth is None:
+            # nothing sounds: no contact work at all
+            self.samples += nblock
+            return np.zeros((self.n_channels, nblock), dtype=np.float32)
+        tc = _time.perf_counter()
+        impacts, contacts, _ = self.reader.events(self.data, t0, t1)
+        self.seconds_contacts += _time.perf_counter() - tc
+        synth = self.synth
+        data = self.data
+        # poses and microphones at t_k (the state the contacts belong to)
+        for s in self._dynamic:
+            p = data.geom_xpos[s.geom_id]
+            R = data.geom_xmat[s.geom_id]
+            if np.isfinite(p).all() and np.isfinite(R).all():
+                synth.set_pose(s.name, np.array(p), np.array(R).reshape(3, 3))
+        if self.scene.mic_site_ids and self.scene.mics_move:
+            mics = np.array(data.site_xpos[self.scene.mic_site_ids])
+            if np.isfinite(mics).all():
+                synth.set_microphones(mics)
+        # synth time: sample index relative to the synthesizer's sample 0
+        base = self._origin / fs
+        t_floor = (n0 - self._origin) / fs  # what the synthesizer has rendered [s]
+        names = self._names
+        for ev in impacts:
+            te = max(ev.time - base, t_floor)
+            for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
+                name = names.get(g)
+                if name is None:
+                    continue
+                synth.impact(
+                    name,
+                    ev.point,
+                    sign * ev.impulse * ev.normal,
+                    te,
+                    other_material=self.scene.geom_material[other],
+                    other_mass_kg=float(self._other_mass[other]),
+                    other_radius_m=float(self._radius[other]),
+                    speed=ev.speed,
+                    radius_m=float(self._radius[g]) if np.isfinite(self._radius[g]) else None,
+                )
+            self.events["impact"] += 1
+            if len(self.event_log) < self.keep_events:
+                self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
+        if self.sustained:
+            for ev in contacts:
+                ta = max(ev.t0 - base, t_floor)
+                tb = max(ev.t1 - base, ta)
+                for g, sign in ((ev.geom2, 1.0), (ev.geom1, -1.0)):
+                    name = names.get(g)
+                    if name is None:
+                        continue
+                    fn = getattr(synth, ev.kind)
+                    fn(name, ev.point, sign * ev.normal, ev.force_n, ev.speed, ta, tb)
+                self.events[ev.kind] += 1
+                if len(self.event_log) < self.keep_events:
+                    self.event_log.append((ev.t0, ev.kind, ev.geom1, ev.geom2, ev.speed))
+        out = synth.render(nblock)
+        self.seconds_synth += _time.perf_counter() - tc
+        self.samples += nblock
+        if not np.isfinite(out).all():  # never hand out NaN audio
+            out = np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+        return out
+
+    def advance(self, nstep: int = 1) -> np.ndarray:
+        """``mj_step`` then :meth:`step`, ``nstep`` times; the blocks concatenated."""
+        blocks = []
+        for _ in range(int(nstep)):
+            self._mj.mj_step(self.model, self.data)
+            blocks.append(self.step())
+        return np.concatenate(blocks, axis=1) if blocks else np.zeros((self.n_channels, 0), np.float32)
+
+    def run(self, duration: float, callback=None) -> np.ndarray:
+        """Simulate ``duration`` seconds (``round(duration / timestep)`` steps) with sound.
+
+        Parameters
+        ----------
+        duration : float
+            Simulated time [s].
+        callback : callable, optional
+            ``callback(model, data)`` before every ``mj_step`` (e.g. to set controls).
+
+        Returns
+        -------
+        (channels, n) float32 array [Pa], ``n = ceil(t_end fs) - ceil(t_start fs)``.
+        """
+        nsteps = int(round(float(duration) / float(self.model.opt.timestep)))
+        out = np.zeros((self.n_channels, 0), np.float32)
+        blocks = []
+        for _ in range(nsteps):
+            if callback is not None:
+                callback(self.model, self.data)
+            self._mj.mj_step(self.model, self.data)
+            blocks.append(self.step())
+        if blocks:
+            out = np.concatenate(blocks, axis=1)
+        return out
+
+    # ------------------------------------------------------------------ reporting
+    @property
+    def impacts(self):
+        """:class:`ImpactRecord` list (predicted vs MuJoCo impulse) of the reader."""
+        return self.reader.impacts
+
+    def stats(self) -> dict:
+        """Counts and timings so far."""
+        return {
+            "steps": self.steps,
+            "samples": self.samples,
+            "events": dict(self.events),
+            "contact_us_per_step": 1e6 * self.seconds_contacts / max(self.steps, 1),
+            "synth_us_per_step": 1e6 * (self.seconds_synth - self.seconds_contacts) / max(self.steps, 1),
+            "clamped": self.reader.n_clamped,
+        }

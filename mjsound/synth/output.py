@@ -1,0 +1,209 @@
+"""Pressure to full scale, and audio files (WAV/FLAC via soundfile), streamed and atomic.
+
+Full scale
+----------
+The synthesizer outputs sound pressure in pascals. Files and observations map a documented
+full-scale pressure ``full_scale_pa`` to 1.0 (``DEFAULT_FULL_SCALE_PA = 20 Pa``, i.e.
+120 dB SPL re 20 uPa: a loud hammer blow close to the ear just fits). Samples beyond +-1
+are clipped and counted; NaN is mapped to 0 and counted as clipped (never written).
+
+``soundfile`` is imported only when a file is written.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+
+__all__ = ["DEFAULT_FULL_SCALE_PA", "to_full_scale", "normalize_peak", "AudioWriter", "write_audio"]
+
+#: Pressure [Pa] mapped to digital full scale (1.0): 20 Pa = 120 dB SPL.
+DEFAULT_FULL_SCALE_PA = 20.0
+
+
+def to_full_scale(pressure, full_scale_pa: float = DEFAULT_FULL_SCALE_PA):
+    """Map pressure [Pa] to [-1, 1].
+
+    Parameters
+    ----------
+    pressure : array_like
+        Sound pressure [Pa], any shape (e.g. (channels, n)).
+    full_scale_pa : float
+        Pressure mapped to 1.0 (> 0).
+
+    Returns
+    -------
+    audio : float32 ndarray, same shape, in [-1, 1]
+    n_clipped : int
+        Number of samples that were outside [-1, 1] or not finite.
+    """
+    fs_pa = float(full_scale_pa)
+    if not np.isfinite(fs_pa) or fs_pa <= 0:
+        raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure in Pa (e.g. 20)")
+    x = np.asarray(pressure, dtype=np.float64) / fs_pa
+    bad = ~np.isfinite(x)
+    over = np.abs(np.where(bad, 0.0, x)) > 1.0
+    n_clipped = int(bad.sum() + over.sum())
+    x = np.where(bad, 0.0, np.clip(x, -1.0, 1.0))
+    return x.astype(np.float32), n_clipped
+
+
+def normalize_peak(audio, peak: float = 0.891):
+    """Scale so that the largest |sample| is ``peak`` (default -1 dBFS); silence stays silent.
+
+    For offline files only: it discards the absolute level. Returns float32.
+    """
+    a = np.nan_to_num(np.asarray(audio, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    m = np.abs(a).max() if a.size else 0.0
+    if m > 0:
+        a = a * (float(peak) / m)
+    return a.astype(np.float32)
+
+
+def _format_for(path, fmt):
+    if fmt:
+        return fmt.upper()
+    ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    return {"wav": "WAV", "flac": "FLAC", "ogg": "OGG", "aiff": "AIFF", "aif": "AIFF"}.get(ext, "WAV")
+
+
+class AudioWriter:
+    """Stream audio blocks to a WAV/FLAC file; the file appears complete or not at all.
+
+    Blocks are written to a temporary file in the target's directory and renamed over
+    ``path`` by :meth:`close` (``os.replace``, atomic); an exception inside a ``with`` block
+    (or :meth:`abort`) deletes the temporary file and leaves ``path`` untouched.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Output file (.wav or .flac).
+    sample_rate : int
+        [Hz].
+    channels : int
+        Number of channels.
+    subtype : str, optional
+        soundfile subtype; default ``"FLOAT"`` for WAV (exact, keeps values beyond 1) and
+        ``"PCM_24"`` for FLAC (integer only).
+    full_scale_pa : float or None
+        If given, blocks are pressure [Pa] and are mapped with :func:`to_full_scale`; if
+        ``None`` they are written as given (already in [-1, 1]; NaN becomes 0).
+
+    Attributes
+    ----------
+    n_clipped : int
+        Clipped samples so far.  frames : int  Frames written.
+
+    Examples
+    --------
+    >>> with AudioWriter("out.wav", 48000, 1, full_scale_pa=20.0) as w:   # doctest: +SKIP
+    ...     w.write(syn.render(4800))          # (channels, n) blocks
+    """
+
+    def __init__(self, path, sample_rate, channels=1, subtype=None, format=None, full_scale_pa=None):
+        import soundfile as sf
+
+        self.path = os.fspath(path)
+        self.sample_rate = int(sample_rate)
+        self.channels = int(channels)
+        if self.channels < 1:
+            raise ValueError("channels must be >= 1")
+        self.format = _format_for(self.path, format)
+        if subtype is None:
+            subtype = "FLOAT" if self.format == "WAV" else "PCM_24"
+        self.subtype = subtype
+        self.full_scale_pa = full_scale_pa
+        self.n_clipped = 0
+        self.frames = 0
+        d = os.path.dirname(os.path.abspath(self.path)) or "."
+        os.makedirs(d, exist_ok=True)
+        fd, self._tmp = tempfile.mkstemp(dir=d, prefix=".tmp-audio-", suffix="." + self.format.lower())
+        os.close(fd)
+        try:
+            self._f = sf.SoundFile(self._tmp, "w", samplerate=self.sample_rate, channels=self.channels,
+                                   subtype=self.subtype, format=self.format)
+        except Exception:
+            os.unlink(self._tmp)
+            raise
+        self._closed = False
+
+    def write(self, block) -> None:
+        """Write a (channels, n) block (a 1-D array is one channel)."""
+        if self._closed:
+            raise ValueError("AudioWriter is closed")
+        b = np.asarray(block)
+        if b.ndim == 1:
+            b = b[None, :]
+        if b.shape[0] != self.channels:
+            raise ValueError(f"block has {b.shape[0]} channels, the writer {self.channels}; give (channels, n)")
+        if self.full_scale_pa is not None:
+            b, nc = to_full_scale(b, self.full_scale_pa)
+        else:
+            bad = ~np.isfinite(b)
+            nc = int(bad.sum())
+            b = np.where(bad, 0.0, b).astype(np.float32)
+            if self.subtype.startswith("PCM"):
+                over = np.abs(b) > 1
+                nc += int(over.sum())
+                b = np.clip(b, -1, 1)
+        self.n_clipped += nc
+        self._f.write(np.ascontiguousarray(b.T))
+        self.frames += b.shape[1]
+
+    def close(self) -> None:
+        """Finish the file and move it into place (atomic)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._f.close()
+        os.replace(self._tmp, self.path)
+
+    def abort(self) -> None:
+        """Discard everything written; ``path`` is left as it was."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._f.close()
+        finally:
+            if os.path.exists(self._tmp):
+                os.unlink(self._tmp)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+        return False
+
+
+def write_audio(path, audio, sample_rate, *, full_scale_pa=None, normalize=False, subtype=None, format=None) -> int:
+    """Write a whole (channels, n) array (or 1-D) to ``path`` atomically.
+
+    Parameters
+    ----------
+    audio : array_like
+        Pressure [Pa] if ``full_scale_pa`` is given, else samples in [-1, 1].
+    normalize : bool or float
+        Peak-normalise first (``True``: to -1 dBFS, or the given peak); the level is lost.
+
+    Returns
+    -------
+    int : number of clipped samples.
+    """
+    a = np.asarray(audio, dtype=np.float64)
+    if a.ndim == 1:
+        a = a[None, :]
+    n = 0
+    if normalize:
+        a = normalize_peak(a, 0.891 if normalize is True else float(normalize))
+    elif full_scale_pa is not None:
+        a, n = to_full_scale(a, full_scale_pa)
+    with AudioWriter(path, sample_rate, a.shape[0], subtype=subtype, format=format) as w:
+        w.write(a)
+    return n + w.n_clipped

@@ -1,0 +1,705 @@
+"""`Synthesizer`: modal sound from impacts, sliding, rolling and force signals.
+
+Physics (see ``DESIGN.md``, "Exciting a mode")
+-----------------------------------------------
+Mode i of an object has decay ``d_i`` [1/s], damped angular frequency ``w_i`` [rad/s],
+``lambda_i = -d_i + j w_i`` and mass-normalised shape ``phi_i(x)`` [1/sqrt(kg)]. An impulse
+``J`` [N s] at surface point x at time ``t_e`` adds the complex modal amplitude::
+
+    c_i = (phi_i(x) . J) / w_i * S_i          [m sqrt(kg)]
+
+with ``S_i = S(w_i; tau)`` the half-sine contact pulse spectrum (:mod:`.pulse`, ``tau`` from
+Hertz theory), and the modal coordinate rings as ``q_i(t) = Im(c_i e^{lambda_i (t - t_e)})``.
+
+Radiation and microphones (DESIGN.md, "Radiation, microphones, output")
+------------------------------------------------------------------------
+Each object reaches microphone m, at distance ``r`` from the object's origin, as::
+
+    p_m(t) = sum_i  w_i q_i(t - r/c) / r        [Pa]
+
+where ``w_i`` is ``model.radiation[i]`` [Pa m per unit modal coordinate] (``radiation=True``)
+or, with ``radiation=False``, a plain modal-acceleration proxy
+``w_i = -w_i^2 * rho_air / (4 pi) * size^2 * rms_x(phi_i(x) . n(x))`` (a compact source whose
+volume acceleration is the mode's rms normal acceleration times ``size^2``; same units, Pa m,
+but only a rough level). ``r`` is clamped to at least ``R_MIN_M`` and is computed when the event
+is added (moving objects and microphones take effect for later events; ringing already
+excited keeps the distance of its event).
+
+Discretisation
+--------------
+Each (object, microphone) pair is one *voice*: a bank of complex oscillators
+``z_i[n+1] = p_i z_i[n]``, ``p_i = e^{lambda_i / fs}``, whose output at sample n is
+``sum_i Im z_i[n]``. Sample n is simulation time ``n / fs``. An event arriving at time
+``t_a = t_e + r/c`` enters at sample ``n_a = ceil(t_a fs)`` with the exact phase
+``c_i w_i / r * e^{lambda_i (n_a / fs - t_a)}``, so timing and delay are exact to far below
+a sample. Amplitudes are computed in float64; the bank state is float32 (default) or
+float64. Modes with ``f >= 0.45 fs`` (or above ``f_max``) or overdamped (``d >= omega``) are
+dropped when the object is added; a mode with ``d <= 0`` gets ``D_MIN_PER_S`` so no pole can
+reach the unit circle. The rounded pole's systematic error is cancelled on a fixed grid of
+``GRID`` samples (see :mod:`.kernels`), which keeps hours of ringing on the closed form.
+
+Determinism: the same calls with the same ``seed`` give bit-identical audio, however
+:meth:`Synthesizer.render` is split into blocks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..modal.model import ModalModel
+from . import kernels
+from .pulse import TAU_MAX_S, TAU_MIN_S, effective, half_sine_spectrum
+
+__all__ = ["Synthesizer", "GRID", "D_MIN_PER_S", "R_MIN_M", "TIME_TOLERANCE_S"]
+
+#: Samples between exact-pole corrections / culling checks (absolute grid).
+GRID = 256
+#: Decay rate [1/s] given to modes whose damping is zero or negative (e-folding in 1000 s).
+D_MIN_PER_S = 1e-3
+#: Smallest source-microphone distance [m] used for 1/r.
+R_MIN_M = 0.01
+#: Events up to this much before the rendered time are accepted (and start now) [s].
+TIME_TOLERANCE_S = 1e-6
+#: Air density for the ``radiation=False`` proxy [kg/m^3].
+RHO_AIR = 1.2
+#: Absolute amplitude floor [Pa at the microphone]: modes below it are culled.
+FLOOR_PA = 1e-30
+#: Largest accepted modal amplitude at a microphone [Pa]; above it the input is rejected.
+MAX_AMPLITUDE = 1e30
+#: Sliding: force fluctuation per newton of normal force and per m/s of speed [1/(m/s)].
+SLIDE_ROUGHNESS = 0.05
+#: Sliding: roughness grain [m]; the noise is low-passed at speed / grain.
+SLIDE_GRAIN_M = 20e-6
+#: Rolling: force fluctuation per newton of normal force and per m/s of speed [1/(m/s)].
+ROLL_ROUGHNESS = 0.05
+#: Rolling: contact-patch length [m]; the noise is low-passed at speed / length
+#: (van den Doel et al. 2001: rolling filters the roughness through the contact patch).
+ROLL_PATCH_M = 2e-3
+
+_SAMPLE_TOL = 1e-6  # in samples: ceil(x - tol) so on-sample times are not pushed one late
+
+
+def _finite_array(x, _unused, what, fix):
+    try:
+        a = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be numeric; {fix}") from None
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} contains NaN or Inf; {fix}")
+    return a
+
+
+class _Voice:
+    """State of one (object, microphone) pair."""
+
+    __slots__ = ("zr", "zi", "peak2", "active", "events", "sources")
+
+    def __init__(self, n):
+        self.zr = np.zeros(n)
+        self.zi = np.zeros(n)
+        self.peak2 = np.zeros(n)
+        self.active = np.zeros(n, dtype=np.bool_)
+        self.events = []  # list of (n_a int64 (k,), kind int8 (k,), amps complex128 (k, n))
+        self.sources = []  # list of (a, b, g complex128 (n,), f float64 (b - a,))
+
+
+class _Object:
+    pass
+
+
+class Synthesizer:
+    """Real-time modal synthesizer for any number of objects and microphones.
+
+    Parameters
+    ----------
+    sample_rate : int
+        Output sample rate [Hz], 1000..768000.
+    microphones : (m, 3) array_like or None
+        World positions of the microphones [m], one output channel each. ``None`` gives one
+        default listener at (0, 0, 1) m.
+    dtype : {"float32", "float64"}
+        Oscillator state precision (float32 is about twice as fast; its error against float64
+        is below -80 dB of peak).
+    cull_db : float or None
+        A mode whose amplitude fell this far below its peak since it was last excited stops
+        costing anything until re-excited (default -100 dB). ``None`` disables culling (an
+        absolute floor of 1e-30 Pa still applies).
+    radiation : bool
+        Use the models' far-field radiation estimate (``True``) or the modal-acceleration proxy.
+    speed_of_sound : float
+        c [m/s] for the propagation delay r / c.
+    seed : int
+        Seed of the sliding / rolling noise; same calls and seed give bit-identical audio.
+    f_max : float or None
+        Drop modes above this frequency [Hz] (always also above 0.45 * sample_rate).
+
+    Attributes
+    ----------
+    sample_rate : int
+    n_channels : int
+        Number of microphones.
+    samples_rendered : int
+        Samples produced by :meth:`render` since construction / :meth:`reset`.
+    time : float
+        ``samples_rendered / sample_rate`` [s]: the earliest time a new event may have.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mjsound import ModalModel, get_material
+    >>> m = ModalModel([440.0], [3.0], [[0, 0, 0]], [[0, 0, 1]], np.ones((1, 3, 1)), [1.0],
+    ...                get_material("steel"), mass_kg=0.1)
+    >>> syn = Synthesizer(48000, microphones=[[0, 0, 1]])
+    >>> syn.add_object("bell", m)
+    >>> syn.impact("bell", [0, 0, 0], [0, 0, 0.01], time=0.0)
+    >>> syn.render(4800).shape
+    (1, 4800)
+    """
+
+    def __init__(self, sample_rate=48000, microphones=None, dtype="float32", cull_db=-100.0,
+                 radiation=True, speed_of_sound=343.0, seed=0, f_max=None):
+        try:
+            fs = float(sample_rate)
+        except (TypeError, ValueError):
+            fs = float("nan")
+        if not math.isfinite(fs) or fs < 1000 or fs > 768000 or fs != int(fs):
+            raise ValueError(
+                f"sample_rate={sample_rate!r} is invalid: give an integer number of samples per "
+                "second between 1000 and 768000, e.g. 48000"
+            )
+        dt = np.dtype(dtype)
+        if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+            raise ValueError(f"dtype={dtype!r} is invalid: use 'float32' (default) or 'float64'")
+        if cull_db is not None:
+            cull_db = float(cull_db)
+            if math.isnan(cull_db) or cull_db > 0:
+                raise ValueError(f"cull_db={cull_db!r} must be <= 0 dB (e.g. -100) or None")
+        c = float(speed_of_sound)
+        if not math.isfinite(c) or c <= 0:
+            raise ValueError(f"speed_of_sound={speed_of_sound!r} must be a positive finite speed in m/s")
+        if f_max is not None:
+            f_max = float(f_max)
+            if not f_max > 0:
+                raise ValueError(f"f_max={f_max!r} must be a positive frequency in Hz or None")
+        self.sample_rate = int(fs)
+        self.dtype = dt
+        self.cull_db = cull_db
+        self._cull2 = 0.0 if cull_db is None else 10.0 ** (cull_db / 10.0)
+        self.radiation = bool(radiation)
+        self.speed_of_sound = c
+        self.seed = int(seed)
+        self.f_max = f_max
+        self._objects: dict[str, _Object] = {}
+        self._next_index = 0
+        self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
+        self.samples_rendered = 0
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def n_channels(self) -> int:
+        return len(self._mics)
+
+    @property
+    def time(self) -> float:
+        return self.samples_rendered / self.sample_rate
+
+    @property
+    def microphones(self) -> np.ndarray:
+        """(m, 3) world positions of the microphones [m] (a copy)."""
+        return self._mics.copy()
+
+    @property
+    def objects(self) -> list[str]:
+        return list(self._objects)
+
+    def n_modes(self, name) -> int:
+        """Modes of object ``name`` that are run (after dropping those above the band)."""
+        return len(self._get(name).keep)
+
+    def active_modes(self, name) -> int:
+        """Modes of ``name`` currently running (summed over microphones)."""
+        return int(sum(v.active.sum() for v in self._get(name).voices))
+
+    # ------------------------------------------------------------------ setup
+    @staticmethod
+    def _check_mics(positions):
+        p = _finite_array(positions, None, "microphones", "give (m, 3) world positions in metres")
+        p = p.reshape(-1, 3) if p.size % 3 == 0 and p.size > 0 else None
+        if p is None:
+            raise ValueError("microphones must be (m, 3) world positions in metres with m >= 1")
+        return p.copy()
+
+    def set_microphones(self, positions) -> None:
+        """Move the microphones ((m, 3) world positions [m]).
+
+        Applies to events added afterwards. If the number changes, channels that remain keep
+        their ringing state, new channels start silent and dropped channels are discarded.
+        """
+        p = self._check_mics(positions)
+        old = len(self._mics)
+        self._mics = p
+        for ob in self._objects.values():
+            n = len(ob.keep)
+            ob.voices = ob.voices[: len(p)] + [_Voice(n) for _ in range(max(0, len(p) - old))]
+
+    @staticmethod
+    def _check_pose(position, rotation, name):
+        pos = _finite_array(position, None, f"position of {name!r}", "give 3 finite coordinates in metres")
+        if pos.shape != (3,):
+            raise ValueError(f"position of {name!r} must have 3 coordinates, got shape {pos.shape}")
+        R = _finite_array(rotation, None, f"rotation of {name!r}", "give a 3x3 rotation matrix")
+        if R.shape != (3, 3) or not np.allclose(R.T @ R, np.eye(3), atol=1e-4):
+            raise ValueError(f"rotation of {name!r} must be a 3x3 orthonormal matrix (object -> world)")
+        return pos.copy(), R.copy()
+
+    def add_object(self, name: str, model: ModalModel, position=(0.0, 0.0, 0.0), rotation=np.eye(3)) -> None:
+        """Add a sounding object.
+
+        Parameters
+        ----------
+        name : str
+            Unique name used by the excitation methods.
+        model : ModalModel
+            Its modes. Modes at or above ``0.45 * sample_rate`` (or ``f_max``) and overdamped
+            modes are dropped; zero or negative decay becomes ``D_MIN_PER_S``.
+        position : (3,) array_like
+            World position of the object frame's origin [m].
+        rotation : (3, 3) array_like
+            Object-to-world rotation matrix.
+        """
+        name = str(name)
+        if name in self._objects:
+            raise ValueError(f"object {name!r} already exists; use another name or set_pose() to move it")
+        if not isinstance(model, ModalModel):
+            raise ValueError(f"model for {name!r} must be a mjsound.ModalModel, got {type(model).__name__}")
+        pos, R = self._check_pose(position, rotation, name)
+        rad = np.asarray(model.radiation, dtype=np.float64)
+        if self.radiation and not np.all(np.isfinite(rad)):
+            raise ValueError(f"model of {name!r} has non-finite radiation values; recompute it or use radiation=False")
+        fs = self.sample_rate
+        f = model.frequencies_hz
+        d = np.where(model.decay_per_s > 0, model.decay_per_s, D_MIN_PER_S)
+        w0 = 2 * np.pi * f
+        limit = 0.45 * fs if self.f_max is None else min(0.45 * fs, self.f_max)
+        keep = np.flatnonzero((f < limit) & (d < w0) & (f > 0))
+        ob = _Object()
+        ob.name = name
+        ob.model = model
+        ob.keep = keep
+        ob.index = self._next_index
+        self._next_index += 1
+        ob.pos, ob.R = pos, R
+        d = d[keep]
+        wd = np.sqrt(w0[keep] ** 2 - d**2)
+        ob.d, ob.wd = d, wd
+        ob.lam = -d + 1j * wd
+        if self.radiation:
+            ob.weights = rad[keep].copy()
+        else:
+            sh = model.shapes[:, :, keep].astype(np.float64)
+            if len(model.points):
+                nrm = np.einsum("pcn,pc->pn", sh, model.normals.astype(np.float64))
+                rms = np.sqrt(np.mean(nrm**2, axis=0))
+            else:
+                rms = np.zeros(len(keep))
+            size = model.size_m if model.size_m > 0 else 0.1
+            ob.weights = -(w0[keep] ** 2) * RHO_AIR / (4 * np.pi) * size**2 * rms
+        # rounded poles with |p| < 1, and the exact-pole correction
+        p = np.exp(ob.lam / fs)
+        dt = self.dtype
+        pr = p.real.astype(dt)
+        pi = p.imag.astype(dt)
+        one_minus = dt.type(1) - np.finfo(dt).eps
+        for _ in range(8):
+            mag2 = pr.astype(np.float64) ** 2 + pi.astype(np.float64) ** 2
+            bad = mag2 >= 1.0
+            if not bad.any():
+                break
+            pr[bad] = pr[bad] * one_minus
+            pi[bad] = pi[bad] * one_minus
+        ob.pr, ob.pi = np.ascontiguousarray(pr), np.ascontiguousarray(pi)
+        prd = pr.astype(np.float64) + 1j * pi.astype(np.float64)
+        # eps = p_exact / p_rounded = exp(logeps); the correction after GRID samples is eps^GRID
+        with np.errstate(divide="ignore", invalid="ignore"):
+            logeps = ob.lam / fs - np.log(prd)
+        logeps = np.where(np.isfinite(logeps), logeps, 0.0)
+        # keep the imaginary part in (-pi, pi] (principal branch already)
+        ob.logeps = logeps
+        corr = np.exp(GRID * logeps)
+        ob.corr_r = np.ascontiguousarray(corr.real)
+        ob.corr_i = np.ascontiguousarray(corr.imag)
+        ob.rng = None  # noise generator, created on first use from (seed, index)
+        ob.filter_state = {}  # kind -> (next source sample, last output)
+        ob.voices = [_Voice(len(keep)) for _ in range(self.n_channels)]
+        ob.busy = False  # has ringing modes, pending events or sources
+        n = len(keep)
+        ob.empty = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, n)), np.zeros((0, n)),
+                    np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, n), dt), np.zeros((0, n), dt))
+        ob.mass = float(model.mass_kg) if np.isfinite(model.mass_kg) and model.mass_kg > 0 else np.inf
+        self._objects[name] = ob
+
+    def remove_object(self, name) -> None:
+        """Remove an object (its ringing stops at once)."""
+        self._get(name)
+        del self._objects[name]
+
+    def set_pose(self, name, position, rotation) -> None:
+        """Set the world pose of ``name`` (applies to events added afterwards)."""
+        ob = self._get(name)
+        ob.pos, ob.R = self._check_pose(position, rotation, name)
+
+    def _get(self, name) -> _Object:
+        try:
+            return self._objects[str(name)]
+        except KeyError:
+            raise ValueError(
+                f"unknown object {name!r}; add it with add_object() first (known: {', '.join(self._objects) or 'none'})"
+            ) from None
+
+    def _check_time(self, t, what="time"):
+        t = np.asarray(t, dtype=np.float64)
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"{what} contains NaN or Inf; give simulation time in seconds")
+        if t.size and t.min() < self.time - TIME_TOLERANCE_S:
+            raise ValueError(
+                f"{what}={float(t.min())!r} s is before the audio already rendered (up to {self.time!r} s); "
+                "add events before rendering the block that contains them"
+            )
+        return np.maximum(t, self.time)
+
+    # ------------------------------------------------------------------ geometry helpers
+    def _distances(self, ob):
+        r = np.linalg.norm(self._mics - ob.pos[None, :], axis=1)
+        return np.maximum(r, R_MIN_M)
+
+    def _arrival(self, t, r):
+        """(sample index, sub-sample offset dt = n/fs - t_a >= ~0) for arrival times t + r/c."""
+        fs = self.sample_rate
+        ta = np.asarray(t, dtype=np.float64) + r / self.speed_of_sound
+        n = np.ceil(ta * fs - _SAMPLE_TOL).astype(np.int64)
+        n = np.maximum(n, self.samples_rendered)
+        return n, n / fs - ta
+
+    # ------------------------------------------------------------------ excitation
+    def impact(self, name, point, impulse, time, *, pulse_s=None, other_material=None, other_mass_kg=np.inf,
+               other_radius_m=np.inf, speed=None, radius_m=None) -> None:
+        """One impact: impulse ``J`` [N s] (world vector) at world ``point`` [m] at ``time`` [s].
+
+        Parameters
+        ----------
+        name : str
+            Object struck.
+        point : (3,) array_like
+            Contact point in world coordinates [m] (snapped to the nearest surface sample).
+        impulse : (3,) array_like
+            Impulse vector on this object in world coordinates [N s].
+        time : float
+            Simulation time of the impact [s], not before :attr:`time` (minus 1 us tolerance).
+        pulse_s : float, optional
+            Contact time [s]; overrides Hertz (0 = ideal impulse).
+        other_material : Material, optional
+            Material of the other body; ``None`` means a rigid partner (infinite E).
+        other_mass_kg, other_radius_m : float
+            Other body's mass [kg] and radius of curvature at the contact [m] (inf: immovable / flat).
+        speed : float, optional
+            Normal approach speed [m/s]; default ``|J| / (m* (1 + e))`` with m* the effective
+            mass and e the restitution (the smaller of the two materials').
+        radius_m : float, optional
+            This object's radius of curvature at the contact [m]; default half its size.
+
+        Notes
+        -----
+        ``tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5)`` (see :mod:`.pulse`); an object whose model
+        has no mass, struck by an immovable body, gets an ideal impulse. Raises ``ValueError``
+        (with the state unchanged) for an unknown object or NaN / Inf / out-of-range input.
+        """
+        self.impacts(name, np.reshape(np.asarray(point, dtype=np.float64), (1, -1)) if np.size(point) == 3 else point,
+                     np.reshape(np.asarray(impulse, dtype=np.float64), (1, -1)) if np.size(impulse) == 3 else impulse,
+                     np.atleast_1d(np.asarray(time, dtype=np.float64)) if np.size(time) == 1 else time,
+                     pulse_s=pulse_s, other_material=other_material, other_mass_kg=other_mass_kg,
+                     other_radius_m=other_radius_m, speed=speed, radius_m=radius_m)
+
+    def impacts(self, name, points, impulses, times, *, pulse_s=None, other_material=None,
+                other_mass_kg=np.inf, other_radius_m=np.inf, speed=None, radius_m=None) -> None:
+        """Many impacts on one object at once (vectorised :meth:`impact`).
+
+        ``points`` (k, 3) [m], ``impulses`` (k, 3) [N s], ``times`` (k,) [s]; ``pulse_s`` and
+        ``speed`` may be scalars or (k,) arrays. Much faster than k calls of :meth:`impact`.
+        """
+        ob = self._get(name)
+        P = _finite_array(points, None, "point", "give world coordinates in metres")
+        J = _finite_array(impulses, None, "impulse", "give a finite impulse vector in N s")
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise ValueError(f"point must be (3,) or (k, 3) world coordinates, got shape {P.shape}")
+        if J.shape != P.shape:
+            raise ValueError(f"impulse must be a 3-vector per point (shape {P.shape}), got shape {J.shape}")
+        k = len(P)
+        if np.size(times) not in (1, k):
+            raise ValueError(f"times must have one value per impact ({k}), got {np.size(times)}")
+        t = _finite_array(times, None, "time", "give simulation time in seconds").reshape(-1)
+        t = self._check_time(np.broadcast_to(t, (k,)), "time")
+        fs = self.sample_rate
+        # ---- pulse length
+        if pulse_s is not None:
+            tau = _finite_array(pulse_s, None, "pulse_s", "give the contact time in seconds (>= 0)")
+            if np.any(tau < 0):
+                raise ValueError("pulse_s must be >= 0 seconds")
+            tau = np.broadcast_to(tau, (k,)).astype(np.float64)
+        else:
+            m2 = float(other_mass_kg)
+            R2 = float(other_radius_m)
+            if math.isnan(m2) or m2 <= 0 or math.isnan(R2) or R2 <= 0:
+                raise ValueError("other_mass_kg and other_radius_m must be positive (np.inf for immovable / flat)")
+            mat1 = ob.model.material
+            mat2 = other_material
+            mstar = effective(ob.mass, m2)
+            if radius_m is None:
+                R1 = ob.model.size_m / 2 if ob.model.size_m > 0 else np.inf
+            else:
+                R1 = float(radius_m)
+                if math.isnan(R1) or R1 <= 0:
+                    raise ValueError(f"radius_m={radius_m!r} must be a positive radius in metres")
+            Rstar = effective(R1, R2)
+            comp = (1 - mat1.nu**2) / mat1.E + (0.0 if mat2 is None else (1 - mat2.nu**2) / mat2.E)
+            e = mat1.restitution if mat2 is None else min(mat1.restitution, mat2.restitution)
+            if speed is not None:
+                v = np.abs(_finite_array(speed, None, "speed", "give the normal approach speed in m/s"))
+                v = np.broadcast_to(v, (k,)).astype(np.float64)
+            elif math.isinf(mstar):
+                v = np.full(k, np.inf)
+            else:
+                v = np.linalg.norm(J, axis=1) / (mstar * (1 + e))
+            if math.isinf(mstar) or math.isinf(Rstar):
+                tau = np.full(k, TAU_MIN_S)
+            else:
+                Estar = 1.0 / comp
+                with np.errstate(divide="ignore"):
+                    tau = 2.87 * (mstar**2 / (Rstar * Estar**2 * v)) ** 0.2
+                tau = np.clip(np.where(v > 0, tau, TAU_MAX_S), TAU_MIN_S, TAU_MAX_S)
+        # ---- modal amplitudes c (k, n)
+        n = len(ob.keep)
+        if n == 0 or k == 0:
+            return
+        Pl = (P - ob.pos) @ ob.R  # R^T (p - pos), row-wise
+        Jl = J @ ob.R
+        idx = ob.model.nearest_points(Pl)
+        sh = ob.model.shapes[:, :, ob.keep]
+        G = np.einsum("kcn,kc->kn", sh[idx].astype(np.float64), Jl)
+        S = half_sine_spectrum(ob.wd[None, :], tau[:, None])
+        c = G / ob.wd[None, :] * S
+        r = self._distances(ob)
+        amps = []
+        for m in range(self.n_channels):
+            na, dts = self._arrival(t, r[m])
+            a = c * (ob.weights / r[m])[None, :] * np.exp(ob.lam[None, :] * dts[:, None])
+            a *= np.exp(-(na % GRID)[:, None] * ob.logeps[None, :])
+            if not np.all(np.isfinite(a)) or (a.size and np.abs(a).max() > MAX_AMPLITUDE):
+                raise ValueError(
+                    f"impulse on {name!r} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
+                    "check the impulse units (N s) and magnitude"
+                )
+            amps.append((na, a))
+        # ---- commit (nothing above mutated state)
+        for m, (na, a) in enumerate(amps):
+            ob.voices[m].events.append((na, np.zeros(k, np.int8), a))
+        ob.busy = True
+
+    def slide(self, name, point, normal, normal_force, speed, t0, t1, *, roughness=SLIDE_ROUGHNESS) -> None:
+        """Sliding contact on ``[t0, t1)`` [s]: surface-roughness noise drives the modes.
+
+        The force along ``normal`` is ``roughness * |normal_force| * speed * w[k]`` [N], ``w``
+        unit-variance Gaussian noise (seeded, per object) low-passed at ``speed / SLIDE_GRAIN_M``
+        (faster sliding is brighter; van den Doel et al. 2001). ``speed == 0`` is silence.
+
+        Parameters
+        ----------
+        point : (3,) world contact point [m];  normal : (3,) world contact normal;
+        normal_force : float [N];  speed : float, relative sliding speed [m/s];
+        t0, t1 : float, interval [s] (samples with t0 <= n/fs < t1 are driven);
+        roughness : float, force fluctuation per N and per m/s.
+        """
+        self._sustained("slide", name, point, normal, normal_force, speed, t0, t1, roughness, SLIDE_GRAIN_M)
+
+    def roll(self, name, point, normal, normal_force, speed, t0, t1, *, roughness=ROLL_ROUGHNESS) -> None:
+        """Rolling contact on ``[t0, t1)`` [s]: like :meth:`slide` but the roughness noise is
+        low-passed at ``speed / ROLL_PATCH_M`` (the contact patch averages the roughness; van
+        den Doel et al. 2001), so rolling is a duller rumble. ``speed == 0`` is silence."""
+        self._sustained("roll", name, point, normal, normal_force, speed, t0, t1, roughness, ROLL_PATCH_M)
+
+    def _sustained(self, kind, name, point, normal, normal_force, speed, t0, t1, roughness, length):
+        ob = self._get(name)
+        p = _finite_array(point, None, "point", "give world coordinates in metres").reshape(-1)
+        nv = _finite_array(normal, None, "normal", "give a finite direction vector").reshape(-1)
+        if p.shape != (3,) or nv.shape != (3,):
+            raise ValueError("point and normal must be 3-vectors")
+        fn = float(_finite_array(normal_force, None, "normal_force", "give the normal force in N"))
+        v = float(_finite_array(speed, None, "speed", "give the sliding/rolling speed in m/s"))
+        rough = float(_finite_array(roughness, None, "roughness", "give a non-negative number"))
+        t0 = float(self._check_time(t0, "t0"))
+        t1 = float(_finite_array(t1, None, "t1", "give the end time in seconds"))
+        if t1 < t0:
+            raise ValueError(f"t1={t1!r} is before t0={t0!r}; give an interval t0 <= t1 in seconds")
+        fs = self.sample_rate
+        k0 = int(np.ceil(t0 * fs - _SAMPLE_TOL))
+        k1 = int(np.ceil(t1 * fs - _SAMPLE_TOL))
+        L = k1 - k0
+        nn = np.linalg.norm(nv)
+        if L <= 0 or v == 0.0 or fn == 0.0 or rough == 0.0 or nn == 0.0 or len(ob.keep) == 0:
+            return
+        if ob.rng is None:
+            ob.rng = np.random.default_rng([self.seed, ob.index])
+        x = ob.rng.standard_normal(L)
+        fc = min(abs(v) / length, 0.45 * fs)
+        a = 1.0 - math.exp(-2 * math.pi * fc / fs)
+        nxt, y = ob.filter_state.get(kind, (None, 0.0))
+        if nxt != k0:
+            y = 0.0
+        from scipy.signal import lfilter
+
+        f, zf = lfilter([a], [1.0, -(1.0 - a)], x, zi=[(1.0 - a) * y])
+        ob.filter_state[kind] = (k1, float(f[-1]))
+        f *= rough * abs(fn) * abs(v)
+        self._add_source(ob, p, nv / nn, k0 / fs, f)
+
+    def excite(self, name, point, direction, signal, time) -> None:
+        """Drive ``name`` with a force signal: ``signal[k]`` [N] along ``direction`` (world,
+        normalised) at world ``point``, sample k at time ``time + k / fs`` [s]."""
+        ob = self._get(name)
+        p = _finite_array(point, None, "point", "give world coordinates in metres").reshape(-1)
+        dv = _finite_array(direction, None, "direction", "give a finite direction vector").reshape(-1)
+        if p.shape != (3,) or dv.shape != (3,):
+            raise ValueError("point and direction must be 3-vectors")
+        f = _finite_array(signal, None, "signal", "give a 1-D force signal in N at the sample rate").reshape(-1)
+        t = float(self._check_time(time, "time"))
+        nn = np.linalg.norm(dv)
+        if nn == 0 or len(f) == 0 or len(ob.keep) == 0:
+            return
+        self._add_source(ob, p, dv / nn, t, f.copy())
+
+    def _add_source(self, ob, p, dirw, t_start, f):
+        fs = self.sample_rate
+        pl = ob.R.T @ (p - ob.pos)
+        dl = ob.R.T @ dirw
+        idx = ob.model.nearest_points(pl[None])[0]
+        G = ob.model.shapes[idx][:, ob.keep].astype(np.float64).T @ dl  # (n,)
+        base = G / (fs * ob.wd)
+        r = self._distances(ob)
+        L = len(f)
+        items = []
+        for m in range(self.n_channels):
+            na, dts = self._arrival(np.array([t_start]), r[m])
+            g = base * ob.weights / r[m] * np.exp(ob.lam * dts[0])
+            if not np.all(np.isfinite(g)) or np.abs(g).max() * np.abs(f).max() > MAX_AMPLITUDE:
+                raise ValueError(f"force on {ob.name!r} is too large; check units (N)")
+            a = int(na[0])
+            items.append((a, g))
+        for m, (a, g) in enumerate(items):
+            v = ob.voices[m]
+            v.sources.append((a, a + L, g, f))
+            v.events.append((np.array([a], np.int64), np.ones(1, np.int8), (g != 0).astype(np.complex128)[None, :]))
+        ob.busy = True
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, n_samples) -> np.ndarray:
+        """Render the next ``n_samples`` samples.
+
+        Returns
+        -------
+        (n_channels, n_samples) float32 array of sound pressure [Pa] at the microphones,
+        for times ``time .. time + (n_samples - 1) / fs``.
+        """
+        try:
+            n = int(n_samples)
+        except (TypeError, ValueError):
+            raise ValueError(f"n_samples={n_samples!r} must be a non-negative integer") from None
+        if n < 0 or n != n_samples:
+            raise ValueError(f"n_samples={n_samples!r} must be a non-negative integer")
+        dt = self.dtype
+        out = np.zeros((self.n_channels, n), dtype=dt)
+        if n == 0:
+            return out.astype(np.float32)
+        start = self.samples_rendered
+        end = start + n
+        zero = dt.type(0)
+        floor2 = FLOOR_PA**2
+        for ob in self._objects.values():
+            nm = len(ob.keep)
+            if nm == 0 or not ob.busy:
+                continue
+            busy = False
+            empty = ob.empty
+            for m, v in enumerate(ob.voices):
+                if v.events:
+                    ev_n, ev_kind, ev_re, ev_im = self._due_events(v, end, nm)
+                else:
+                    ev_n, ev_kind, ev_re, ev_im = empty[:4]
+                srcs = [s for s in v.sources if s[0] < end and s[1] > start] if v.sources else ()
+                if not srcs:
+                    if len(ev_n) == 0 and not v.active.any():
+                        busy = busy or bool(v.events) or bool(v.sources)
+                        continue
+                    src_a, src_b, gr, gi = empty[4:]
+                    F = np.zeros((0, n), dt)
+                else:
+                    q = len(srcs)
+                    src_a = np.array([s[0] for s in srcs], np.int64)
+                    src_b = np.array([s[1] for s in srcs], np.int64)
+                    gr = np.zeros((q, nm), dt)
+                    gi = np.zeros((q, nm), dt)
+                    F = np.zeros((q, n), dt)
+                    for j, (a, b, g, f) in enumerate(srcs):
+                        gr[j] = g.real
+                        gi[j] = g.imag
+                        lo, hi = max(a, start), min(b, end)
+                        F[j, lo - start: hi - start] = f[lo - a: hi - a]
+                kernels.render_voice(v.zr, v.zi, v.peak2, v.active, ob.pr, ob.pi, ob.corr_r, ob.corr_i,
+                                     ev_n, ev_kind, ev_re, ev_im, src_a, src_b, gr, gi, F,
+                                     start, n, GRID, self._cull2, floor2, out[m], zero)
+                if v.sources:
+                    v.sources = [s for s in v.sources if s[1] > end]
+                busy = busy or bool(v.events) or bool(v.sources) or bool(v.active.any())
+            ob.busy = busy
+        self.samples_rendered = end
+        return out.astype(np.float32, copy=False)
+
+    @staticmethod
+    def _due_events(v, end, nm):
+        due = []
+        keep = []
+        for na, kind, a in v.events:
+            if na.max() < end:
+                due.append((na, kind, a))
+            elif na.min() >= end:
+                keep.append((na, kind, a))
+            else:
+                sel = na < end
+                due.append((na[sel], kind[sel], a[sel]))
+                keep.append((na[~sel], kind[~sel], a[~sel]))
+        v.events = keep
+        if not due:
+            e = np.zeros((0, nm))
+            return np.zeros(0, np.int64), np.zeros(0, np.int8), e, e
+        if len(due) == 1:
+            na, kind, a = due[0]
+        else:
+            na = np.concatenate([d[0] for d in due])
+            kind = np.concatenate([d[1] for d in due])
+            a = np.concatenate([d[2] for d in due])
+        order = np.argsort(na, kind="stable")
+        if np.any(order != np.arange(len(order))):
+            na, kind, a = na[order], kind[order], a[order]
+        return (np.ascontiguousarray(na), np.ascontiguousarray(kind),
+                np.ascontiguousarray(a.real), np.ascontiguousarray(a.imag))
+
+    def reset(self) -> None:
+        """Silence everything and restart time at 0 (objects, poses and microphones stay;
+        the noise generators restart from the seed)."""
+        self.samples_rendered = 0
+        for ob in self._objects.values():
+            if ob.busy:
+                ob.voices = [_Voice(len(ob.keep)) for _ in range(self.n_channels)]
+                ob.busy = False
+            ob.rng = None
+            ob.filter_state = {}

@@ -1,0 +1,120 @@
+"""hex (voxel-embedded incompatible-mode hexahedra) against closed forms (DESIGN.md)."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from mjsound import analyze
+from mjsound.materials import parse_material
+
+AL = "E=70e9,nu=0.33,rho=2700"
+
+
+def cents(f, ref):
+    return 1200 * np.log2(np.asarray(f) / ref)
+
+
+@pytest.fixture(scope="module")
+def beam():
+    return analyze("box:0.5,0.01,0.01", AL, cache=False)
+
+
+def test_beam_bending_and_longitudinal_within_1_percent(beam):
+    f = beam.frequencies_hz
+    # bending modes come in degenerate pairs (square section)
+    for k, ref in enumerate([209.06, 574.7, 1122.3, 1845.7]):
+        pair = f[2 * k: 2 * k + 2]
+        assert np.all(np.abs(pair / ref - 1) < 0.01), (k, pair, ref)
+    lon = f[np.argmin(np.abs(f - 5091.6))]
+    assert lon == pytest.approx(5091.6, rel=0.01)
+
+
+def test_beam_has_six_rigid_modes_removed_and_right_mass(beam):
+    assert beam.info["n_rigid"] == 6
+    assert beam.mass_kg == pytest.approx(0.5 * 0.01 * 0.01 * 2700, rel=1e-9)
+    assert beam.frequencies_hz[0] > 20 and np.all(np.diff(beam.frequencies_hz) >= 0)
+    assert beam.frequencies_hz[-1] <= 20000
+
+
+def test_beam_modes_are_mass_normalised_and_cover_the_band(beam):
+    # Rayleigh damping: d = (alpha + beta w^2) / 2 with alpha = beta = 0 here
+    assert np.all(beam.decay_per_s == 0)
+    assert beam.error_estimate_cents == beam.error_estimate_cents  # computed, finite
+    assert beam.error_estimate_cents < 20
+
+
+def test_rod_torsion_within_1_percent():
+    m = analyze("cylinder:0.01,0.5", AL, f_max=10000, cache=False, error_estimate=False)
+    f = m.frequencies_hz
+    for ref in [3122.0, 6243.9, 9365.9]:
+        near = f[np.argmin(np.abs(f - ref))]
+        assert near == pytest.approx(ref, rel=0.01)
+
+
+def test_scaling_laws_hold_to_1e6():
+    kw = dict(resolution=24, f_max=12000, cache=False, error_estimate=False)
+    base = analyze("box:0.2,0.03,0.02", AL, **kw).frequencies_hz
+    stiff = analyze("box:0.2,0.03,0.02", "E=280e9,nu=0.33,rho=2700", f_max=24000, **{k: v for k, v in kw.items() if k != "f_max"}).frequencies_hz
+    assert np.allclose(stiff[: len(base)], 2 * base, rtol=1e-6)
+    big = analyze("box:0.4,0.06,0.04", AL, **kw).frequencies_hz
+    n = np.sum(base < 6000)
+    assert np.allclose(big[:n], base[:n] / 2, rtol=1e-6)
+
+
+def test_symmetric_cube_gives_symmetric_gains():
+    """Picard et al. 4.1: a cube struck on any corner, normal to a face, sounds the same."""
+    m = analyze("box:0.1,0.1,0.1", "steel", f_max=60000, resolution=6, cache=False, error_estimate=False)
+    corners = np.array([[x, y, z] for x in (-0.05, 0.05) for y in (-0.05, 0.05) for z in (-0.05, 0.05)])
+    g = m.gains(corners, np.tile([0.0, 0.0, 1.0], (8, 1)))
+    # degenerate modes may rotate within their eigenspace: compare energy per frequency cluster
+    f = m.frequencies_hz
+    cluster = np.cumsum(np.r_[0, np.diff(f) > 5e-5 * f[1:]])
+    energy = np.array([[np.sum(g[c, cluster == k] ** 2) for k in range(cluster.max() + 1)] for c in range(8)])
+    # shapes are stored as float32: equal to its precision
+    assert np.allclose(energy, energy[0], rtol=1e-4, atol=1e-6 * energy.max())
+    # and a hit along x excites the same per-cluster energy as along z (cube symmetry)
+    gx = m.gains(corners[:1], np.array([[1.0, 0, 0]]))
+    ex = np.array([np.sum(gx[0, cluster == k] ** 2) for k in range(cluster.max() + 1)])
+    assert np.allclose(ex, energy[0], rtol=1e-4, atol=1e-6 * energy.max())
+
+
+def test_rayleigh_damping_and_overdamped_modes_dropped():
+    mat = "E=70e9,nu=0.33,rho=2700,alpha=10,beta=1e-6"
+    m = analyze("box:0.2,0.02,0.02", mat, f_max=8000, cache=False, error_estimate=False)
+    w = 2 * np.pi * m.frequencies_hz
+    assert np.allclose(m.decay_per_s, 0.5 * (10 + 1e-6 * w**2))
+    # beta so large that every mode is overdamped: nothing rings, reported
+    m2 = analyze("box:0.2,0.02,0.02", "E=70e9,nu=0.33,rho=2700,beta=1", f_max=8000, cache=False, error_estimate=False)
+    assert m2.n_modes == 0 and m2.info["n_overdamped"] > 0
+
+
+def test_open_and_self_intersecting_meshes_work():
+    # open box (one face removed): voxel shell
+    box = trimesh.creation.box(extents=[0.1, 0.08, 0.06])
+    open_box = trimesh.Trimesh(box.vertices, box.faces[2:], process=False)
+    m = analyze(open_box, "steel", f_max=8000, cache=False, error_estimate=False)
+    assert m.n_modes > 0 and np.all(np.isfinite(m.shapes)) and m.info["watertight"] is False
+    # two overlapping closed boxes in one mesh: filled as their union
+    a = trimesh.creation.box(extents=[0.1, 0.02, 0.02])
+    b = trimesh.creation.box(extents=[0.02, 0.1, 0.02])
+    both = trimesh.util.concatenate([a, b])
+    u = analyze(both, "steel", f_max=4000, cache=False, error_estimate=False, resolution=20)
+    union_volume = 2 * 0.1 * 0.02 * 0.02 - 0.02**3
+    assert u.mass_kg == pytest.approx(union_volume * parse_material("steel").rho, rel=0.03)
+
+
+def test_f_max_and_sample_rate_limit_the_modes():
+    m = analyze("box:0.5,0.01,0.01", AL, sample_rate=16000, cache=False, error_estimate=False)
+    assert m.frequencies_hz.max() <= 7200 and m.info["f_max"] == 7200
+    with pytest.raises(ValueError, match="Nyquist"):
+        analyze("box:0.5,0.01,0.01", AL, sample_rate=16000, f_max=9000, cache=False)
+    with pytest.raises(ValueError, match="sample_rate"):
+        analyze("box:0.5,0.01,0.01", AL, sample_rate=10, cache=False)
+    with pytest.raises(ValueError, match="method"):
+        analyze("box:0.5,0.01,0.01", AL, method="fem", cache=False)
+
+
+def test_tiny_stiff_bead_has_no_audible_mode():
+    """A 2 mm steel bead's first mode is far above 20 kHz: an empty model, no error."""
+    m = analyze("sphere:0.001", "steel", cache=False, error_estimate=False)
+    assert m.n_modes == 0 and m.info["n_rigid"] >= 6

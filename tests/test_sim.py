@@ -1,0 +1,347 @@
+"""MuJoCo side: SoundScene, ContactReader, AudioSimulator (issue 4 correctness list).
+
+Scenes are small MJCF strings; modal models are seeded stubs (mjsound.sim.stub) wherever the
+analysis itself is not the point, so the whole file runs in seconds.
+"""
+
+from __future__ import annotations
+
+import warnings
+from fractions import Fraction
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjsound.materials import get_material
+from mjsound.sim.contacts import ContactReader
+from mjsound.sim.scene import SoundScene
+from mjsound.sim.simulator import AudioSimulator, SampleClock
+from mjsound.sim.stub import stub_model
+
+FS = 48000
+G = 9.81
+# A contact stiffness/damping whose restitution is about 0.6 (steel) at 0.5-2 ms steps.
+SOLREF_E06 = "-1e5 -120"
+
+
+def drop_xml(dt=0.001, h=0.5, plate=False, r=0.02):
+    plate_geom = (
+        '<geom name="plate" type="box" size="0.15 0.15 0.005" pos="0 0 0.005" solref="%s"/>' % SOLREF_E06
+        if plate
+        else ""
+    )
+    z0 = h + r + (0.01 if plate else 0.0)
+    return f"""
+<mujoco>
+  <option timestep="{dt}"/>
+  <custom><text name="mjsound:ball" data="steel"/><text name="mjsound:plate" data="aluminium"/></custom>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 .1" solref="{SOLREF_E06}"/>
+    {plate_geom}
+    <site name="mic0" pos="0.3 -0.5 0.3"/>
+    <body name="ball" pos="0 0 {z0}">
+      <freejoint/>
+      <geom name="ball" type="sphere" size="{r}" solref="{SOLREF_E06}"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def make_sim(xml, models, **kw):
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    scene = SoundScene.from_model(model, models=models, progress=False, **kw)
+    return model, data, AudioSimulator(model, data, scene=scene, sample_rate=FS)
+
+
+@pytest.fixture(autouse=True)
+def no_analysis(monkeypatch):
+    """Fail loudly if a test meant to use stubs calls the real modal analysis."""
+    import mjsound.modal.analyze as an
+
+    def boom(*a, **k):
+        raise AssertionError("analyze() called")
+
+    monkeypatch.setattr(an, "analyze", boom)
+
+
+# ---------------------------------------------------------------------- impulse
+def test_drop_ball_impulse_matches_theory_and_mujoco():
+    h = 0.5
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=h), models)
+    audio = sim.run(0.45)
+    first = sim.impacts[0]
+    mass = model.body_mass[1]
+    e = get_material("steel").restitution
+    theory = mass * (1 + e) * np.sqrt(2 * G * h)
+    assert first.geom1 == 0 and first.geom2 == 1
+    assert abs(first.impulse_pred - theory) < 0.10 * theory
+    assert abs(first.impulse_sim - theory) < 0.10 * theory, (first.impulse_sim, theory)
+    assert abs(first.effective_mass - mass) < 0.02 * mass  # ball on ground: m* = m
+    assert not first.open
+    # one impact event for this contact, not a train
+    onsets = [ev for ev in sim.event_log if ev[1] == "impact" and abs(ev[0] - first.time) < 0.02]
+    assert len(onsets) == 1
+    assert np.isfinite(audio).all() and np.abs(audio).max() > 0
+
+
+# ---------------------------------------------------------------------- timestep invariance
+def third_octave_levels(x, fs, f_lo=100.0, f_hi=16000.0):
+    spec = np.abs(np.fft.rfft(x * np.hanning(len(x)))) ** 2
+    f = np.fft.rfftfreq(len(x), 1 / fs)
+    centres = 1000.0 * 2.0 ** (np.arange(-10, 13) / 3.0)
+    centres = centres[(centres >= f_lo) & (centres <= f_hi)]
+    out = []
+    for fc in centres:
+        band = (f >= fc * 2 ** (-1 / 6)) & (f < fc * 2 ** (1 / 6))
+        out.append(10 * np.log10(spec[band].sum() + 1e-30))
+    return centres, np.array(out)
+
+
+def plate_impact_sound(dt):
+    models = {"plate": stub_model("box:0.3,0.3,0.01", "aluminium", 12, 430.0)}
+    model, data, sim = make_sim(drop_xml(dt=dt, h=0.3, plate=True), models, materials={"ball": "silent"})
+    audio = sim.run(0.6)[0]
+    first = [ev for ev in sim.event_log if ev[1] == "impact"][0]
+    n0 = int(first[0] * FS)
+    bounce2 = [ev for ev in sim.event_log if ev[1] == "impact" and ev[0] > first[0] + 0.01]
+    n1 = int(bounce2[0][0] * FS) if bounce2 else n0 + int(0.25 * FS)
+    seg = audio[max(n0 - 48, 0) : n0 - 48 + min(n1 - n0, int(0.2 * FS))]
+    return seg, sim
+
+
+def test_timestep_invariance_third_octaves_and_no_physics_rate_peaks():
+    segs = {}
+    for dt in (0.0005, 0.001, 0.002):
+        seg, sim = plate_impact_sound(dt)
+        segs[dt] = seg
+    n = min(len(s) for s in segs.values())
+    levels = {}
+    for dt, seg in segs.items():
+        c, L = third_octave_levels(seg[:n], FS)
+        levels[dt] = L
+    ref = levels[0.001]
+    loud = ref > ref.max() - 40.0
+    for dt in (0.0005, 0.002):
+        diff = np.abs(levels[dt] - ref)[loud]
+        assert diff.max() < 3.0, (dt, np.round(levels[dt] - ref, 2))
+    # no spectral peaks at multiples of the physics rate (a per-step impulse train would comb)
+    modes = stub_model("box:0.3,0.3,0.01", "aluminium", 12, 430.0).frequencies_hz
+    for dt, seg in segs.items():
+        spec = 20 * np.log10(np.abs(np.fft.rfft(seg[:n] * np.hanning(n))) + 1e-30)
+        f = np.fft.rfftfreq(n, 1 / FS)
+        rate = 1.0 / dt
+        for k in range(1, int(8000 / rate) + 1):
+            fk = k * rate
+            if np.min(np.abs(modes - fk)) < 150:
+                continue
+            at = spec[np.abs(f - fk) < 10].max()
+            around = np.median(spec[(np.abs(f - fk) < 150)])
+            assert at < around + 6.0, (dt, fk)
+
+
+# ---------------------------------------------------------------------- resting / pushed box
+BOX_XML = """
+<mujoco>
+  <option timestep="0.001"/>
+  <custom><text name="mjsound:box" data="oak"/></custom>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1" friction="0.5"/>
+    <body name="box" pos="0 0 0.0305">
+      <freejoint/>
+      <geom name="box" type="box" size="0.04 0.03 0.03" friction="0.5"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def box_sim():
+    return make_sim(BOX_XML, {"box": stub_model("box:0.08,0.06,0.06", "oak", 6, 700.0)})
+
+
+def test_resting_box_is_silent_after_settling():
+    model, data, sim = box_sim()
+    audio = sim.run(1.5)[0]
+    late = [ev for ev in sim.event_log if ev[0] > 0.3]
+    assert late == []
+    tail = audio[int(1.0 * FS) :]
+    assert np.sqrt(np.mean(tail**2)) < 1e-6 * max(np.abs(audio).max(), 1e-12) or not tail.any()
+
+
+def test_pushed_box_sounds_only_while_moving():
+    model, data, sim = box_sim()
+    mass = model.body_mass[1]
+    t_push = (0.5, 1.0)
+
+    def push(m, d):
+        d.xfrc_applied[1, 0] = 2.0 * 0.5 * mass * G if t_push[0] <= d.time < t_push[1] else 0.0
+
+    speeds = []
+
+    def push_and_log(m, d):
+        push(m, d)
+        speeds.append((d.time, abs(d.qvel[0])))
+
+    audio = sim.run(2.5, callback=push_and_log)[0]
+    speeds = np.array(speeds)
+    moving = speeds[speeds[:, 1] > 0.01, 0]
+    assert moving.min() >= t_push[0] - 1e-9
+    t_stop = moving.max()
+    slides = [ev for ev in sim.event_log if ev[1] == "slide"]
+    assert slides, "a sliding box must sound"
+    ts = np.array([ev[0] for ev in slides])
+    assert ts.min() >= t_push[0] - 0.002 and ts.max() <= t_stop + 0.01
+    assert not [ev for ev in sim.event_log if 0.3 < ev[0] < t_push[0] - 0.002]
+    seg = lambda a, b: audio[int(a * FS) : int(b * FS)]  # noqa: E731
+    loud = np.sqrt(np.mean(seg(t_push[0] + 0.1, t_stop - 0.05) ** 2))
+    quiet_before = np.sqrt(np.mean(seg(0.35, t_push[0]) ** 2))
+    quiet_after = np.sqrt(np.mean(seg(t_stop + 0.6, 2.5) ** 2))
+    assert loud > 0
+    assert quiet_before < 1e-4 * loud and quiet_after < 1e-4 * loud
+
+
+# ---------------------------------------------------------------------- scene rules
+SCENE_XML = """
+<mujoco>
+  <asset><material name="Steel"/><material name="paint"/></asset>
+  <custom>
+    <text name="mjsound:b" data="glass"/>
+    <text name="mjsound:c" data="glass"/>
+  </custom>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 .1" material="Steel"/>
+    <body name="A" pos="0 0 1"><freejoint/><geom name="a" type="box" size=".02 .02 .02" material="Steel"/></body>
+    <body name="B" pos="0 0 2"><freejoint/><geom name="b" type="sphere" size=".02" material="Steel"/></body>
+    <body name="C" pos="0 0 3"><freejoint/><geom name="c" type="capsule" size=".02 .05"/></body>
+    <body name="D" pos="0 0 4"><freejoint/><geom name="d" type="cylinder" size=".02 .05" material="paint"/></body>
+    <body name="E" pos="0 0 5"><freejoint/><geom name="e" type="box" size=".02 .02 .02" contype="0" conaffinity="0" material="Steel"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_scene_materials_precedence_and_silent_geoms(monkeypatch):
+    import mjsound.modal.analyze as an
+
+    calls = []
+
+    def fake(mesh, material, **kw):
+        calls.append((mesh, material.name))
+        return stub_model(mesh if isinstance(mesh, str) else mesh, material, 3, 1000.0)
+
+    monkeypatch.setattr(an, "analyze", fake)
+    model = mujoco.MjModel.from_xml_string(SCENE_XML)
+    scene = SoundScene.from_model(model, materials={"C": "brass"}, progress=False)
+    mats = {s.name: (s.material.name, s.source) for s in scene.sounding}
+    assert mats == {
+        "a": ("steel", "mjcf-material"),  # MJCF material name, case-insensitive
+        "b": ("glass", "custom"),  # custom text beats the MJCF material
+        "c": ("brass", "mapping"),  # body-name mapping beats the custom text
+    }
+    assert sorted(calls) == sorted([("box:0.04,0.04,0.04", "steel"), ("sphere:0.02", "glass"), ("capsule:0.02,0.1", "brass")])
+    assert "d" in scene.silent and "no acoustic material" in scene.silent["d"]
+    assert "e" in scene.silent and "collide" in scene.silent["e"]
+    assert "plane" in scene.silent["floor"]
+    assert scene.geom_material[0].name == "steel"  # the floor's material is used for contacts
+    # default listener, 1 m from the centre of the sounding geoms
+    assert scene.mic_names == ["listener"]
+    centre = np.mean([[0, 0, 1], [0, 0, 2], [0, 0, 3]], axis=0)
+    assert abs(np.linalg.norm(scene.mic_positions[0] - centre) - 1.0) < 1e-9
+
+
+def test_budget_is_shared_and_reported(monkeypatch):
+    model = mujoco.MjModel.from_xml_string(SCENE_XML)
+    models = {
+        "a": stub_model("box:0.04,0.04,0.04", "steel", 40, 500.0, ratio=1.05),
+        "b": stub_model("sphere:0.02", "glass", 40, 500.0, ratio=1.05),
+        "c": stub_model("capsule:0.02,0.1", "glass", 10, 500.0, ratio=1.05),
+    }
+    scene = SoundScene.from_model(model, models=models, budget_modes=30, progress=False)
+    counts = {s.name: s.model.n_modes for s in scene.sounding}
+    assert sum(counts.values()) == 30
+    assert all(n >= 1 for n in counts.values())
+    assert len(scene.budget_notes) >= 2 and "budget" in scene.report()
+    for s in scene.sounding:  # the lowest modes are kept
+        assert np.allclose(s.model.frequencies_hz, models[s.name].frequencies_hz[: s.model.n_modes])
+
+
+def test_no_sounding_geoms_runs_silent_without_analysis():
+    xml = drop_xml().replace('<custom><text name="mjsound:ball" data="steel"/><text name="mjsound:plate" data="aluminium"/></custom>', "")
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    sim = AudioSimulator(model, data, sample_rate=FS, progress=False)  # analyze() would raise
+    assert sim.synth is None and sim.scene.sounding == []
+    audio = sim.run(0.5)
+    assert audio.shape == (1, 24000) and not audio.any()
+
+
+# ---------------------------------------------------------------------- time alignment
+def test_sample_count_exact_over_10000_steps_non_integer_dt_fs():
+    dt = 0.0007  # dt * fs = 33.6 samples
+    xml = drop_xml(dt=dt)
+    model, data, sim = make_sim(xml, {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)})
+    total = 0
+    fdt, ffs = Fraction(7, 10000), FS
+    for k in range(10000):
+        mujoco.mj_step(model, data)
+        n = sim.step().shape[1]
+        # exactly the samples with t_k <= n/fs < t_{k+1}
+        lo = -((-k * fdt * ffs).numerator // (k * fdt * ffs).denominator)
+        hi = -((-(k + 1) * fdt * ffs).numerator // ((k + 1) * fdt * ffs).denominator)
+        assert n == hi - lo
+        total += n
+    assert total == round(10000 * dt * FS) == 336000
+
+
+def test_sample_clock_no_drift_over_hours():
+    clock = SampleClock(44100, 0.002 / 3)  # dt * fs = 29.4
+    k = int(round(3 * 3600 / (0.002 / 3)))  # three hours
+    assert clock.sample_at(k) == round(3 * 3600 * 44100)
+    c = SampleClock(48000, 0.001)
+    assert sum(c.advance()[1] - c.advance()[0] * 0 - c.n + c.n for _ in range(0)) == 0
+    total = 0
+    for _ in range(5000):
+        a, b = c.advance()
+        assert b - a == 48
+        total += b - a
+    assert total == 240000
+
+
+# ---------------------------------------------------------------------- bad input / reader
+def test_nan_and_huge_forces_give_finite_audio_and_one_warning():
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=0.05), models)
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        blocks = []
+        for k in range(300):
+            mujoco.mj_step(model, data)
+            if data.ncon:
+                data.efc_force[:] = np.nan if k % 2 else 1e30
+            blocks.append(sim.step())
+    audio = np.concatenate(blocks, axis=1)
+    assert np.isfinite(audio).all()
+    msgs = [str(w.message) for w in rec if "clamped" in str(w.message)]
+    assert len([m for m in msgs if "contact forces" in m]) == 1
+    assert sim.reader.n_clamped > 0
+
+
+@pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
+def test_reader_normal_force_matches_mj_contactForce(cone):
+    xml = BOX_XML.replace('<option timestep="0.001"/>', f'<option timestep="0.001" cone="{cone}"/>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+    cf = ContactReader(model).read(data)
+    f6 = np.zeros(6)
+    ref = []
+    for i in range(data.ncon):
+        mujoco.mj_contactForce(model, data, i, f6)
+        ref.append(f6[0])
+    assert cf.n == data.ncon == 4
+    assert np.allclose(cf.force_n, ref, rtol=1e-9, atol=1e-12)
+    assert abs(cf.force_n.sum() - model.body_mass[1] * G) < 0.01 * model.body_mass[1] * G
+    loc = ContactReader.local_points(data, cf)
+    assert np.allclose(np.abs(loc[:, 1, 2]), 0.03, atol=1e-3)  # on the box's bottom face
