@@ -213,7 +213,8 @@ SCENE_XML = """
   <worldbody>
     <geom name="floor" type="plane" size="1 1 .1" material="Steel"/>
     <body name="A" pos="0 0 1"><freejoint/><geom name="a" type="box" size=".02 .02 .02" material="Steel"/></body>
-    <body name="B" pos="0 0 2"><freejoint/><geom name="b" type="sphere" size=".02" material="Steel"/></body>
+    <body name="B" pos="0 0 2"><freejoint/><geom name="b" type="sphere" size=".2" material="Steel"/></body>
+    <body name="F" pos="0 0 6"><freejoint/><geom name="f" type="sphere" size=".01" material="Steel"/></body>
     <body name="C" pos="0 0 3"><freejoint/><geom name="c" type="capsule" size=".02 .05"/></body>
     <body name="D" pos="0 0 4"><freejoint/><geom name="d" type="cylinder" size=".02 .05" material="paint"/></body>
     <body name="E" pos="0 0 5"><freejoint/><geom name="e" type="box" size=".02 .02 .02" contype="0" conaffinity="0" material="Steel"/></body>
@@ -239,9 +240,10 @@ def test_scene_materials_precedence_and_silent_geoms(monkeypatch):
         "b": ("glass", "custom"),  # custom text beats the MJCF material
         "c": ("brass", "mapping"),  # body-name mapping beats the custom text
     }
-    assert sorted(calls) == sorted([("box:0.04,0.04,0.04", "steel"), ("sphere:0.02", "glass"), ("capsule:0.02,0.1", "brass")])
+    assert sorted(calls) == sorted([("box:0.04,0.04,0.04", "steel"), ("sphere:0.2", "glass"), ("capsule:0.02,0.1", "brass")])
     assert "d" in scene.silent and "no acoustic material" in scene.silent["d"]
     assert "e" in scene.silent and "collide" in scene.silent["e"]
+    assert "no audible modes" in scene.silent["f"]  # 1 cm steel ball: rings above 20 kHz
     assert "plane" in scene.silent["floor"]
     assert scene.geom_material[0].name == "steel"  # the floor's material is used for contacts
     # default listener, 1 m from the centre of the sounding geoms

@@ -143,7 +143,8 @@ _MREF = {1: _reference_mass(1), 2: _reference_mass(2)}
 # --------------------------------------------------------------------------------------
 # meshing
 # --------------------------------------------------------------------------------------
-def tetrahedralize(mesh, h: float | None, minratio: float = 1.5, mindihedral: float = 12.0):
+def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
+                   mindihedral: float = 0.0):
     """Quality tetrahedralization of a watertight triangle mesh with TetGen.
 
     Parameters
@@ -152,10 +153,17 @@ def tetrahedralize(mesh, h: float | None, minratio: float = 1.5, mindihedral: fl
         Closed (watertight), consistently oriented surface, metres.
     h : float or None
         Target edge length [m]. The volume bound is that of a regular tet of edge h,
-        ``h**3 / (6 sqrt 2)``; TetGen's quality refinement then gives mean edges
-        close to h. ``None``: no volume bound (coarsest quality mesh).
-    minratio, mindihedral : float
-        TetGen quality bounds (radius-edge ratio, minimum dihedral angle in degrees).
+        ``h**3 / (6 sqrt 2)``; TetGen's refinement then gives mean edges close to h.
+        ``None``: no volume bound (coarsest quality mesh).
+    minratio : float or None
+        TetGen's radius-edge ratio bound (``-q``). ``None`` picks
+        ``clip(h / l_min, 2, 20)`` with ``l_min`` the shortest surface edge: a faceted
+        curved surface (a 64-gon cylinder has 1 mm edges around a 10 mm rod) forces
+        elements as small as its shortest edge under a strict bound, which multiplies the
+        element count by ~10 and TetGen's time by ~20 for no accuracy, so the bound is
+        relaxed there. Quadratic tets tolerate the resulting flat elements well.
+    mindihedral : float
+        Minimum dihedral angle in degrees (0: off; large values can make TetGen hang).
 
     Returns
     -------
@@ -177,12 +185,21 @@ def tetrahedralize(mesh, h: float | None, minratio: float = 1.5, mindihedral: fl
         )
     V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     F = np.ascontiguousarray(mesh.faces, dtype=np.int32)
+    if len(F) == 0 or not np.all(np.isfinite(V)):
+        raise ValueError(f"tet method: the mesh is empty or has non-finite vertices; {_HEX_HINT}")
+    if h is not None and not (np.isfinite(h) and h > 0):
+        raise ValueError(f"tet method: element size h={h!r} must be a positive length in metres")
+    if minratio is None:
+        lmin = float(mesh.edges_unique_length.min())
+        minratio = 2.0 if h is None or lmin <= 0 else float(np.clip(h / lmin, 2.0, 20.0))
     kwargs = dict(quality=True, minratio=minratio, mindihedral=mindihedral, quiet=True)
     if h is not None:
-        if not (np.isfinite(h) and h > 0):
-            raise ValueError(f"tet method: element size h={h!r} must be a positive length in metres")
-        kwargs["maxvolume"] = float(h) ** 3 / (6.0 * math.sqrt(2.0))
+        maxvol = float(h) ** 3 / (6.0 * math.sqrt(2.0))
+        kwargs["maxvolume"] = maxvol
         kwargs["fixedvolume"] = True  # the 'a' switch; without it maxvolume is ignored
+        # Cap the inserted points (~20x the expected count) so a hard input cannot run
+        # TetGen out of memory; the mesh stays valid, only less refined.
+        kwargs["steinerleft"] = int(max(1e5, 20.0 * abs(mesh.volume) / maxvol))
     try:
         tgen = tetgen.TetGen(V, F)
         nodes, tets = tgen.tetrahedralize(**kwargs)[:2]
@@ -338,7 +355,7 @@ def _interp(points, nodes, tets, conn, gradL, order, n_nodes):
 # public entry point
 # --------------------------------------------------------------------------------------
 def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: int = 2,
-                   minratio: float = 1.5, mindihedral: float = 12.0) -> Discretization:
+                   minratio: float | None = None, mindihedral: float = 0.0) -> Discretization:
     """Tetrahedral FEM discretization of a watertight solid.
 
     Parameters
@@ -357,7 +374,8 @@ def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: i
         1: linear 4-node tets (cheap, lock in bending: frequencies too high);
         2: quadratic 10-node tets (default, accurate).
     minratio, mindihedral : float
-        TetGen quality bounds (radius-edge ratio, minimum dihedral angle in degrees).
+        TetGen quality bounds, see :func:`tetrahedralize` (default: automatic ratio,
+        no dihedral bound).
 
     Returns
     -------

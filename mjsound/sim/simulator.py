@@ -138,6 +138,7 @@ class AudioSimulator:
         reader_kwargs: dict | None = None,
         sustained: bool = True,
         keep_events: int = 100_000,
+        sustained_block_s: float = 0.004,
     ):
         import mujoco
 
@@ -165,6 +166,7 @@ class AudioSimulator:
         self.sample_rate = int(sample_rate)
         self.sustained = bool(sustained)
         self.keep_events = int(keep_events)
+        self.sustained_block_s = float(sustained_block_s)
         restitution = [m.restitution if m is not None else None for m in scene.geom_material]
         self.reader = ContactReader(model, restitution=restitution, **(reader_kwargs or {}))
         self._sounding = scene.by_geom()
@@ -204,6 +206,7 @@ class AudioSimulator:
         self._origin = self.clock.n  # synth sample 0 is absolute sample n = origin
         self.events = {"impact": 0, "slide": 0, "roll": 0}
         self.event_log = []  # (time [s], kind, geom1, geom2, impulse [N s] or speed [m/s])
+        self._covered = {}  # (geom1, geom2, kind) -> sustained noise queued up to [s]
         self.samples = 0
         self.steps = 0
         self.seconds_contacts = 0.0
@@ -250,53 +253,72 @@ class AudioSimulator:
         self.seconds_contacts += _time.perf_counter() - tc
         synth = self.synth
         data = self.data
-        # poses and microphones at t_k (the state the contacts belong to)
-        for s in self._dynamic:
-            p = data.geom_xpos[s.geom_id]
-            R = data.geom_xmat[s.geom_id]
-            if np.isfinite(p).all() and np.isfinite(R).all():
-                synth.set_pose(s.name, np.array(p), np.array(R).reshape(3, 3))
+        # microphones, then poses at t_k (the state the contacts belong to); a pose only
+        # matters for events added after it, so only objects that get an event are updated.
         if self.scene.mic_site_ids and self.scene.mics_move:
             mics = np.array(data.site_xpos[self.scene.mic_site_ids])
             if np.isfinite(mics).all():
                 synth.set_microphones(mics)
+        posed = set()
+
+        def pose(g, name):
+            if g in posed or not self._sounding[g].dynamic:
+                return
+            posed.add(g)
+            p = data.geom_xpos[g]
+            R = data.geom_xmat[g]
+            if np.isfinite(p).all() and np.isfinite(R).all():
+                synth.set_pose(name, np.array(p), np.array(R).reshape(3, 3))
+
         # synth time: sample index relative to the synthesizer's sample 0
         base = self._origin / fs
         t_floor = (n0 - self._origin) / fs  # what the synthesizer has rendered [s]
         names = self._names
-        for ev in impacts:
-            te = max(ev.time - base, t_floor)
-            for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
-                name = names.get(g)
-                if name is None:
-                    continue
-                synth.impact(
-                    name,
-                    ev.point,
-                    sign * ev.impulse * ev.normal,
-                    te,
+        if impacts:
+            # one vectorised call per (struck geom, other geom): all points of the onset at once
+            groups = {}
+            for ev in impacts:
+                for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
+                    if g in names:
+                        groups.setdefault((g, other), []).append((ev, sign))
+                self.events["impact"] += 1
+                if len(self.event_log) < self.keep_events:
+                    self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
+            for (g, other), evs in groups.items():
+                name = names[g]
+                pose(g, name)
+                pts = np.array([ev.point for ev, _ in evs])
+                J = np.array([sign * ev.impulse * ev.normal for ev, sign in evs])
+                te = np.array([max(ev.time - base, t_floor) for ev, _ in evs])
+                spd = np.array([ev.speed for ev, _ in evs])
+                synth.impacts(
+                    name, pts, J, te,
                     other_material=self.scene.geom_material[other],
                     other_mass_kg=float(self._other_mass[other]),
                     other_radius_m=float(self._radius[other]),
-                    speed=ev.speed,
+                    speed=spd,
                     radius_m=float(self._radius[g]) if np.isfinite(self._radius[g]) else None,
                 )
-            self.events["impact"] += 1
-            if len(self.event_log) < self.keep_events:
-                self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
-        if self.sustained:
+        if self.sustained and contacts:
+            covered = self._covered
+            t_block = self.sustained_block_s
             for ev in contacts:
+                self.events[ev.kind] += 1
+                if len(self.event_log) < self.keep_events:
+                    self.event_log.append((ev.t0, ev.kind, ev.geom1, ev.geom2, ev.speed))
+                key = (ev.geom1, ev.geom2, ev.kind)
+                if covered.get(key, -np.inf) > ev.t0 + 1e-9:
+                    continue  # this pair's noise is already queued up to there
+                t_end = ev.t0 + max(t_block, ev.t1 - ev.t0)
+                covered[key] = t_end
                 ta = max(ev.t0 - base, t_floor)
-                tb = max(ev.t1 - base, ta)
+                tb = max(t_end - base, ta)
                 for g, sign in ((ev.geom2, 1.0), (ev.geom1, -1.0)):
                     name = names.get(g)
                     if name is None:
                         continue
-                    fn = getattr(synth, ev.kind)
-                    fn(name, ev.point, sign * ev.normal, ev.force_n, ev.speed, ta, tb)
-                self.events[ev.kind] += 1
-                if len(self.event_log) < self.keep_events:
-                    self.event_log.append((ev.t0, ev.kind, ev.geom1, ev.geom2, ev.speed))
+                    pose(g, name)
+                    getattr(synth, ev.kind)(name, ev.point, sign * ev.normal, ev.force_n, ev.speed, ta, tb)
         out = synth.render(nblock)
         self.seconds_synth += _time.perf_counter() - tc
         self.samples += nblock

@@ -1,0 +1,107 @@
+"""Benchmark: modal analysis of the beam, a bowl and a plate against a plain scipy baseline.
+
+For each object at default quality (hex) it prints degrees of freedom, modes found, seconds
+for the whole analysis, the eigen solve alone, peak memory, model file size, and the same
+eigenproblem (same K and M, same number of modes) solved in the same run by a plain
+baseline: ``scipy.sparse.linalg.eigsh(K, k, M, sigma)`` with its default SuperLU.
+
+    python scripts/bench_modal.py            # table
+    python scripts/bench_modal.py --json     # {"objects": [{name, dofs, n_modes, seconds, ...}]}
+    python scripts/bench_modal.py --no-baseline --objects bowl
+
+Each object runs in its own process so that peak memory is its own.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import os
+import resource
+import sys
+import tempfile
+import time
+
+OBJECTS = {
+    "beam": ("box:0.5,0.01,0.01", "aluminium"),
+    "bowl": ("bowl:0.1,0.004", "aluminium"),  # 20 cm across, 4 mm wall
+    "plate": ("box:0.3,0.3,0.002", "steel"),
+}
+
+
+def _one(name, quality, baseline, queue):
+    import numpy as np
+    import scipy.sparse.linalg as spla
+
+    from mjsound.modal import analyze as A
+    from mjsound.modal.eigen import solve_band
+
+    mesh, mat = OBJECTS[name]
+    t0 = time.perf_counter()
+    model = A.analyze(mesh, mat, quality=quality, cache=False, error_estimate=False)
+    seconds = time.perf_counter() - t0
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    with tempfile.TemporaryDirectory() as d:
+        p = os.path.join(d, "m.npz")
+        model.save(p)
+        model_mb = os.path.getsize(p) / 2**20
+    row = dict(name=name, mesh=mesh, material=mat, dofs=int(model.dofs), n_modes=int(model.n_modes),
+               seconds=seconds, solve_seconds=model.info["solve_seconds"], solver=model.info["solver"],
+               slices=model.info["slices"], peak_mb=peak_mb, model_mb=model_mb,
+               first_hz=[round(float(f), 1) for f in model.frequencies_hz[:4]])
+    if baseline:
+        tm = A.load_mesh(mesh)
+        material = A.parse_material(mat)
+        h = A.element_size(tm, material, model.info["f_max"], quality)
+        pts, _ = A.surface_samples(tm)
+        disc = A._discretize("hex", tm, material, h, pts, quality, None, 2, None)
+        k = model.n_modes + model.info["n_rigid"]
+        lam = (2 * np.pi * A.F_MIN_HZ) ** 2
+        t = time.perf_counter()
+        w, _ = spla.eigsh(disc.K, k=min(k, disc.dofs - 2), M=disc.M, sigma=-0.5 * lam)
+        row["baseline_seconds"] = time.perf_counter() - t
+        t = time.perf_counter()
+        sol = solve_band(disc.K, disc.M, lam, (2 * np.pi * model.info["f_max"]) ** 2)
+        row["ours_solve_seconds_same_run"] = time.perf_counter() - t
+        row["speedup"] = row["baseline_seconds"] / row["ours_solve_seconds_same_run"]
+        f_base = np.sqrt(np.abs(np.sort(w)))[model.info["n_rigid"]:] / (2 * np.pi)
+        f_ours = np.sqrt(sol.eigenvalues) / (2 * np.pi)
+        m = min(len(f_base), len(f_ours))
+        row["max_rel_diff_vs_baseline"] = float(np.max(np.abs(f_base[:m] / f_ours[:m] - 1))) if m else 0.0
+    queue.put(row)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--quality", default="default")
+    ap.add_argument("--objects", nargs="*", default=list(OBJECTS), choices=list(OBJECTS))
+    ap.add_argument("--no-baseline", action="store_true")
+    args = ap.parse_args(argv)
+    ctx = mp.get_context("spawn")
+    rows = []
+    for name in args.objects:
+        q = ctx.Queue()
+        p = ctx.Process(target=_one, args=(name, args.quality, not args.no_baseline, q))
+        p.start()
+        row = q.get()
+        p.join()
+        rows.append(row)
+        if not args.json:
+            line = (f"{name:6s} dofs {row['dofs']:7d}  modes {row['n_modes']:5d}  analysis {row['seconds']:7.2f} s "
+                    f"(solve {row['solve_seconds']:.2f} s, {row['solver']}, {row['slices']} slices)  "
+                    f"peak {row['peak_mb']:6.0f} MB  model {row['model_mb']:.2f} MB")
+            if "baseline_seconds" in row:
+                line += (f"  | same solve {row['ours_solve_seconds_same_run']:.2f} s vs eigsh+SuperLU "
+                         f"{row['baseline_seconds']:.2f} s = {row['speedup']:.1f}x (max freq diff "
+                         f"{row['max_rel_diff_vs_baseline']:.1e})")
+            print(line, flush=True)
+    if args.json:
+        keys = ["name", "dofs", "n_modes", "seconds", "peak_mb", "model_mb", "baseline_seconds", "speedup"]
+        print(json.dumps({"objects": [{k: r.get(k) for k in keys} | r for r in rows]}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
