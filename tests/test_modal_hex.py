@@ -118,3 +118,14 @@ def test_tiny_stiff_bead_has_no_audible_mode():
     """A 2 mm steel bead's first mode is far above 20 kHz: an empty model, no error."""
     m = analyze("sphere:0.001", "steel", cache=False, error_estimate=False)
     assert m.n_modes == 0 and m.info["n_rigid"] >= 6
+
+
+def test_quadratic_tet_beam_within_half_percent_through_analyze():
+    m = analyze("box:0.5,0.01,0.01", AL, method="tet", f_max=6000, cache=False, error_estimate=False)
+    assert m.method == "tet10" and m.info["n_rigid"] == 6
+    f = m.frequencies_hz
+    for k, ref in enumerate([209.06, 574.7, 1122.3, 1845.7]):
+        assert np.all(np.abs(f[2 * k: 2 * k + 2] / ref - 1) < 0.005)
+    with pytest.raises(ValueError, match="hex"):
+        box = trimesh.creation.box(extents=[0.1, 0.1, 0.1])
+        analyze(trimesh.Trimesh(box.vertices, box.faces[2:], process=False), "steel", method="tet", cache=False)

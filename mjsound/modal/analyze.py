@@ -63,7 +63,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 3  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 4  # bump when discretization or model contents change (invalidates cache)
 
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
@@ -129,7 +129,7 @@ def surface_samples(mesh: trimesh.Trimesh, n_points: int = 1024):
         idx.sort()
         return V[idx], N[idx]
     extra = n_points - len(V)
-    pts, fid = trimesh.sample.sample_surface_even(mesh, extra, seed=0)
+    pts, fid = trimesh.sample.sample_surface(mesh, extra, seed=0)
     return np.vstack([V, pts]), np.vstack([N, mesh.face_normals[fid]])
 
 
@@ -303,7 +303,8 @@ def analyze(
         watertight=bool(tm.is_watertight),
     )
     err = float("nan")
-    if error_estimate and under.sum() > 0:
+    # the shell model has no resolution to vary (it lives on the given surface mesh)
+    if error_estimate and under.sum() > 0 and method != "shell":
         err = _error_estimate(method, tm, material, h, points, quality, thickness, order, refine,
                               omega[under] / (2 * np.pi))
     model = ModalModel(

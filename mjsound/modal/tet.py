@@ -305,34 +305,45 @@ def _assemble_M(conn, vol, rho, order, n_nodes):
 # --------------------------------------------------------------------------------------
 # point location
 # --------------------------------------------------------------------------------------
-def _locate(points, nodes, tets, gradL, k=24):
+def _locate(points, nodes, tets, gradL, k=16):
     """Tet and barycentric coordinates of each point.
 
     For each point the ``k`` tets with nearest centroids are tested; the one where the
-    point is "most inside" (largest minimum barycentric coordinate) wins. Points
-    slightly outside every tet (faceting, round-off) get that tet with negative
-    coordinates clamped to 0 and renormalised, i.e. a point of the tet.
+    point is "most inside" (largest minimum barycentric coordinate) wins. Points found
+    outside all candidates are retried with 8x more candidates. Points still outside
+    every tet (a curved surface sampled off its facets, round-off) get the best tet with
+    negative coordinates clamped to 0 and renormalised, i.e. the nearby point of the tet.
 
     Returns
     -------
     tet : (p,) int64, L : (p, 4) float, outside : (p,) float
         ``outside`` is how far the best candidate's minimum coordinate is below 0
-        (0 for points inside a tet).
+        (0 for points inside a tet; dimensionless, ~distance / element size).
     """
     cent = nodes[tets].mean(axis=1)
-    k = min(k, len(tets))
-    _, cand = cKDTree(cent).query(points, k=k)
-    cand = cand.reshape(len(points), k)
-    x0 = nodes[tets[cand, 0]]  # (p, k, 3)
-    Lr = np.einsum("pkj,pkmj->pkm", points[:, None, :] - x0, gradL[cand][:, :, 1:, :])
-    L = np.concatenate([1.0 - Lr.sum(-1, keepdims=True), Lr], axis=-1)  # (p, k, 4)
-    best = np.argmin(-L.min(-1), axis=1)
-    tet = cand[np.arange(len(points)), best]
-    Lb = L[np.arange(len(points)), best]
-    outside = np.maximum(-Lb.min(-1), 0.0)
-    Lb = np.clip(Lb, 0.0, None)
-    Lb /= Lb.sum(-1, keepdims=True)
-    return tet, Lb, outside
+    tree = cKDTree(cent)
+
+    def best_of(pts, k):
+        k = min(k, len(tets))
+        _, cand = tree.query(pts, k=k)
+        cand = cand.reshape(len(pts), k)
+        x0 = nodes[tets[cand, 0]]  # (p, k, 3)
+        Lr = np.einsum("pkj,pkmj->pkm", pts[:, None, :] - x0, gradL[cand][:, :, 1:, :])
+        L = np.concatenate([1.0 - Lr.sum(-1, keepdims=True), Lr], axis=-1)  # (p, k, 4)
+        best = np.argmax(L.min(-1), axis=1)
+        r = np.arange(len(pts))
+        return cand[r, best], L[r, best]
+
+    tet, L = best_of(points, k)
+    miss = np.flatnonzero(L.min(-1) < -1e-9)
+    if len(miss) and len(tets) > k:
+        t2, L2 = best_of(points[miss], 8 * k)
+        better = L2.min(-1) > L[miss].min(-1)
+        tet[miss[better]], L[miss[better]] = t2[better], L2[better]
+    outside = np.maximum(-L.min(-1), 0.0)
+    L = np.clip(L, 0.0, None)
+    L /= L.sum(-1, keepdims=True)
+    return tet, L, outside
 
 
 def _interp(points, nodes, tets, conn, gradL, order, n_nodes):
@@ -383,8 +394,9 @@ def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: i
         ``K``, ``M`` (3N, 3N) csr with dofs ``3*node + component``; ``interp`` (3p, 3N);
         ``n_rigid = 6``; ``info`` with ``element`` ("tet4"/"tet10"), ``order``,
         ``n_elements``, ``n_nodes``, ``h`` [m], ``mean_edge`` [m], ``seconds`` and
-        ``max_point_offset`` (largest distance-like barycentric defect of a sample point
-        outside the tet mesh; ~0 for points on the surface).
+        ``max_point_outside`` (largest negative barycentric coordinate of a sample point,
+        ~ its distance outside the tet mesh over the element size; 0 for points on the
+        surface).
 
     Raises
     ------
@@ -418,7 +430,7 @@ def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: i
         "h": None if h is None else float(h),
         "mean_edge": mean_edge,
         "volume": float(vol.sum()),
-        "max_point_offset": float(outside.max()) if len(outside) else 0.0,
+        "max_point_outside": float(outside.max()) if len(outside) else 0.0,
         "seconds": time.perf_counter() - t0,
     }
     return Discretization(K=K, M=M, interp=interp, n_rigid=6, info=info)

@@ -19,6 +19,7 @@ block is rendered right after they are queued and nothing is delayed.
 
 from __future__ import annotations
 
+import math
 import time as _time
 from fractions import Fraction
 
@@ -182,7 +183,11 @@ class AudioSimulator:
         if not np.any(np.asarray(self.data.geom_xmat)):
             mujoco.mj_kinematics(model, self.data)  # poses for add_object (state is unchanged)
         if scene.sounding:
+            from ..synth import synthesizer as _sy
             from ..synth.synthesizer import Synthesizer
+
+            self._sust_params = {"slide": (_sy.SLIDE_ROUGHNESS, _sy.SLIDE_GRAIN_M),
+                                 "roll": (_sy.ROLL_ROUGHNESS, _sy.ROLL_PATCH_M)}
 
             kw = dict(synth_kwargs or {})
             self.synth = Synthesizer(sample_rate=self.sample_rate, microphones=np.asarray(scene.mic_positions), **kw)
@@ -260,45 +265,53 @@ class AudioSimulator:
             if np.isfinite(mics).all():
                 synth.set_microphones(mics)
         posed = set()
+        objs = synth._objects
 
         def pose(g, name):
+            ob = objs[name]
             if g in posed or not self._sounding[g].dynamic:
-                return
+                return ob
             posed.add(g)
             p = data.geom_xpos[g]
             R = data.geom_xmat[g]
             if np.isfinite(p).all() and np.isfinite(R).all():
-                synth.set_pose(name, np.array(p), np.array(R).reshape(3, 3))
+                ob.pos = np.array(p)
+                ob.R = np.array(R).reshape(3, 3)
+            return ob
 
         # synth time: sample index relative to the synthesizer's sample 0
         base = self._origin / fs
         t_floor = (n0 - self._origin) / fs  # what the synthesizer has rendered [s]
         names = self._names
         if impacts:
-            # one vectorised call per (struck geom, other geom): all points of the onset at once
+            # one call per struck object: all points of all pairs' onsets at once (the Hertz
+            # pulse length is computed per (struck, other) group, then the groups are joined)
             groups = {}
             for ev in impacts:
                 for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
                     if g in names:
-                        groups.setdefault((g, other), []).append((ev, sign))
+                        groups.setdefault(g, {}).setdefault(other, []).append((ev, sign))
                 self.events["impact"] += 1
                 if len(self.event_log) < self.keep_events:
                     self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
-            for (g, other), evs in groups.items():
-                name = names[g]
-                pose(g, name)
-                pts = np.array([ev.point for ev, _ in evs])
-                J = np.array([sign * ev.impulse * ev.normal for ev, sign in evs])
-                te = np.array([max(ev.time - base, t_floor) for ev, _ in evs])
-                spd = np.array([ev.speed for ev, _ in evs])
-                synth.impacts(
-                    name, pts, J, te,
-                    other_material=self.scene.geom_material[other],
-                    other_mass_kg=float(self._other_mass[other]),
-                    other_radius_m=float(self._radius[other]),
-                    speed=spd,
-                    radius_m=float(self._radius[g]) if np.isfinite(self._radius[g]) else None,
-                )
+            for g, by_other in groups.items():
+                ob = pose(g, names[g])
+                P, J, T, TAU = [], [], [], []
+                for other, evs in by_other.items():
+                    pts = np.array([ev.point for ev, _ in evs])
+                    imp = np.array([sign * ev.impulse * ev.normal for ev, sign in evs])
+                    spd = np.array([ev.speed for ev, _ in evs])
+                    tau = synth._hertz_tau(ob, imp, self.scene.geom_material[other], float(self._other_mass[other]),
+                                           float(self._radius[other]), np.abs(spd),
+                                           float(self._radius[g]) if np.isfinite(self._radius[g]) else None)
+                    P.append(pts)
+                    J.append(imp)
+                    T.append(np.array([max(ev.time - base, t_floor) for ev, _ in evs]))
+                    TAU.append(tau)
+                if len(ob.keep):
+                    P, J = np.concatenate(P), np.concatenate(J)
+                    if np.isfinite(P).all() and np.isfinite(J).all():
+                        synth._impacts_trusted(ob, P, J, np.concatenate(T), np.concatenate(TAU))
         if self.sustained and contacts:
             covered = self._covered
             t_block = self.sustained_block_s
@@ -313,12 +326,17 @@ class AudioSimulator:
                 covered[key] = t_end
                 ta = max(ev.t0 - base, t_floor)
                 tb = max(t_end - base, ta)
+                if not (np.isfinite(ev.point).all() and np.isfinite(ev.normal).all()
+                        and math.isfinite(ev.force_n) and math.isfinite(ev.speed)):
+                    continue
                 for g, sign in ((ev.geom2, 1.0), (ev.geom1, -1.0)):
                     name = names.get(g)
                     if name is None:
                         continue
-                    pose(g, name)
-                    getattr(synth, ev.kind)(name, ev.point, sign * ev.normal, ev.force_n, ev.speed, ta, tb)
+                    ob = pose(g, name)
+                    rough, length = self._sust_params[ev.kind]
+                    synth._sustained_trusted(ev.kind, ob, ev.point, sign * ev.normal, float(ev.force_n),
+                                             float(ev.speed), ta, tb, rough, length)
         out = synth.render(nblock)
         self.seconds_synth += _time.perf_counter() - tc
         self.samples += nblock

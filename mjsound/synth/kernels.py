@@ -243,3 +243,76 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
             bank_forced(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact)
         pos = stop
     _scatter(zr, zi, wr, wi, idx, na)
+
+
+@njit(cache=True)
+def render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, v_live,
+               ev_ptr, ev_n, ev_kind, ev_re, ev_im,
+               src_ptr, src_a, src_b, gr, gi, F,
+               start, n, grid, cull2, floor2, out, zero):
+    """Render samples ``[start, start + n)`` of every voice (one call for the whole scene).
+
+    Voice ``v`` owns ``[v_off[v], v_off[v] + v_len[v])`` of the flat state / pole arrays and
+    adds into ``out[v_mic[v]]``. Its events are rows ``ev_ptr[v] .. ev_ptr[v + 1]`` (sorted by
+    sample), its sources rows ``src_ptr[v] .. src_ptr[v + 1]``; amplitudes and gains are
+    padded to the widest voice (only the first ``v_len[v]`` columns are read). ``v_live[v]``
+    is kept equal to "has running modes" so silent voices cost one branch. The per-voice
+    work is exactly :func:`render_voice`, so block splits stay bit-identical.
+    """
+    nv = v_off.shape[0]
+    for v in range(nv):
+        e0 = ev_ptr[v]
+        e1 = ev_ptr[v + 1]
+        s0 = src_ptr[v]
+        s1 = src_ptr[v + 1]
+        if not v_live[v] and e0 == e1 and s0 == s1:
+            continue
+        o = v_off[v]
+        m = v_len[v]
+        if m == 0:
+            continue
+        render_voice(Zr[o:o + m], Zi[o:o + m], P2[o:o + m], ACT[o:o + m], PR[o:o + m], PI[o:o + m],
+                     CR[o:o + m], CI[o:o + m],
+                     ev_n[e0:e1], ev_kind[e0:e1], ev_re[e0:e1, :m], ev_im[e0:e1, :m],
+                     src_a[s0:s1], src_b[s0:s1], gr[s0:s1, :m], gi[s0:s1, :m], F[s0:s1],
+                     start, n, grid, cull2, floor2, out[v_mic[v]], zero)
+        live = False
+        for i in range(o, o + m):
+            if ACT[i]:
+                live = True
+                break
+        v_live[v] = live
+
+
+@njit(cache=True)
+def nearest(points, q):
+    """Index of the nearest row of ``points`` (p, 3) for each row of ``q`` (k, 3) (brute force;
+    models carry ~1000 surface samples, so this is a few microseconds and needs no tree)."""
+    k = q.shape[0]
+    out = np.empty(k, np.int64)
+    for j in range(k):
+        best = np.inf
+        bi = 0
+        x, y, z = q[j, 0], q[j, 1], q[j, 2]
+        for i in range(points.shape[0]):
+            dx = points[i, 0] - x
+            dy = points[i, 1] - y
+            dz = points[i, 2] - z
+            d = dx * dx + dy * dy + dz * dz
+            if d < best:
+                best = d
+                bi = i
+        out[j] = bi
+    return out
+
+
+@njit(cache=True)
+def one_pole(x, a, y0):
+    """``y[k] = a x[k] + (1 - a) y[k - 1]`` with ``y[-1] = y0`` (in place of scipy's lfilter)."""
+    b = 1.0 - a
+    y = np.empty(x.shape[0])
+    prev = y0
+    for k in range(x.shape[0]):
+        prev = a * x[k] + b * prev
+        y[k] = prev
+    return y

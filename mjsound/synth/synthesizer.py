@@ -92,17 +92,15 @@ def _finite_array(x, _unused, what, fix):
 
 
 class _Voice:
-    """State of one (object, microphone) pair."""
+    """State of one (object, microphone) pair: views into the synthesizer's flat state."""
 
-    __slots__ = ("zr", "zi", "peak2", "active", "events", "sources")
+    __slots__ = ("zr", "zi", "peak2", "active")
 
     def __init__(self, n):
         self.zr = np.zeros(n)
         self.zi = np.zeros(n)
         self.peak2 = np.zeros(n)
         self.active = np.zeros(n, dtype=np.bool_)
-        self.events = []  # list of (n_a int64 (k,), kind int8 (k,), amps complex128 (k, n))
-        self.sources = []  # list of (a, b, g complex128 (n,), f float64 (b - a,))
 
 
 class _Object:
@@ -193,6 +191,11 @@ class Synthesizer:
         self.f_max = f_max
         self._objects: dict[str, _Object] = {}
         self._next_index = 0
+        # pending events, one chunk per call: (object index, mic (k,), sample (k,), kind int8 (k,),
+        # amps complex (k, n_modes)); forcing sources: (object index, mic, a, b, g (n,), f (b - a,))
+        self._ev = []
+        self._src = []
+        self._dirty = True  # voice layout must be rebuilt before rendering
         self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
         self.samples_rendered = 0
 
@@ -243,6 +246,16 @@ class Synthesizer:
         for ob in self._objects.values():
             n = len(ob.keep)
             ob.voices = ob.voices[: len(p)] + [_Voice(n) for _ in range(max(0, len(p) - old))]
+        if len(p) != old:
+            nch = len(p)
+            ev = []
+            for obi, mic, na, kd, amp in self._ev:
+                keep = mic < nch
+                if keep.any():
+                    ev.append((obi, mic[keep], na[keep], kd[keep], amp[keep]))
+            self._ev = ev
+            self._src = [s for s in self._src if s[1] < nch]
+            self._dirty = True
 
     @staticmethod
     def _check_pose(position, rotation, name):
@@ -338,12 +351,20 @@ class Synthesizer:
         ob.empty = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, n)), np.zeros((0, n)),
                     np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, n), dt), np.zeros((0, n), dt))
         ob.mass = float(model.mass_kg) if np.isfinite(model.mass_kg) and model.mass_kg > 0 else np.inf
+        # hot-path caches: kept shapes (p, 3, n) float64, surface points for the nearest lookup
+        ob.shk = np.ascontiguousarray(model.shapes[:, :, keep], dtype=np.float64)
+        ob.pts = np.ascontiguousarray(model.points, dtype=np.float64)
+        ob.gain = ob.weights  # per-mode pressure at 1 m per unit modal coordinate
         self._objects[name] = ob
+        self._dirty = True
 
     def remove_object(self, name) -> None:
         """Remove an object (its ringing stops at once)."""
-        self._get(name)
+        ob = self._get(name)
         del self._objects[name]
+        self._ev = [c for c in self._ev if c[0] != ob.index]
+        self._src = [c for c in self._src if c[0] != ob.index]
+        self._dirty = True
 
     def set_pose(self, name, position, rotation) -> None:
         """Set the world pose of ``name`` (applies to events added afterwards)."""
@@ -440,7 +461,6 @@ class Synthesizer:
             raise ValueError(f"times must have one value per impact ({k}), got {np.size(times)}")
         t = _finite_array(times, None, "time", "give simulation time in seconds").reshape(-1)
         t = self._check_time(np.broadcast_to(t, (k,)), "time")
-        fs = self.sample_rate
         # ---- pulse length
         if pulse_s is not None:
             tau = _finite_array(pulse_s, None, "pulse_s", "give the contact time in seconds (>= 0)")
@@ -452,59 +472,77 @@ class Synthesizer:
             R2 = float(other_radius_m)
             if math.isnan(m2) or m2 <= 0 or math.isnan(R2) or R2 <= 0:
                 raise ValueError("other_mass_kg and other_radius_m must be positive (np.inf for immovable / flat)")
-            mat1 = ob.model.material
-            mat2 = other_material
-            mstar = effective(ob.mass, m2)
-            if radius_m is None:
-                R1 = ob.model.size_m / 2 if ob.model.size_m > 0 else np.inf
-            else:
+            if radius_m is not None:
                 R1 = float(radius_m)
                 if math.isnan(R1) or R1 <= 0:
                     raise ValueError(f"radius_m={radius_m!r} must be a positive radius in metres")
-            Rstar = effective(R1, R2)
-            comp = (1 - mat1.nu**2) / mat1.E + (0.0 if mat2 is None else (1 - mat2.nu**2) / mat2.E)
-            e = mat1.restitution if mat2 is None else min(mat1.restitution, mat2.restitution)
+            v = None
             if speed is not None:
                 v = np.abs(_finite_array(speed, None, "speed", "give the normal approach speed in m/s"))
                 v = np.broadcast_to(v, (k,)).astype(np.float64)
-            elif math.isinf(mstar):
-                v = np.full(k, np.inf)
-            else:
-                v = np.linalg.norm(J, axis=1) / (mstar * (1 + e))
-            if math.isinf(mstar) or math.isinf(Rstar):
-                tau = np.full(k, TAU_MIN_S)
-            else:
-                Estar = 1.0 / comp
-                with np.errstate(divide="ignore"):
-                    tau = 2.87 * (mstar**2 / (Rstar * Estar**2 * v)) ** 0.2
-                tau = np.clip(np.where(v > 0, tau, TAU_MAX_S), TAU_MIN_S, TAU_MAX_S)
-        # ---- modal amplitudes c (k, n)
-        n = len(ob.keep)
-        if n == 0 or k == 0:
+            tau = self._hertz_tau(ob, J, other_material, m2, R2, v, radius_m)
+        if len(ob.keep) == 0 or k == 0:
             return
+        self._impacts_trusted(ob, P, J, t, tau)
+
+    def _hertz_tau(self, ob, J, other_material, m2, R2, v, radius_m):
+        """Hertz contact time per impact (see :mod:`.pulse`); ``v`` None: from |J| / (m*(1+e))."""
+        k = len(J)
+        mat1 = ob.model.material
+        mat2 = other_material
+        mstar = effective(ob.mass, m2)
+        if radius_m is None:
+            R1 = ob.model.size_m / 2 if ob.model.size_m > 0 else np.inf
+        else:
+            R1 = float(radius_m)
+        Rstar = effective(R1, R2)
+        if math.isinf(mstar) or math.isinf(Rstar):
+            return np.full(k, TAU_MIN_S)
+        comp = (1 - mat1.nu**2) / mat1.E + (0.0 if mat2 is None else (1 - mat2.nu**2) / mat2.E)
+        e = mat1.restitution if mat2 is None else min(mat1.restitution, mat2.restitution)
+        if v is None:
+            v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e))
+        Estar = 1.0 / comp
+        with np.errstate(divide="ignore"):
+            tau = 2.87 * (mstar**2 / (Rstar * Estar**2 * v)) ** 0.2
+        return np.clip(np.where(v > 0, tau, TAU_MAX_S), TAU_MIN_S, TAU_MAX_S)
+
+    def _impacts_trusted(self, ob, P, J, t, tau):
+        """Internal fast path of :meth:`impacts`: finite (k, 3) world ``P``, ``J``, (k,) times
+        already >= :attr:`time` and pulse lengths ``tau``. State is unchanged on error."""
+        k = len(P)
+        name = ob.name
         Pl = (P - ob.pos) @ ob.R  # R^T (p - pos), row-wise
         Jl = J @ ob.R
-        idx = ob.model.nearest_points(Pl)
-        sh = ob.model.shapes[:, :, ob.keep]
-        G = np.einsum("kcn,kc->kn", sh[idx].astype(np.float64), Jl)
+        idx = self._nearest(ob, Pl)
+        G = np.einsum("kcn,kc->kn", ob.shk[idx], Jl)
         S = half_sine_spectrum(ob.wd[None, :], tau[:, None])
         c = G / ob.wd[None, :] * S
-        r = self._distances(ob)
-        amps = []
-        for m in range(self.n_channels):
-            na, dts = self._arrival(t, r[m])
-            a = c * (ob.weights / r[m])[None, :] * np.exp(ob.lam[None, :] * dts[:, None])
-            a *= np.exp(-(na % GRID)[:, None] * ob.logeps[None, :])
-            if not np.all(np.isfinite(a)) or (a.size and np.abs(a).max() > MAX_AMPLITUDE):
+        r = self._distances(ob)  # (M,)
+        fs = self.sample_rate
+        M = len(r)
+        ta = t[None, :] + (r / self.speed_of_sound)[:, None]  # (M, k)
+        na = np.maximum(np.ceil(ta * fs - _SAMPLE_TOL).astype(np.int64), self.samples_rendered)
+        dts = na / fs - ta
+        # (M, k, n): c * w / r * e^{lam dt} * eps^{-(na % GRID)}
+        a = c[None, :, :] * (ob.weights[None, :] / r[:, None])[:, None, :]
+        a *= np.exp(ob.lam[None, None, :] * dts[:, :, None] - (na % GRID)[:, :, None] * ob.logeps[None, None, :])
+        if a.size:
+            amax = np.abs(a).max()
+            if not (amax <= MAX_AMPLITUDE):  # also catches NaN
                 raise ValueError(
                     f"impulse on {name!r} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
                     "check the impulse units (N s) and magnitude"
                 )
-            amps.append((na, a))
         # ---- commit (nothing above mutated state)
-        for m, (na, a) in enumerate(amps):
-            ob.voices[m].events.append((na, np.zeros(k, np.int8), a))
-        ob.busy = True
+        mic = np.repeat(np.arange(M, dtype=np.int64), k)
+        self._ev.append((ob.index, mic, na.reshape(-1), np.zeros(M * k, np.int8), a.reshape(M * k, -1)))
+
+    @staticmethod
+    def _nearest(ob, pl):
+        if len(pl) * len(ob.pts) > 4_000_000:
+            return ob.model.nearest_points(pl)
+        return kernels.nearest(ob.pts, np.ascontiguousarray(pl, dtype=np.float64))
 
     def slide(self, name, point, normal, normal_force, speed, t0, t1, *, roughness=SLIDE_ROUGHNESS) -> None:
         """Sliding contact on ``[t0, t1)`` [s]: surface-roughness noise drives the modes.
@@ -541,11 +579,15 @@ class Synthesizer:
         t1 = float(_finite_array(t1, None, "t1", "give the end time in seconds"))
         if t1 < t0:
             raise ValueError(f"t1={t1!r} is before t0={t0!r}; give an interval t0 <= t1 in seconds")
+        self._sustained_trusted(kind, ob, p, nv, fn, v, t0, t1, rough, length)
+
+    def _sustained_trusted(self, kind, ob, p, nv, fn, v, t0, t1, rough, length):
+        """Internal fast path of :meth:`slide` / :meth:`roll` (inputs already checked)."""
         fs = self.sample_rate
-        k0 = int(np.ceil(t0 * fs - _SAMPLE_TOL))
-        k1 = int(np.ceil(t1 * fs - _SAMPLE_TOL))
+        k0 = int(math.ceil(t0 * fs - _SAMPLE_TOL))
+        k1 = int(math.ceil(t1 * fs - _SAMPLE_TOL))
         L = k1 - k0
-        nn = np.linalg.norm(nv)
+        nn = math.sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2])
         if L <= 0 or v == 0.0 or fn == 0.0 or rough == 0.0 or nn == 0.0 or len(ob.keep) == 0:
             return
         if ob.rng is None:
@@ -556,9 +598,7 @@ class Synthesizer:
         nxt, y = ob.filter_state.get(kind, (None, 0.0))
         if nxt != k0:
             y = 0.0
-        from scipy.signal import lfilter
-
-        f, zf = lfilter([a], [1.0, -(1.0 - a)], x, zi=[(1.0 - a) * y])
+        f = kernels.one_pole(x, a, y)
         ob.filter_state[kind] = (k1, float(f[-1]))
         f *= rough * abs(fn) * abs(v)
         self._add_source(ob, p, nv / nn, k0 / fs, f)
@@ -580,28 +620,76 @@ class Synthesizer:
 
     def _add_source(self, ob, p, dirw, t_start, f):
         fs = self.sample_rate
-        pl = ob.R.T @ (p - ob.pos)
-        dl = ob.R.T @ dirw
-        idx = ob.model.nearest_points(pl[None])[0]
-        G = ob.model.shapes[idx][:, ob.keep].astype(np.float64).T @ dl  # (n,)
+        pl = (p - ob.pos) @ ob.R
+        dl = dirw @ ob.R
+        idx = int(self._nearest(ob, pl[None])[0])
+        G = dl @ ob.shk[idx]  # (n,)
         base = G / (fs * ob.wd)
         r = self._distances(ob)
+        ta = t_start + r / self.speed_of_sound
+        na = np.maximum(np.ceil(ta * fs - _SAMPLE_TOL).astype(np.int64), self.samples_rendered)
+        dts = na / fs - ta
+        g = base[None, :] * (ob.weights[None, :] / r[:, None]) * np.exp(ob.lam[None, :] * dts[:, None])  # (M, n)
+        fmax = np.abs(f).max()
+        gm = np.abs(g).max() if g.size else 0.0
+        if not (gm <= MAX_AMPLITUDE) or not (gm * fmax <= MAX_AMPLITUDE):
+            raise ValueError(f"force on {ob.name!r} is too large; check units (N)")
         L = len(f)
-        items = []
-        for m in range(self.n_channels):
-            na, dts = self._arrival(np.array([t_start]), r[m])
-            g = base * ob.weights / r[m] * np.exp(ob.lam * dts[0])
-            if not np.all(np.isfinite(g)) or np.abs(g).max() * np.abs(f).max() > MAX_AMPLITUDE:
-                raise ValueError(f"force on {ob.name!r} is too large; check units (N)")
-            a = int(na[0])
-            items.append((a, g))
-        for m, (a, g) in enumerate(items):
-            v = ob.voices[m]
-            v.sources.append((a, a + L, g, f))
-            v.events.append((np.array([a], np.int64), np.ones(1, np.int8), (g != 0).astype(np.complex128)[None, :]))
-        ob.busy = True
+        M = len(r)
+        for m in range(M):
+            a = int(na[m])
+            self._src.append((ob.index, m, a, a + L, g[m], f))
+        self._ev.append((ob.index, np.arange(M, dtype=np.int64), na, np.ones(M, np.int8),
+                         (g != 0).astype(np.complex128)))
 
     # ------------------------------------------------------------------ rendering
+    def _rebuild(self) -> None:
+        """Lay all voices out in flat arrays (one numba call renders them all); the per-voice
+        arrays become views, so ringing state survives the rebuild."""
+        obs = list(self._objects.values())
+        M = self.n_channels
+        nv = len(obs) * M
+        v_off = np.zeros(nv, np.int64)
+        v_len = np.zeros(nv, np.int64)
+        v_mic = np.zeros(nv, np.int64)
+        total = 0
+        j = 0
+        for ob in obs:
+            ob.vbase = j
+            for m in range(M):
+                v_off[j] = total
+                v_len[j] = len(ob.keep)
+                v_mic[j] = m
+                total += len(ob.keep)
+                j += 1
+        dt = self.dtype
+        Zr, Zi, P2 = np.zeros(total), np.zeros(total), np.zeros(total)
+        ACT = np.zeros(total, np.bool_)
+        PR, PI = np.zeros(total, dt), np.zeros(total, dt)
+        CR, CI = np.zeros(total), np.zeros(total)
+        j = 0
+        for ob in obs:
+            for m in range(M):
+                o, n = v_off[j], v_len[j]
+                sl = slice(o, o + n)
+                v = ob.voices[m]
+                Zr[sl], Zi[sl], P2[sl], ACT[sl] = v.zr, v.zi, v.peak2, v.active
+                v.zr, v.zi, v.peak2, v.active = Zr[sl], Zi[sl], P2[sl], ACT[sl]
+                PR[sl], PI[sl], CR[sl], CI[sl] = ob.pr, ob.pi, ob.corr_r, ob.corr_i
+                j += 1
+        self._flat = (Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic)
+        live = np.zeros(nv, np.bool_)
+        for i in range(nv):
+            live[i] = ACT[v_off[i]: v_off[i] + v_len[i]].any()
+        self._live = live
+        self._vbase = {ob.index: ob.vbase for ob in obs}
+        self._nmax = max([len(ob.keep) for ob in obs], default=0)
+        self._empty_ev = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, self._nmax)),
+                          np.zeros((0, self._nmax)))
+        self._empty_src = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, self._nmax), dt),
+                           np.zeros((0, self._nmax), dt), np.zeros((0, 0), dt))
+        self._dirty = False
+
     def render(self, n_samples) -> np.ndarray:
         """Render the next ``n_samples`` samples.
 
@@ -620,86 +708,117 @@ class Synthesizer:
         out = np.zeros((self.n_channels, n), dtype=dt)
         if n == 0:
             return out.astype(np.float32)
+        if self._dirty:
+            self._rebuild()
         start = self.samples_rendered
         end = start + n
-        zero = dt.type(0)
-        floor2 = FLOOR_PA**2
-        for ob in self._objects.values():
-            nm = len(ob.keep)
-            if nm == 0 or not ob.busy:
-                continue
-            busy = False
-            empty = ob.empty
-            for m, v in enumerate(ob.voices):
-                if v.events:
-                    ev_n, ev_kind, ev_re, ev_im = self._due_events(v, end, nm)
-                else:
-                    ev_n, ev_kind, ev_re, ev_im = empty[:4]
-                srcs = [s for s in v.sources if s[0] < end and s[1] > start] if v.sources else ()
-                if not srcs:
-                    if len(ev_n) == 0 and not v.active.any():
-                        busy = busy or bool(v.events) or bool(v.sources)
-                        continue
-                    src_a, src_b, gr, gi = empty[4:]
-                    F = np.zeros((0, n), dt)
-                else:
-                    q = len(srcs)
-                    src_a = np.array([s[0] for s in srcs], np.int64)
-                    src_b = np.array([s[1] for s in srcs], np.int64)
-                    gr = np.zeros((q, nm), dt)
-                    gi = np.zeros((q, nm), dt)
-                    F = np.zeros((q, n), dt)
-                    for j, (a, b, g, f) in enumerate(srcs):
-                        gr[j] = g.real
-                        gi[j] = g.imag
-                        lo, hi = max(a, start), min(b, end)
-                        F[j, lo - start: hi - start] = f[lo - a: hi - a]
-                kernels.render_voice(v.zr, v.zi, v.peak2, v.active, ob.pr, ob.pi, ob.corr_r, ob.corr_i,
-                                     ev_n, ev_kind, ev_re, ev_im, src_a, src_b, gr, gi, F,
-                                     start, n, GRID, self._cull2, floor2, out[m], zero)
-                if v.sources:
-                    v.sources = [s for s in v.sources if s[1] > end]
-                busy = busy or bool(v.events) or bool(v.sources) or bool(v.active.any())
-            ob.busy = busy
+        nv = len(self._live)
+        if self._ev or self._src or self._live.any():
+            nmax = self._nmax
+            # ---- events due in this block, sorted by (voice, sample), insertion order kept
+            if self._ev:
+                ev_v, ev_n, ev_kind, ev_re, ev_im = self._due_events(end, nmax)
+            else:
+                ev_v = np.zeros(0, np.int64)
+                ev_n, ev_kind, ev_re, ev_im = self._empty_ev
+            ev_ptr = np.searchsorted(ev_v, np.arange(nv + 1))
+            # ---- forcing sources overlapping the block
+            if self._src:
+                srcs = [s for s in self._src if s[2] < end and s[3] > start]
+            else:
+                srcs = ()
+            if srcs:
+                vb = self._vbase
+                sv = np.array([vb[s[0]] + s[1] for s in srcs], np.int64)
+                order = np.argsort(sv, kind="stable")
+                q = len(srcs)
+                src_a = np.empty(q, np.int64)
+                src_b = np.empty(q, np.int64)
+                gr = np.zeros((q, nmax), dt)
+                gi = np.zeros((q, nmax), dt)
+                F = np.zeros((q, n), dt)
+                for j, i in enumerate(order.tolist()):
+                    _, _, a, b, g, f = srcs[i]
+                    src_a[j] = a
+                    src_b[j] = b
+                    gr[j, : len(g)] = g.real
+                    gi[j, : len(g)] = g.imag
+                    lo, hi = max(a, start), min(b, end)
+                    F[j, lo - start: hi - start] = f[lo - a: hi - a]
+                src_ptr = np.searchsorted(sv[order], np.arange(nv + 1))
+                self._src = [s for s in self._src if s[3] > end]
+            else:
+                src_a, src_b, gr, gi, F = self._empty_src
+                F = np.zeros((0, n), dt)
+                src_ptr = np.zeros(nv + 1, np.int64)
+            Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic = self._flat
+            kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, self._live,
+                               ev_ptr, ev_n, ev_kind, ev_re, ev_im,
+                               src_ptr, src_a, src_b, gr, gi, F,
+                               start, n, GRID, self._cull2, FLOOR_PA**2, out, dt.type(0))
         self.samples_rendered = end
         return out.astype(np.float32, copy=False)
 
-    @staticmethod
-    def _due_events(v, end, nm):
-        due = []
-        keep = []
-        for na, kind, a in v.events:
-            if na.max() < end:
-                due.append((na, kind, a))
-            elif na.min() >= end:
-                keep.append((na, kind, a))
-            else:
-                sel = na < end
-                due.append((na[sel], kind[sel], a[sel]))
-                keep.append((na[~sel], kind[~sel], a[~sel]))
-        v.events = keep
-        if not due:
-            e = np.zeros((0, nm))
-            return np.zeros(0, np.int64), np.zeros(0, np.int8), e, e
-        if len(due) == 1:
-            na, kind, a = due[0]
+    def _due_events(self, end, nmax):
+        """Split the pending events into those before ``end`` (returned, as flat arrays sorted
+        by voice then sample, ties in insertion order) and the rest (kept)."""
+        vb = self._vbase
+        chunks = self._ev
+        if len(chunks) == 1:
+            obi, mic, na, kind, a = chunks[0]
+            vid = vb[obi] + mic
+            if a.shape[1] < nmax:
+                a = np.pad(a, ((0, 0), (0, nmax - a.shape[1])))
         else:
-            na = np.concatenate([d[0] for d in due])
-            kind = np.concatenate([d[1] for d in due])
-            a = np.concatenate([d[2] for d in due])
-        order = np.argsort(na, kind="stable")
-        if np.any(order != np.arange(len(order))):
-            na, kind, a = na[order], kind[order], a[order]
-        return (np.ascontiguousarray(na), np.ascontiguousarray(kind),
-                np.ascontiguousarray(a.real), np.ascontiguousarray(a.imag))
+            vid = np.concatenate([vb[c[0]] + c[1] for c in chunks])
+            na = np.concatenate([c[2] for c in chunks])
+            kind = np.concatenate([c[3] for c in chunks])
+            a = np.zeros((len(na), nmax), np.complex128)
+            r = 0
+            for c in chunks:
+                k, w = c[4].shape
+                a[r: r + k, :w] = c[4]
+                r += k
+        due = na < end
+        if due.all():
+            self._ev = []
+        else:
+            keep = ~due
+            # kept events are stored against voice ids of this layout: re-key by object
+            self._ev = self._rekey(vid[keep], na[keep], kind[keep], a[keep])
+            vid, na, kind, a = vid[due], na[due], kind[due], a[due]
+        order = np.lexsort((na, vid))
+        vid, na, kind, a = vid[order], na[order], kind[order], a[order]
+        return vid, np.ascontiguousarray(na), np.ascontiguousarray(kind), np.ascontiguousarray(a.real), \
+            np.ascontiguousarray(a.imag)
+
+    def _rekey(self, vid, na, kind, a):
+        if len(vid) == 0:
+            return []
+        M = self.n_channels
+        out = []
+        for ob in self._objects.values():
+            sel = (vid >= ob.vbase) & (vid < ob.vbase + M)
+            if sel.any():
+                out.append((ob.index, vid[sel] - ob.vbase, na[sel], kind[sel], a[sel][:, : len(ob.keep)]))
+        return out
 
     def reset(self) -> None:
         """Silence everything and restart time at 0 (objects, poses and microphones stay;
         the noise generators restart from the seed)."""
         self.samples_rendered = 0
-        for ob in self._objects.values():
-            if ob.busy:
+        self._ev = []
+        self._src = []
+        if not self._dirty:
+            Zr, Zi, P2, ACT = self._flat[:4]
+            Zr[:] = 0.0
+            Zi[:] = 0.0
+            P2[:] = 0.0
+            ACT[:] = False
+            self._live[:] = False
+        else:
+            for ob in self._objects.values():
                 ob.voices = [_Voice(len(ob.keep)) for _ in range(self.n_channels)]
-                ob.busy = False
+        for ob in self._objects.values():
             ob.rng = None
             ob.filter_state = {}
