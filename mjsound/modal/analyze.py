@@ -27,7 +27,7 @@ high       10                      16                  4              6
 =========  ======================  ==================  =============  ============
 
 "min. across" is the least number of hex cells along each axis, capped so that no
-cell is thinner than half the wall (a 2 mm plate keeps 2 cells through its thickness).
+cell is thinner than half the wall; a plate's thickness axis keeps one cell.
 
 Radiation
 ---------
@@ -140,7 +140,12 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
         # A bar or rod needs a few cells across its section even when the wavelength rule
         # allows one: up to `min_across`, but cells no thinner than half the wall.
         t = wall_thickness(mesh) if thickness is None else thickness
-        across = np.ceil(mesh.extents / (0.5 * t)) if np.isfinite(t) and t > 0 else np.ones(3)
+        # A plate's thickness axis (extent ~ t) keeps one cell: incompatible-mode cells bend
+        # exactly through one layer, and a second layer would add a third of the dofs.
+        if np.isfinite(t) and t > 0:
+            across = np.where(mesh.extents > 1.5 * t, np.ceil(mesh.extents / (0.5 * t)), 1)
+        else:
+            across = np.ones(3)
         min_cells = np.minimum(_quality(quality)["min_across"], across).astype(int)
         if refine is None:
             # fine voxels of at most a third of the wall, so thin walls are not smeared out
