@@ -39,7 +39,9 @@ monopole ``Q_i = sum_p a_p (phi_i(x_p) . n_p)`` and dipole ``D_i = sum_p a_p (x_
           \quad k_i = \omega_i / c_0
 
 (the dipole term averaged over directions), with air at ``rho_0 = 1.2 kg/m^3``,
-``c_0 = 343 m/s``.
+``c_0 = 343 m/s``, capped at full radiation efficiency
+``rho_0 c_0 omega sqrt(A_eff / 4 pi)``, ``A_eff = sum_p a_p (phi_i . n_p)^2``, for modes
+whose wavelength is shorter than the object (where the compact estimate overshoots).
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 4  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 5  # bump when discretization or model contents change (invalidates cache)
 
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
@@ -304,7 +306,7 @@ def analyze(
     info.update(
         h_target=h, f_max=f_max, quality=quality if resolution is None else f"resolution={resolution}",
         solver=sol.backend, slices=sol.n_slices, n_rigid=int(sol.n_below), n_overdamped=int((~under).sum()),
-        solve_seconds=sol.seconds, size_m=float(np.max(tm.extents)),
+        solve_seconds=sol.seconds, size_m=float(np.max(tm.extents)), area_m2=float(tm.area),
         watertight=bool(tm.is_watertight),
     )
     err = float("nan")
@@ -336,7 +338,14 @@ def analyze(
 
 
 def _radiation(points, normals, shapes, omega, area):
-    """Per-mode far-field pressure at 1 m per unit modal coordinate (module docstring)."""
+    """Per-mode far-field pressure at 1 m per unit modal coordinate (module docstring).
+
+    The compact (k a << 1) monopole + dipole estimate grows as ``omega^3 |D|`` without
+    bound, so for modes whose wavelength is shorter than the object it would radiate more
+    power than the surface can emit. A surface radiates at most with efficiency 1,
+    ``W = rho0 c <v_n^2> A``, which at 1 m is ``R_max = rho0 c omega sqrt(A_eff / 4 pi)``
+    with ``A_eff = sum_p a_p (phi . n)^2``: the weight is the smaller of the two.
+    """
     if shapes.shape[2] == 0:
         return np.zeros(0)
     a = area / len(points)
@@ -345,7 +354,9 @@ def _radiation(points, normals, shapes, omega, area):
     x = points - points.mean(axis=0)
     D = a * np.einsum("pc,pn->cn", x, un)
     k = omega / SPEED_OF_SOUND
-    return AIR_DENSITY * omega**2 / (4 * np.pi) * np.sqrt(Q**2 + (k * np.linalg.norm(D, axis=0)) ** 2 / 3.0)
+    compact = AIR_DENSITY * omega**2 / (4 * np.pi) * np.sqrt(Q**2 + (k * np.linalg.norm(D, axis=0)) ** 2 / 3.0)
+    r_max = AIR_DENSITY * SPEED_OF_SOUND * omega * np.sqrt(a * np.einsum("pn,pn->n", un, un) / (4 * np.pi))
+    return np.minimum(compact, r_max)
 
 
 def _error_estimate(method, tm, material, h, points, quality, thickness, order, refine, f_fine, n=10):

@@ -93,45 +93,6 @@ def _finite_array(x, _unused, what, fix):
     return a
 
 
-def _radiation_cap(model, keep, omega):
-    """Factor (<= 1) that limits each mode's radiation weight to the radiation-efficiency
-    bound ``sigma <= 1``.
-
-    ``ModalModel.radiation`` is a *compact* (k a << 1) monopole + dipole estimate. Its dipole
-    term grows as ``omega^3 |D|`` without bound, so for modes whose wavelength is shorter than
-    the object (a 0.5 m table top at 5-20 kHz has k a = 20-90) it predicts far more radiated
-    power than the vibrating surface can emit, and often more than the mode dissipates in
-    total. A surface whose normal velocity is ``v_n`` radiates at most about
-    ``W = rho0 c <v_n^2> A`` (radiation efficiency 1, the large-ka limit), which at 1 m is a
-    pressure amplitude per unit modal coordinate of::
-
-        R_max = rho0 c omega sqrt(A_eff / (4 pi)),   A_eff = sum_p a_p (phi(x_p) . n_p)^2
-
-    with ``a_p = A / p`` the area per surface sample. The model does not store its area; it is
-    estimated from the samples' mean nearest-neighbour spacing ``s`` (for p uniform samples,
-    ``A ~ p (2 s)^2``, within ~5 % on the demo objects). Models with fewer than 8 samples are
-    not capped.
-    """
-    n = len(keep)
-    pts = np.asarray(model.points, dtype=np.float64)
-    if n == 0 or len(pts) < 8:
-        return np.ones(n)
-    from scipy.spatial import cKDTree
-
-    dist, _ = cKDTree(pts).query(pts, k=2)
-    s = float(np.mean(dist[:, 1]))
-    if not (s > 0 and np.isfinite(s)):
-        return np.ones(n)
-    a = (2.0 * s) ** 2  # area per sample [m^2]
-    un = np.einsum("pcn,pc->pn", model.shapes[:, :, keep].astype(np.float64), model.normals.astype(np.float64))
-    a_eff = a * np.einsum("pn,pn->n", un, un)
-    r_max = RHO_AIR * C_AIR * omega * np.sqrt(a_eff / (4.0 * np.pi))
-    rad = np.abs(np.asarray(model.radiation, dtype=np.float64)[keep])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        f = np.where(rad > r_max, r_max / rad, 1.0)
-    return np.where(np.isfinite(f), f, 1.0)
-
-
 class _Voice:
     """State of one (object, microphone) pair: views into the synthesizer's flat state."""
 
@@ -235,6 +196,7 @@ class Synthesizer:
         # pending events, one chunk per call: (object index, mic (k,), sample (k,), kind int8 (k,),
         # amps complex (k, n_modes)); forcing sources: (object index, mic, a, b, g (n,), f (b - a,))
         self._ev = []
+        self._ev_next = 2**62  # earliest pending event sample (nothing to split before it)
         self._src = []
         self._dirty = True  # voice layout must be rebuilt before rendering
         self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
@@ -350,7 +312,7 @@ class Synthesizer:
         ob.d, ob.wd = d, wd
         ob.lam = -d + 1j * wd
         if self.radiation:
-            ob.weights = rad[keep] * _radiation_cap(model, keep, w0[keep])
+            ob.weights = rad[keep]  # capped at full radiation efficiency by the analysis
         else:
             sh = model.shapes[:, :, keep].astype(np.float64)
             if len(model.points):
@@ -578,6 +540,7 @@ class Synthesizer:
         # ---- commit (nothing above mutated state)
         mic = np.repeat(np.arange(M, dtype=np.int64), k)
         self._ev.append((ob.index, mic, na.reshape(-1), np.zeros(M * k, np.int8), a.reshape(M * k, -1)))
+        self._ev_next = min(self._ev_next, int(na.min()))
 
     @staticmethod
     def _nearest(ob, pl):
@@ -682,6 +645,7 @@ class Synthesizer:
             self._src.append((ob.index, m, a, a + L, g[m], f))
         self._ev.append((ob.index, np.arange(M, dtype=np.int64), na, np.ones(M, np.int8),
                          (g != 0).astype(np.complex128)))
+        self._ev_next = min(self._ev_next, int(na.min()))
 
     # ------------------------------------------------------------------ rendering
     def _rebuild(self) -> None:
@@ -757,7 +721,7 @@ class Synthesizer:
         if self._ev or self._src or self._live.any():
             nmax = self._nmax
             # ---- events due in this block, sorted by (voice, sample), insertion order kept
-            if self._ev:
+            if self._ev and self._ev_next < end:
                 ev_v, ev_n, ev_kind, ev_re, ev_im = self._due_events(end, nmax)
             else:
                 ev_v = np.zeros(0, np.int64)
@@ -823,10 +787,12 @@ class Synthesizer:
         due = na < end
         if due.all():
             self._ev = []
+            self._ev_next = 2**62
         else:
             keep = ~due
             # kept events are stored against voice ids of this layout: re-key by object
             self._ev = self._rekey(vid[keep], na[keep], kind[keep], a[keep])
+            self._ev_next = int(na[keep].min())
             vid, na, kind, a = vid[due], na[due], kind[due], a[due]
         order = np.lexsort((na, vid))
         vid, na, kind, a = vid[order], na[order], kind[order], a[order]
@@ -849,6 +815,7 @@ class Synthesizer:
         the noise generators restart from the seed)."""
         self.samples_rendered = 0
         self._ev = []
+        self._ev_next = 2**62
         self._src = []
         if not self._dirty:
             Zr, Zi, P2, ACT = self._flat[:4]
