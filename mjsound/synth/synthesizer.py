@@ -62,10 +62,8 @@ D_MIN_PER_S = 1e-3
 R_MIN_M = 0.01
 #: Events up to this much before the rendered time are accepted (and start now) [s].
 TIME_TOLERANCE_S = 1e-6
-#: Air density [kg/m^3] (``radiation=False`` proxy and the radiation-efficiency cap).
+#: Air density [kg/m^3] (``radiation=False`` proxy).
 RHO_AIR = 1.2
-#: Speed of sound of the radiation-efficiency cap [m/s].
-C_AIR = 343.0
 #: Absolute amplitude floor [Pa at the microphone]: modes below it are culled.
 FLOOR_PA = 1e-30
 #: Largest accepted modal amplitude at a microphone [Pa]; above it the input is rejected.
