@@ -4,8 +4,10 @@ Strategy (chosen by measurement, see ``scripts/bench_modal.py``):
 
 * **small systems** (n <= ``dense_max``): dense LAPACK ``eigh`` with ``subset_by_value``.
 * **large systems**: shift-invert Lanczos (ARPACK) with *spectrum slicing*. Each slice
-  factors ``K - sigma M`` once (Intel MKL PARDISO through ``pypardiso`` when installed,
-  else SuperLU) and asks ARPACK for the ``k`` eigenvalues nearest ``sigma``. If the
+  factors ``K - sigma M`` once (SuperLU with minimum-degree ordering on ``A + A^T`` and
+  diagonal pivots; the first, positive definite slice of a large system uses Intel MKL
+  PARDISO through ``pypardiso`` when installed) and asks ARPACK for the ``k`` eigenvalues
+  nearest ``sigma``. If the
   farthest of them lies at distance ``rho``, then *every* eigenvalue in
   ``(sigma - rho, sigma + rho)`` has been found (the ``k`` largest ``|1/(lambda-sigma)|``),
   so a slice whose radius reaches back to the explored top ``lo`` contributes exactly
@@ -67,23 +69,27 @@ def backend_name() -> str:
 PARDISO_MIN_DOFS = 20000
 
 
-def factorize(A: sp.spmatrix, backend: str | None = None):
+def factorize(A: sp.spmatrix, backend: str | None = None, definite: bool = False):
     """Return ``solve(b)`` for the sparse symmetric matrix ``A`` (factored once).
 
-    ``backend=None`` picks PARDISO for systems of at least :data:`PARDISO_MIN_DOFS`
-    dofs when pypardiso is installed, SuperLU otherwise.
+    ``backend=None`` picks PARDISO for *positive definite* systems (``definite=True``) of
+    at least :data:`PARDISO_MIN_DOFS` dofs when pypardiso is installed, SuperLU otherwise.
+    PARDISO's symmetric-indefinite mode perturbs small pivots (1e-8), which made interior
+    slices gain or lose a mode at their edges; SuperLU (minimum degree on A+A^T, diagonal
+    pivots) is exact there and about as fast at these sizes.
     """
     if backend is None:
-        backend = backend_name() if A.shape[0] >= PARDISO_MIN_DOFS else "superlu"
+        use = definite and A.shape[0] >= PARDISO_MIN_DOFS
+        backend = backend_name() if use else "superlu"
     A = sp.csr_matrix(A)
     if backend == "pardiso":
-        return _pardiso_solver(A)
+        return _pardiso_solver(A, definite)
     lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                    options={"SymmetricMode": True})
     return lu.solve
 
 
-def _pardiso_solver(A: sp.csr_matrix):
+def _pardiso_solver(A: sp.csr_matrix, definite: bool = False):
     """Factor with MKL PARDISO (symmetric indefinite, METIS ordering) and return a solve.
 
     ``pypardiso.PyPardisoSolver.solve`` compares the whole matrix with the factored one on
@@ -94,7 +100,7 @@ def _pardiso_solver(A: sp.csr_matrix):
 
     import pypardiso
 
-    solver = pypardiso.PyPardisoSolver(mtype=-2)
+    solver = pypardiso.PyPardisoSolver(mtype=2 if definite else -2)  # SPD or symmetric indefinite
     Au = sp.triu(A, format="csr")
     Au.sort_indices()
     solver.factorize(Au)
@@ -136,7 +142,7 @@ def solve_band(
     lam_max: float,
     *,
     dense_max: int = 300,
-    slice_modes: int = 60,
+    slice_modes: int = 100,
     backend: str | None = None,
     progress=None,
     max_modes: int | None = None,
@@ -197,8 +203,6 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             progress(1.0)
         return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, 1, "lapack")
 
-    if backend is None:
-        backend = backend_name() if n >= PARDISO_MIN_DOFS else "superlu"
     vals, vecs = [], []
     n_below = 0
     # Start just below zero so the (semi-definite) K - sigma M is definite and the rigid
@@ -211,7 +215,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     total = 0
     while lo <= lam_max:
         n_slices += 1
-        solve = factorize(K - sigma * M, backend)
+        solve = factorize(K - sigma * M, backend, definite=sigma < 0)
         op = spla.LinearOperator((n, n), matvec=solve, dtype=np.float64)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -252,7 +256,8 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     w, V = w[order], V[:, order]
     if max_modes is not None:
         w, V = w[:max_modes], V[:, :max_modes]
-    return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, n_slices, backend)
+    used = backend or ("pardiso+superlu" if n >= PARDISO_MIN_DOFS and backend_name() == "pardiso" else "superlu")
+    return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, n_slices, used)
 
 
 def _mass_normalise(V: np.ndarray, M: sp.spmatrix) -> np.ndarray:

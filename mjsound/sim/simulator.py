@@ -313,30 +313,34 @@ class AudioSimulator:
                     if np.isfinite(P).all() and np.isfinite(J).all():
                         synth._impacts_trusted(ob, P, J, np.concatenate(T), np.concatenate(TAU))
         if self.sustained and contacts:
-            covered = self._covered
-            t_block = self.sustained_block_s
+            # one persistent noise stream per (pair, kind, side): its force and speed are
+            # updated every step (numba generates the noise), its gains follow the contact
+            # point every ``sustained_block_s``
+            k0 = synth.samples_rendered
+            k1 = k0 + nblock
+            regain = max(1, int(round(self.sustained_block_s * fs)))
+            params = self._sust_params
+            log = self.event_log
+            counts = self.events
             for ev in contacts:
-                self.events[ev.kind] += 1
-                if len(self.event_log) < self.keep_events:
-                    self.event_log.append((ev.t0, ev.kind, ev.geom1, ev.geom2, ev.speed))
-                key = (ev.geom1, ev.geom2, ev.kind)
-                if covered.get(key, -np.inf) > ev.t0 + 1e-9:
-                    continue  # this pair's noise is already queued up to there
-                t_end = ev.t0 + max(t_block, ev.t1 - ev.t0)
-                covered[key] = t_end
-                ta = max(ev.t0 - base, t_floor)
-                tb = max(t_end - base, ta)
-                if not (np.isfinite(ev.point).all() and np.isfinite(ev.normal).all()
-                        and math.isfinite(ev.force_n) and math.isfinite(ev.speed)):
+                counts[ev.kind] += 1
+                if len(log) < self.keep_events:
+                    log.append((ev.t0, ev.kind, ev.geom1, ev.geom2, ev.speed))
+                if nblock == 0:
                     continue
+                fn = float(ev.force_n)
+                spd = float(ev.speed)
+                if not (math.isfinite(fn) and math.isfinite(spd) and np.isfinite(ev.point).all()
+                        and np.isfinite(ev.normal).all()):
+                    continue
+                rough, length = params[ev.kind]
                 for g, sign in ((ev.geom2, 1.0), (ev.geom1, -1.0)):
                     name = names.get(g)
                     if name is None:
                         continue
                     ob = pose(g, name)
-                    rough, length = self._sust_params[ev.kind]
-                    synth._sustained_trusted(ev.kind, ob, ev.point, sign * ev.normal, float(ev.force_n),
-                                             float(ev.speed), ta, tb, rough, length)
+                    synth._stream_drive((ev.geom1, ev.geom2, ev.kind, g), ob, ev.point, sign * ev.normal, fn, spd,
+                                        k0, k1, rough, length, regain)
         out = synth.render(nblock)
         self.seconds_synth += _time.perf_counter() - tc
         self.samples += nblock

@@ -152,6 +152,16 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
     gwi = np.empty((nsrc, m), pr.dtype)
     idx = np.empty(m, np.int64)
     act = np.empty(max(nsrc, 1), np.int64)
+    # a source already acting at the block start drives its modes from here on (a no-op for
+    # sources whose start event activated them earlier: they cannot be culled while acting)
+    for q in range(nsrc):
+        if src_a[q] <= start and start < src_b[q]:
+            for i in range(m):
+                if (gr[q, i] != 0.0 or gi[q, i] != 0.0) and not active[i]:
+                    active[i] = True
+                    zr[i] = 0.0
+                    zi[i] = 0.0
+                    peak2[i] = 0.0
     na = _gather(zr, zi, active, pr, pi, gr, gi, wr, wi, wpr, wpi, gwr, gwi, idx)
     # forcing sources must not be culled while they act
     pos = start
@@ -316,3 +326,180 @@ def one_pole(x, a, y0):
         prev = a * x[k] + b * prev
         y[k] = prev
     return y
+
+
+# ---------------------------------------------------------------------------------------------
+# Persistent sustained-contact streams (sliding / rolling noise of the per-step driver)
+#
+# A *stream* is one sustained contact source (one side of one contact pair and kind). Its
+# noise is generated inside numba, sample by sample in source time, into a per-stream ring
+# buffer ``ring[s, k & mask]`` (force [N] of source sample k); microphone m hears source sample
+# k at voice sample ``k + D[s, m]`` (integer propagation delay; the sub-sample part is in the
+# complex gain). Nothing is allocated per step beyond the block's source rows.
+
+_U1 = np.uint64(0x9E3779B97F4A7C15)
+_U2 = np.uint64(0xBF58476D1CE4E5B9)
+_U3 = np.uint64(0x94D049BB133111EB)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+_S11 = np.uint64(11)
+_INV53 = 1.0 / 9007199254740992.0
+
+
+@njit(cache=True, inline="always")
+def _splitmix(state):
+    state = state + _U1
+    z = state
+    z = (z ^ (z >> _S30)) * _U2
+    z = (z ^ (z >> _S27)) * _U3
+    z = z ^ (z >> _S31)
+    return state, z
+
+
+@njit(cache=True)
+def stream_seed(seed, obj, key):
+    """Initial generator state of a stream from (synthesizer seed, object index, stream key)."""
+    s = np.uint64(seed & 0x7FFFFFFFFFFFFFFF)
+    s, a = _splitmix(s ^ np.uint64(obj & 0x7FFFFFFFFFFFFFFF))
+    s, b = _splitmix(a ^ np.uint64(key & 0x7FFFFFFFFFFFFFFF))
+    return b
+
+
+@njit(cache=True)
+def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c, fs, rmin, tol,
+                 gr, gi, D):
+    """Per-microphone complex gain ``gr + j gi`` (n,) and integer delay ``D`` of a force along
+    world ``nrm`` at world point ``p`` on an object at (pos, R) (see ``Synthesizer._add_source``)."""
+    pl0 = 0.0
+    pl1 = 0.0
+    pl2 = 0.0
+    d0 = 0.0
+    d1 = 0.0
+    d2 = 0.0
+    for i in range(3):
+        q = p[i] - pos[i]
+        pl0 += q * R[i, 0]
+        pl1 += q * R[i, 1]
+        pl2 += q * R[i, 2]
+        d0 += nrm[i] * R[i, 0]
+        d1 += nrm[i] * R[i, 1]
+        d2 += nrm[i] * R[i, 2]
+    best = np.inf
+    bi = 0
+    for i in range(pts.shape[0]):
+        dx = pts[i, 0] - pl0
+        dy = pts[i, 1] - pl1
+        dz = pts[i, 2] - pl2
+        dd = dx * dx + dy * dy + dz * dz
+        if dd < best:
+            best = dd
+            bi = i
+    n = wd.shape[0]
+    M = mics.shape[0]
+    for m in range(M):
+        dx = mics[m, 0] - pos[0]
+        dy = mics[m, 1] - pos[1]
+        dz = mics[m, 2] - pos[2]
+        r = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if r < rmin:
+            r = rmin
+        ta = r / c
+        Dm = np.int64(np.ceil(ta * fs - tol))
+        if Dm < 0:
+            Dm = 0
+        D[m] = Dm
+        dts = Dm / fs - ta
+        for k in range(n):
+            G = d0 * shk[bi, 0, k] + d1 * shk[bi, 1, k] + d2 * shk[bi, 2, k]
+            a = G / (fs * wd[k]) * weights[k] / r
+            e = np.exp(lam_re[k] * dts)
+            ph = lam_im[k] * dts
+            gr[m, k] = a * e * np.cos(ph)
+            gi[m, k] = a * e * np.sin(ph)
+        for k in range(n, gr.shape[1]):
+            gr[m, k] = 0.0
+            gi[m, k] = 0.0
+
+
+@njit(cache=True)
+def streams_block(st_live, st_obj, st_k0, st_k1, st_amp, st_alpha, st_y, st_rng, st_gen, st_last,
+                  st_D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
+    """Generate every driven stream's noise up to source sample ``end`` and return the
+    block's source rows for :func:`render_all` (sorted by voice; rows active on
+    ``[start, min(end, last + D))``)."""
+    S = st_live.shape[0]
+    M = st_D.shape[1]
+    mask = ring.shape[1] - 1
+    cap = ring.shape[1]
+    # ---- generate
+    for s in range(S):
+        if not st_live[s]:
+            continue
+        if st_k1[s] > st_gen[s]:
+            k = st_gen[s]
+            if k < end - cap:
+                k = end - cap
+            k0 = st_k0[s]
+            k1 = st_k1[s]
+            amp = st_amp[s]
+            a = st_alpha[s]
+            b = 1.0 - a
+            y = st_y[s]
+            state = st_rng[s]
+            while k < end:
+                if k >= k0 and k < k1:
+                    state, z1 = _splitmix(state)
+                    state, z2 = _splitmix(state)
+                    u1 = ((z1 >> _S11) + np.uint64(1)) * _INV53
+                    u2 = (z2 >> _S11) * _INV53
+                    x = np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
+                    y = a * x + b * y
+                    ring[s, k & mask] = y * amp
+                else:
+                    ring[s, k & mask] = 0.0
+                k += 1
+            st_y[s] = y
+            st_rng[s] = state
+            st_gen[s] = end
+            if amp != 0.0 and k1 > st_last[s]:
+                st_last[s] = k1 if k1 < end else end
+    # ---- rows
+    q = 0
+    for s in range(S):
+        if not st_live[s]:
+            continue
+        for m in range(M):
+            if st_last[s] + st_D[s, m] > start:
+                q += 1
+    voice = np.empty(q, np.int64)
+    sa = np.empty(q, np.int64)
+    sb = np.empty(q, np.int64)
+    gr = np.zeros((q, nmax), st_gr.dtype)
+    gi = np.zeros((q, nmax), st_gr.dtype)
+    n = end - start
+    F = np.zeros((q, n), st_gr.dtype)
+    j = 0
+    for s in range(S):
+        if not st_live[s]:
+            continue
+        for m in range(M):
+            Dm = st_D[s, m]
+            hi = st_last[s] + Dm
+            if hi <= start:
+                continue
+            voice[j] = vbase[st_obj[s]] + m
+            sa[j] = start
+            sb[j] = hi if hi < end else end
+            w = min(nmax, st_gr.shape[2])
+            for k in range(w):
+                gr[j, k] = st_gr[s, m, k]
+                gi[j, k] = st_gi[s, m, k]
+            lo_src = st_gen[s] - cap  # oldest sample still in the ring
+            for t in range(start, sb[j]):
+                ks = t - Dm
+                if ks >= lo_src and ks < st_gen[s]:
+                    F[j, t - start] = ring[s, ks & mask]
+            j += 1
+    order = np.argsort(voice, kind="mergesort")
+    return voice[order], sa[order], sb[order], gr[order], gi[order], F[order]

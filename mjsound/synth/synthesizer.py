@@ -199,6 +199,7 @@ class Synthesizer:
         self._dirty = True  # voice layout must be rebuilt before rendering
         self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
         self.samples_rendered = 0
+        self._streams_clear()
 
     # ------------------------------------------------------------------ properties
     @property
@@ -256,6 +257,7 @@ class Synthesizer:
                     ev.append((obi, mic[keep], na[keep], kd[keep], amp[keep]))
             self._ev = ev
             self._src = [s for s in self._src if s[1] < nch]
+            self._streams_clear()
             self._dirty = True
 
     @staticmethod
@@ -309,6 +311,8 @@ class Synthesizer:
         wd = np.sqrt(w0[keep] ** 2 - d**2)
         ob.d, ob.wd = d, wd
         ob.lam = -d + 1j * wd
+        ob.lam_re = np.ascontiguousarray(ob.lam.real)
+        ob.lam_im = np.ascontiguousarray(ob.lam.imag)
         if self.radiation:
             ob.weights = rad[keep]  # capped at full radiation efficiency by the analysis
         else:
@@ -365,6 +369,8 @@ class Synthesizer:
         del self._objects[name]
         self._ev = [c for c in self._ev if c[0] != ob.index]
         self._src = [c for c in self._src if c[0] != ob.index]
+        if self._st_n:
+            self._st["live"][: self._st_n][self._st["obj"][: self._st_n] == ob.index] = False
         self._dirty = True
 
     def set_pose(self, name, position, rotation) -> None:
@@ -645,6 +651,97 @@ class Synthesizer:
                          (g != 0).astype(np.complex128)))
         self._ev_next = min(self._ev_next, int(na.min()))
 
+    # ------------------------------------------------------------------ persistent streams
+    #: Ring buffer length of a stream [samples] (power of two; grows for long blocks/delays).
+    _RING = 4096
+
+    def _streams_clear(self) -> None:
+        """Forget all sustained-contact streams (their ringing modes keep ringing)."""
+        self._st_keys: dict = {}
+        self._st_n = 0
+        self._st = None
+        self._st_view = None
+
+    def _streams_alloc(self, cap, nmax, ring):
+        M = self.n_channels
+        old = self._st
+        n = self._st_n
+        st = {
+            "live": np.zeros(cap, np.bool_), "obj": np.zeros(cap, np.int64),
+            "k0": np.zeros(cap, np.int64), "k1": np.zeros(cap, np.int64),
+            "amp": np.zeros(cap), "alpha": np.zeros(cap), "y": np.zeros(cap),
+            "rng": np.zeros(cap, np.uint64), "gen": np.zeros(cap, np.int64),
+            "last": np.full(cap, -(2**62), np.int64), "gupd": np.full(cap, -(2**62), np.int64),
+            "D": np.zeros((cap, M), np.int64),
+            "gr": np.zeros((cap, M, nmax), self.dtype), "gi": np.zeros((cap, M, nmax), self.dtype),
+            "ring": np.zeros((cap, ring)),
+        }
+        if old is not None and n:
+            for k, a in old.items():
+                if k == "ring":
+                    # keep every sample's slot: ring[k & mask]
+                    ro = a.shape[1]
+                    for j in range(n):
+                        g = int(old["gen"][j])
+                        ks = np.arange(max(g - ro, 0), g)
+                        st[k][j, ks & (ring - 1)] = a[j, ks & (ro - 1)]
+                elif k in ("gr", "gi"):
+                    st[k][:n, :, : a.shape[2]] = a[:n]
+                else:
+                    st[k][:n] = a[:n]
+        self._st = st
+        self._st_view = None
+
+    def _stream_drive(self, key, ob, p, nv, fn, v, k0, k1, rough, length, regain):
+        """Drive the persistent stream ``key`` (any hashable, e.g. (geom1, geom2, kind, side))
+        on synth samples ``[k0, k1)`` with sliding/rolling noise of force ``fn`` [N] and speed
+        ``v`` [m/s] at world ``p`` along world unit ``nv`` (see :meth:`slide`). Internal fast
+        path of the per-step driver: call once per block, before rendering it, with ``k0`` the
+        block's first sample. The gains follow the point every ``regain`` samples."""
+        if len(ob.keep) == 0 or v == 0.0 or fn == 0.0 or rough == 0.0 or k1 <= k0:
+            return
+        j = self._st_keys.get(key)
+        st = self._st
+        if j is None:
+            nmax = max([len(o.keep) for o in self._objects.values()], default=0)
+            if st is None or self._st_n == len(st["live"]) or st["gr"].shape[2] < nmax:
+                cap = 8 if st is None else max(len(st["live"]), 4) * (2 if self._st_n == len(st["live"]) else 1)
+                self._streams_alloc(cap, nmax, self._RING if st is None else st["ring"].shape[1])
+                st = self._st
+            j = self._st_n
+            self._st_n += 1
+            self._st_keys[key] = j
+            st["live"][j] = True
+            st["obj"][j] = ob.index
+            st["rng"][j] = kernels.stream_seed(self.seed, ob.index, hash(key) & 0x7FFFFFFFFFFFFFFF)
+            st["gen"][j] = k0
+            self._st_view = None
+        fs = self.sample_rate
+        if k0 != st["k1"][j]:
+            st["y"][j] = 0.0  # a new run of the stream: the filter restarts (as in slide())
+        st["k0"][j] = k0
+        st["k1"][j] = k1
+        st["amp"][j] = rough * abs(fn) * abs(v)
+        fc = min(abs(v) / length, 0.45 * fs)
+        st["alpha"][j] = 1.0 - math.exp(-2 * math.pi * fc / fs)
+        if k0 >= st["gupd"][j] + regain or k0 < st["gupd"][j]:
+            st["gupd"][j] = k0
+            kernels.stream_gains(ob.pts, ob.shk, ob.pos, ob.R, p, nv, ob.wd, ob.weights, ob.lam_re, ob.lam_im,
+                                 self._mics, self.speed_of_sound, float(fs), R_MIN_M, _SAMPLE_TOL,
+                                 st["gr"][j], st["gi"][j], st["D"][j])
+            # the ring must hold a block plus the longest delay
+            need = int(st["D"][j].max()) + (k1 - k0) + 1
+            if need > st["ring"].shape[1]:
+                self._streams_alloc(len(st["live"]), st["gr"].shape[2], 1 << (need - 1).bit_length())
+
+    def _streams_rows(self, start, end):
+        st = self._st
+        if self._st_view is None:
+            n = self._st_n
+            self._st_view = tuple(st[k][:n] for k in ("live", "obj", "k0", "k1", "amp", "alpha", "y", "rng", "gen",
+                                                      "last", "D", "gr", "gi", "ring"))
+        return kernels.streams_block(*self._st_view, self._vb_arr, start, end, self._nmax, self.dtype.type(0))
+
     # ------------------------------------------------------------------ rendering
     def _rebuild(self) -> None:
         """Lay all voices out in flat arrays (one numba call renders them all); the per-voice
@@ -686,6 +783,13 @@ class Synthesizer:
             live[i] = ACT[v_off[i]: v_off[i] + v_len[i]].any()
         self._live = live
         self._vbase = {ob.index: ob.vbase for ob in obs}
+        vb_arr = np.zeros(self._next_index + 1, np.int64)
+        for ob in obs:
+            vb_arr[ob.index] = ob.vbase
+        self._vb_arr = vb_arr
+        self._ev_ptr0 = np.zeros(nv + 1, np.int64)
+        self._ev_none = np.zeros(0, np.int64)
+        self._voices = np.arange(nv + 1)
         self._nmax = max([len(ob.keep) for ob in obs], default=0)
         self._empty_ev = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, self._nmax)),
                           np.zeros((0, self._nmax)))
@@ -716,15 +820,16 @@ class Synthesizer:
         start = self.samples_rendered
         end = start + n
         nv = len(self._live)
-        if self._ev or self._src or self._live.any():
+        streams = self._st_n > 0
+        if self._ev or self._src or streams or self._live.any():
             nmax = self._nmax
             # ---- events due in this block, sorted by (voice, sample), insertion order kept
             if self._ev and self._ev_next < end:
                 ev_v, ev_n, ev_kind, ev_re, ev_im = self._due_events(end, nmax)
+                ev_ptr = np.searchsorted(ev_v, self._voices)
             else:
-                ev_v = np.zeros(0, np.int64)
                 ev_n, ev_kind, ev_re, ev_im = self._empty_ev
-            ev_ptr = np.searchsorted(ev_v, np.arange(nv + 1))
+                ev_ptr = self._ev_ptr0
             # ---- forcing sources overlapping the block
             if self._src:
                 srcs = [s for s in self._src if s[2] < end and s[3] > start]
@@ -748,12 +853,28 @@ class Synthesizer:
                     gi[j, : len(g)] = g.imag
                     lo, hi = max(a, start), min(b, end)
                     F[j, lo - start: hi - start] = f[lo - a: hi - a]
-                src_ptr = np.searchsorted(sv[order], np.arange(nv + 1))
+                sv = sv[order]
                 self._src = [s for s in self._src if s[3] > end]
             else:
+                sv = self._ev_none
                 src_a, src_b, gr, gi, F = self._empty_src
                 F = np.zeros((0, n), dt)
-                src_ptr = np.zeros(nv + 1, np.int64)
+            if streams:
+                # persistent sliding / rolling streams: noise generated in numba, rows appended
+                s_v, s_a, s_b, s_gr, s_gi, s_F = self._streams_rows(start, end)
+                if len(s_v):
+                    if len(sv):
+                        sv = np.concatenate([sv, s_v])
+                        order = np.argsort(sv, kind="stable")
+                        sv = sv[order]
+                        src_a = np.concatenate([src_a, s_a])[order]
+                        src_b = np.concatenate([src_b, s_b])[order]
+                        gr = np.concatenate([gr, s_gr])[order]
+                        gi = np.concatenate([gi, s_gi])[order]
+                        F = np.concatenate([F, s_F])[order]
+                    else:
+                        sv, src_a, src_b, gr, gi, F = s_v, s_a, s_b, s_gr, s_gi, s_F
+            src_ptr = np.searchsorted(sv, self._voices) if len(sv) else self._ev_ptr0
             Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic = self._flat
             kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, self._live,
                                ev_ptr, ev_n, ev_kind, ev_re, ev_im,
@@ -828,3 +949,4 @@ class Synthesizer:
         for ob in self._objects.values():
             ob.rng = None
             ob.filter_state = {}
+        self._streams_clear()
