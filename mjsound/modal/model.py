@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..io import commit_temp, temp_beside
 from ..materials import Material
 
 __all__ = ["ModalModel", "FORMAT_VERSION"]
@@ -182,10 +182,7 @@ class ModalModel:
 
     def save(self, path) -> None:
         """Write to ``path`` (.npz) atomically (temp file + rename)."""
-        path = os.fspath(path)
-        d = os.path.dirname(os.path.abspath(path)) or "."
-        os.makedirs(d, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=".npz")
+        fd, tmp = temp_beside(path, ".npz")
         try:
             with os.fdopen(fd, "wb") as fh:
                 np.savez_compressed(
@@ -198,7 +195,7 @@ class ModalModel:
                     radiation=self.radiation,
                     meta=np.array(json.dumps(self.metadata(), default=_json_default)),
                 )
-            os.replace(tmp, path)
+            commit_temp(tmp, path)
         except BaseException:
             if os.path.exists(tmp):
                 os.unlink(tmp)

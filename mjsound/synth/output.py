@@ -17,6 +17,8 @@ import tempfile
 
 import numpy as np
 
+from ..io import commit_temp
+
 __all__ = ["DEFAULT_FULL_SCALE_PA", "to_full_scale", "normalize_peak", "AudioWriter", "write_audio"]
 
 #: Pressure [Pa] mapped to digital full scale (1.0): 20 Pa = 120 dB SPL.
@@ -158,7 +160,7 @@ class AudioWriter:
             return
         self._closed = True
         self._f.close()
-        os.replace(self._tmp, self.path)
+        commit_temp(self._tmp, self.path)
 
     def abort(self) -> None:
         """Discard everything written; ``path`` is left as it was."""
