@@ -221,6 +221,106 @@ def _pair_kernel(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm):
     return order, starts[: P + 1], pkey, vmax, ftot, slip, roll, point, normal
 
 
+@_njit(cache=True, nogil=True)
+def _state_kernel(pkey, vmax, ftot, slip, roll, slotmap, st_vprev, st_last, st_touch, st_hit, st_calm,
+                  st_open, st_rtime, st_rspeed, st_rimp, st_rsteps, nslots, t0, t1, dt, step,
+                  v_impact, v_hard, min_apart, refractory, max_event, v_slide, v_roll):
+    """Per-pair state machine of :meth:`ContactReader.events` (the rules are
+    in the module docstring). Returns per pair: slot, onset (an impact starts: Python computes its impulse),
+    sustained kind (0 none, 1 slide, 2 roll) and speed, and the new number of slots. Pairs
+    seen before but not in this step close their open impact record."""
+    P = pkey.shape[0]
+    slot = np.empty(P, np.int64)
+    onset_out = np.zeros(P, np.bool_)
+    kind = np.zeros(P, np.int64)
+    speed = np.zeros(P)
+    for p in range(P):
+        key = pkey[p]
+        if key in slotmap:
+            j = slotmap[key]
+        else:
+            j = nslots
+            nslots += 1
+            slotmap[key] = j
+            st_vprev[j] = 0.0
+            st_last[j] = -10
+            st_touch[j] = -np.inf
+            st_hit[j] = -np.inf
+            st_calm[j] = 0
+            st_open[j] = False
+        slot[p] = j
+        vm = vmax[p]
+        if vm > v_impact:
+            vp = max(st_vprev[j], 0.0)
+            if st_last[j] != step - 1:
+                onset = vm >= v_hard or t0 - st_touch[j] >= min_apart
+            else:
+                onset = vm > 2.0 * vp and vm - vp > 2.0 * v_impact
+            if onset and t0 - st_hit[j] >= refractory - 1e-12:
+                onset_out[p] = True
+                st_open[j] = True
+                st_rtime[j] = t0
+                st_rspeed[j] = vm
+                st_rimp[j] = 0.0
+                st_rsteps[j] = 0
+                st_calm[j] = 0
+                st_hit[j] = t0
+        if st_open[j]:
+            st_rimp[j] += ftot[p] * dt
+            st_rsteps[j] += 1
+            tol = max(0.02 * st_rspeed[j], 1e-3)
+            st_calm[j] = st_calm[j] + 1 if abs(vm) < tol else 0
+            if st_calm[j] >= 2 or t1 - st_rtime[j] >= max_event:
+                st_open[j] = False
+        st_vprev[j] = vm
+        st_last[j] = step
+        st_touch[j] = t0
+        if ftot[p] > 0.0:
+            if slip[p] > v_slide and slip[p] > 0.3 * roll[p]:
+                kind[p] = 1
+                speed[p] = slip[p]
+            elif roll[p] > v_roll:
+                kind[p] = 2
+                speed[p] = roll[p]
+    for j in range(nslots):
+        if st_open[j] and st_last[j] != step:
+            st_open[j] = False
+    return slot, onset_out, kind, speed, nslots
+
+
+@_njit(cache=True, nogil=True)
+def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, fmax, ngeom,
+                  slotmap, st_vprev, st_last, st_touch, st_hit, st_calm, st_open, st_rtime, st_rspeed, st_rimp,
+                  st_rsteps, nslots, t0, t1, dt, step, v_impact, v_hard, min_apart, refractory, max_event, v_slide,
+                  v_roll):
+    """:func:`_contact_kernel`, :func:`_pair_kernel` and :func:`_state_kernel` in one call (the
+    per-step hot path). Returns ``(rows, nbad, nhuge, nslots)``; ``rows`` (pairs, 12):
+    geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed, point (3),
+    normal (3), onset (1: an impact starts)."""
+    fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge = _contact_kernel(
+        geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, fmax)
+    order, starts, pkey, vmax, ftot, slip, roll, point, normal = _pair_kernel(
+        geom, ngeom, fn, vapp, vslip, vroll, pos, nrm)
+    slot, onset, kind, speed, nslots = _state_kernel(
+        pkey, vmax, ftot, slip, roll, slotmap, st_vprev, st_last, st_touch, st_hit, st_calm, st_open, st_rtime,
+        st_rspeed, st_rimp, st_rsteps, nslots, t0, t1, dt, step, v_impact, v_hard, min_apart, refractory,
+        max_event, v_slide, v_roll)
+    P = pkey.shape[0]
+    rows = np.empty((P, 12))
+    for p in range(P):
+        i0 = order[starts[p]]
+        rows[p, 0] = geom[i0, 0]
+        rows[p, 1] = geom[i0, 1]
+        rows[p, 2] = kind[p]
+        rows[p, 3] = ftot[p]
+        rows[p, 4] = speed[p]
+        for c in range(3):
+            rows[p, 5 + c] = point[p, c]
+            rows[p, 8 + c] = normal[p, c]
+        rows[p, 11] = 1.0 if onset[p] else 0.0
+    return rows, nbad, nhuge, nslots
+
+
 @dataclass
 class ContactFrame:
     """All contacts of one step, as arrays over the ``n`` contacts (world frame, SI).
@@ -319,17 +419,6 @@ class ImpactRecord:
     open: bool = True
 
 
-class _Pair:
-    __slots__ = ("v_prev", "record", "calm", "t_start", "last_step")
-
-    def __init__(self):
-        self.v_prev = 0.0
-        self.record = None
-        self.calm = 0
-        self.t_start = 0.0
-        self.last_step = -1
-
-
 class ContactReader:
     """Reads every contact after each ``mj_step`` and turns them into sound events.
 
@@ -398,14 +487,31 @@ class ContactReader:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget all pairs (call after ``mj_resetData`` or a state jump)."""
-        self._pairs: dict[int, _Pair] = {}
-        self._last_hit: dict[int, float] = {}  # pair key -> onset time of its last impact [s]
-        self._last_touch: dict[int, float] = {}  # pair key -> last time it was in contact [s]
+        from numba import types
+        from numba.typed import Dict
+
+        # per contact pair (slot), state kept in arrays for the numba state machine
+        self._slotmap = Dict.empty(key_type=types.int64, value_type=types.int64)
+        self._nslots = 0
+        self._alloc_slots(64)
+        self._open: dict[int, ImpactRecord] = {}  # slot -> its open ImpactRecord
         self._step = 0
         self.impacts = []
         self.n_impacts = 0
         self.n_clamped = 0
         self._prev_cvel = None
+
+    def _alloc_slots(self, cap):
+        names = ("vprev", "last", "touch", "hit", "calm", "open", "rtime", "rspeed", "rimp", "rsteps")
+        dtypes = (np.float64, np.int64, np.float64, np.float64, np.int64, np.bool_, np.float64, np.float64,
+                  np.float64, np.int64)
+        old = getattr(self, "_st", None)
+        st = [np.zeros(cap, d) for d in dtypes]
+        if old is not None:
+            for a, b in zip(st, old):
+                a[: len(b)] = b
+        self._st = st
+        self._st_names = names
 
     def _warn_once(self, key, msg):
         if key not in self._warned:
@@ -488,76 +594,112 @@ class ContactReader:
             order, starts, pkey, vmax, ftot, slip, roll, point, normal = _pair_kernel(
                 cf.geom, self.model.ngeom, cf.force_n, cf.v_approach, cf.v_slip, cf.v_roll, cf.pos, cf.normal
             )
-            pairs = self._pairs
-            vm_l, ft_l, sl_l, ro_l = vmax.tolist(), ftot.tolist(), slip.tolist(), roll.tolist()
-            st_l = starts.tolist()
-            for p, key in enumerate(pkey.tolist()):
-                pair = pairs.get(key)
-                if pair is None:
-                    pair = pairs[key] = _Pair()
-                idx = order[st_l[p] : st_l[p + 1]]
-                self._pair_step(key, data, cf, idx, pair, t0, t1, step_dt, step, impacts, contacts,
-                                vm_l[p], ft_l[p], sl_l[p], ro_l[p], point[p], normal[p])
-                pair.last_step = step
-                self._last_touch[key] = t0
-        # pairs that lost contact this step
-        if self._pairs:
-            gone = [k for k, p in self._pairs.items() if p.last_step != step]
-            for k in gone:
-                p = self._pairs.pop(k)
-                if p.record is not None:
-                    self._close(p.record)
+            if self._nslots + len(pkey) > len(self._st[0]):
+                self._alloc_slots(2 * (self._nslots + len(pkey)))
+            slot, onset, kind, speed, self._nslots = _state_kernel(
+                pkey, vmax, ftot, slip, roll, self._slotmap, *self._st, self._nslots, t0, t1, step_dt, step,
+                self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s, self.max_event_s,
+                self.v_slide, self.v_roll,
+            )
+            if onset.any():
+                for p in np.flatnonzero(onset).tolist():
+                    j = int(slot[p])
+                    old = self._open.pop(j, None)
+                    if old is not None:
+                        old.open = False
+                    idx = order[starts[p]: starts[p + 1]]
+                    hit = idx[cf.v_approach[idx] > self.v_impact]
+                    self._open[j] = self._impact(data, cf, hit, t0, impacts)
+            if kind.any():
+                geom = cf.geom
+                for p in np.flatnonzero(kind).tolist():
+                    i0 = int(order[starts[p]])
+                    contacts.append(ContactEvent(
+                        "slide" if kind[p] == 1 else "roll", t0, t1, int(geom[i0, 0]), int(geom[i0, 1]),
+                        point[p], normal[p], float(ftot[p]), float(speed[p])))
+        elif self._open:
+            # nothing touches: every open record closes
+            self._st[5][: self._nslots] = False
+        if self._open:
+            s_open, s_rimp, s_rsteps, s_rtime = self._st[5], self._st[8], self._st[9], self._st[6]
+            for j, rec in list(self._open.items()):
+                rec.impulse_sim = float(s_rimp[j])
+                rec.steps = int(s_rsteps[j])
+                if self._st[1][j] == step:
+                    rec.duration = t1 - float(s_rtime[j])
+                if not s_open[j]:
+                    rec.open = False
+                    del self._open[j]
         return impacts, contacts, cf
 
-    def _pair_step(self, key, data, cf, idx, pair, t0, t1, dt, step, impacts, contacts, vmax, ftot, slip, roll,
-                   point, normal):
-        # ---------------------------------------------------------------- impacts
-        # An impact needs an approach faster than v_impact at (re)contact, or, while the pair
-        # stays in contact, a jump of the approach speed by more than v_impact and 2x (an edge
-        # slapping down); and none of the same pair within refractory_s (re-contacts of one
-        # bounce and solver jitter merge into the impact already emitted).
-        if vmax > self.v_impact:
-            vp = max(pair.v_prev, 0.0)
-            new_contact = pair.last_step != step - 1
-            if new_contact:
-                # a true bounce at >= v_impact flies >= 2 v / g ~ 10 ms; contacts that flicker
-                # off for a step or two are micro-rattling of a body in contact, not impacts
-                onset = vmax >= self.v_hard or t0 - self._last_touch.get(key, -np.inf) >= self.min_apart_s
-            else:
-                # an edge slapping down while the pair touches elsewhere; rocking/rattling in
-                # place (contacts swapping corners at a few cm/s) stays below the jump
-                onset = vmax > 2.0 * vp and vmax - vp > 2.0 * self.v_impact
-            if onset and t0 - self._last_hit.get(key, -np.inf) >= self.refractory_s - 1e-12:
-                va = cf.v_approach[idx]
-                hit = idx[va > self.v_impact]
-                if pair.record is not None:
-                    self._close(pair.record)
-                self._impact(data, cf, hit, t0, impacts, pair)
-                self._last_hit[key] = t0
-        rec = pair.record
-        if rec is not None:
-            rec.impulse_sim += ftot * dt
-            rec.steps += 1
-            rec.duration = t1 - rec.time
-            tol = max(0.02 * rec.speed, 1e-3)
-            pair.calm = pair.calm + 1 if abs(vmax) < tol else 0
-            if pair.calm >= 2 or rec.duration >= self.max_event_s:
-                self._close(rec)
-                pair.record = None
-        pair.v_prev = vmax
-        # ---------------------------------------------------------------- sustained
-        if ftot <= 0.0:
-            return
-        if slip > self.v_slide and slip > 0.3 * roll:
-            kind, speed = "slide", slip
-        elif roll > self.v_roll:
-            kind, speed = "roll", roll
-        else:
-            return
-        i0 = int(idx[0])
-        contacts.append(
-            ContactEvent(kind, t0, t1, int(cf.geom[i0, 0]), int(cf.geom[i0, 1]), point, normal, ftot, speed)
-        )
+    def events_fast(self, data, t0: float, t1: float):
+        """:meth:`events` for the per-step driver: the same events and state, one numba call
+        per step (the :class:`ContactFrame` is only built on a step with an impact onset).
+
+        Returns
+        -------
+        (impacts, contacts) : (list[ImpactEvent], list[ContactEvent])
+        """
+        self._step += 1
+        step = self._step
+        impacts: list[ImpactEvent] = []
+        contacts: list[ContactEvent] = []
+        n = data.ncon
+        if n:
+            if self._nslots + n > len(self._st[0]):
+                self._alloc_slots(2 * (self._nslots + n))
+            con = data.contact
+            rows, nbad, nhuge, self._nslots = _fused_kernel(
+                con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
+                data.cvel, data.subtree_com, data.geom_xpos, self.geom_body, self.body_root, self._plane,
+                self.max_force, self.model.ngeom, self._slotmap, *self._st, self._nslots, t0, t1, t1 - t0, step,
+                self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s, self.max_event_s,
+                self.v_slide, self.v_roll,
+            )
+            if nbad or nhuge:
+                self.n_clamped += int(nbad + nhuge)
+                self._warn_once(
+                    "force",
+                    f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
+                    "velocities clamped (exploding simulation?); reported once",
+                )
+            if rows[:, 11].any():
+                cf = self.read(data) if not (nbad or nhuge) else self._read_quiet(data)
+                order, starts, pkey = _pair_kernel(cf.geom, self.model.ngeom, cf.force_n, cf.v_approach,
+                                                   cf.v_slip, cf.v_roll, cf.pos, cf.normal)[:3]
+                for p in np.flatnonzero(rows[:, 11]).tolist():
+                    j = self._slotmap[int(pkey[p])]
+                    old = self._open.pop(j, None)
+                    if old is not None:
+                        old.open = False
+                    idx = order[starts[p]: starts[p + 1]]
+                    hit = idx[cf.v_approach[idx] > self.v_impact]
+                    self._open[j] = self._impact(data, cf, hit, t0, impacts)
+            for r in rows[rows[:, 2] > 0].tolist():
+                contacts.append(ContactEvent("slide" if r[2] == 1.0 else "roll", t0, t1, int(r[0]), int(r[1]),
+                                             np.array(r[5:8]), np.array(r[8:11]), r[3], r[4]))
+        elif self._open:
+            self._st[5][: self._nslots] = False
+        if self._open:
+            self._sync_open(step, t1)
+        return impacts, contacts
+
+    def _read_quiet(self, data):
+        n0 = self.n_clamped
+        cf = self.read(data)
+        self.n_clamped = n0  # already counted by the fused kernel
+        return cf
+
+    def _sync_open(self, step, t1):
+        s_open, s_rimp, s_rsteps, s_rtime = self._st[5], self._st[8], self._st[9], self._st[6]
+        for j, rec in list(self._open.items()):
+            rec.impulse_sim = float(s_rimp[j])
+            rec.steps = int(s_rsteps[j])
+            if self._st[1][j] == step:
+                rec.duration = t1 - float(s_rtime[j])
+            if not s_open[j]:
+                rec.open = False
+                del self._open[j]
 
     def _restitution(self, g1, g2) -> float:
         e1, e2 = self.restitution[g1], self.restitution[g2]
@@ -569,7 +711,7 @@ class ContactReader:
             return float(e2)
         return 0.5
 
-    def _impact(self, data, cf, hit, t0, impacts, pair):
+    def _impact(self, data, cf, hit, t0, impacts):
         mj = self._mj
         m = self.model
         k = len(hit)
@@ -641,13 +783,8 @@ class ContactReader:
             time=t0, geom1=g1, geom2=g2, speed=vmax, impulse_pred=total, impulse_sim=0.0,
             restitution=e, effective_mass=mstar,
         )
-        pair.record = rec
-        pair.calm = 0
         self.n_impacts += 1
         self.impacts.append(rec)
         if len(self.impacts) > self.keep_records:
             del self.impacts[: len(self.impacts) - self.keep_records]
-
-    @staticmethod
-    def _close(rec: ImpactRecord) -> None:
-        rec.open = False
+        return rec

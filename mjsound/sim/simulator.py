@@ -72,7 +72,7 @@ class SampleClock:
 
     def time_at(self, k: int) -> float:
         """``t_start + k * timestep`` [s] (float, for reporting)."""
-        return float(Fraction(self._a0 + k * self._b, self._den))
+        return (self._a0 + k * self._b) / self._den  # int / int: correctly rounded, as float(Fraction)
 
     def advance(self) -> tuple[int, int]:
         """Step once; returns ``(n0, n1)``, the step's samples ``n0 <= n < n1``."""
@@ -254,7 +254,7 @@ class AudioSimulator:
             self.samples += nblock
             return np.zeros((self.n_channels, nblock), dtype=np.float32)
         tc = _time.perf_counter()
-        impacts, contacts, _ = self.reader.events(self.data, t0, t1)
+        impacts, contacts = self.reader.events_fast(self.data, t0, t1)
         self.seconds_contacts += _time.perf_counter() - tc
         synth = self.synth
         data = self.data
@@ -330,17 +330,15 @@ class AudioSimulator:
                     continue
                 fn = float(ev.force_n)
                 spd = float(ev.speed)
-                if not (math.isfinite(fn) and math.isfinite(spd) and np.isfinite(ev.point).all()
-                        and np.isfinite(ev.normal).all()):
-                    continue
+                if not (math.isfinite(fn) and math.isfinite(spd)):
+                    continue  # (points and normals are sanitised by the reader)
                 rough, length = params[ev.kind]
                 for g, sign in ((ev.geom2, 1.0), (ev.geom1, -1.0)):
                     name = names.get(g)
                     if name is None:
                         continue
-                    ob = pose(g, name)
-                    synth._stream_drive((ev.geom1, ev.geom2, ev.kind, g), ob, ev.point, sign * ev.normal, fn, spd,
-                                        k0, k1, rough, length, regain)
+                    synth._stream_drive((ev.geom1, ev.geom2, ev.kind, g), objs[name], ev.point, sign * ev.normal,
+                                        fn, spd, k0, k1, rough, length, regain, pose, g, name)
         out = synth.render(nblock)
         self.seconds_synth += _time.perf_counter() - tc
         self.samples += nblock

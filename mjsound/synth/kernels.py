@@ -417,6 +417,9 @@ def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c,
             ph = lam_im[k] * dts
             gr[m, k] = a * e * np.cos(ph)
             gi[m, k] = a * e * np.sin(ph)
+            if not (np.isfinite(gr[m, k]) and np.isfinite(gi[m, k])):
+                gr[m, k] = 0.0  # a bad pose or point: silence, never NaN audio
+                gi[m, k] = 0.0
         for k in range(n, gr.shape[1]):
             gr[m, k] = 0.0
             gi[m, k] = 0.0

@@ -45,6 +45,7 @@ Determinism: the same calls with the same ``seed`` give bit-identical audio, how
 from __future__ import annotations
 
 import math
+import zlib
 
 import numpy as np
 
@@ -692,12 +693,13 @@ class Synthesizer:
         self._st = st
         self._st_view = None
 
-    def _stream_drive(self, key, ob, p, nv, fn, v, k0, k1, rough, length, regain):
+    def _stream_drive(self, key, ob, p, nv, fn, v, k0, k1, rough, length, regain, posefn=None, *poseargs):
         """Drive the persistent stream ``key`` (any hashable, e.g. (geom1, geom2, kind, side))
         on synth samples ``[k0, k1)`` with sliding/rolling noise of force ``fn`` [N] and speed
         ``v`` [m/s] at world ``p`` along world unit ``nv`` (see :meth:`slide`). Internal fast
         path of the per-step driver: call once per block, before rendering it, with ``k0`` the
-        block's first sample. The gains follow the point every ``regain`` samples."""
+        block's first sample. The gains follow the point every ``regain`` samples
+        (``posefn(*poseargs)``, if given, updates and returns the object's pose first)."""
         if len(ob.keep) == 0 or v == 0.0 or fn == 0.0 or rough == 0.0 or k1 <= k0:
             return
         j = self._st_keys.get(key)
@@ -713,7 +715,7 @@ class Synthesizer:
             self._st_keys[key] = j
             st["live"][j] = True
             st["obj"][j] = ob.index
-            st["rng"][j] = kernels.stream_seed(self.seed, ob.index, hash(key) & 0x7FFFFFFFFFFFFFFF)
+            st["rng"][j] = kernels.stream_seed(self.seed, ob.index, zlib.crc32(repr(key).encode()))  # not hash(): str hashes vary by process
             st["gen"][j] = k0
             self._st_view = None
         fs = self.sample_rate
@@ -726,6 +728,8 @@ class Synthesizer:
         st["alpha"][j] = 1.0 - math.exp(-2 * math.pi * fc / fs)
         if k0 >= st["gupd"][j] + regain or k0 < st["gupd"][j]:
             st["gupd"][j] = k0
+            if posefn is not None:
+                ob = posefn(*poseargs)  # the object's pose is only needed for the gains
             kernels.stream_gains(ob.pts, ob.shk, ob.pos, ob.R, p, nv, ob.wd, ob.weights, ob.lam_re, ob.lam_im,
                                  self._mics, self.speed_of_sound, float(fs), R_MIN_M, _SAMPLE_TOL,
                                  st["gr"][j], st["gi"][j], st["D"][j])
