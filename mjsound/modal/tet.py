@@ -176,7 +176,13 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
     ValueError
         When the mesh is not watertight or TetGen fails; the message suggests ``hex``.
     """
-    import tetgen
+    try:
+        import tetgen
+    except ImportError:
+        raise ValueError(
+            "tet method needs the optional TetGen wrapper: pip install 'mjsound[tet]' "
+            f"(or pip install tetgen); {_HEX_HINT}"
+        ) from None
 
     if not mesh.is_watertight:
         raise ValueError(
