@@ -129,3 +129,14 @@ def test_quadratic_tet_beam_within_half_percent_through_analyze():
     with pytest.raises(ValueError, match="hex"):
         box = trimesh.creation.box(extents=[0.1, 0.1, 0.1])
         analyze(trimesh.Trimesh(box.vertices, box.faces[2:], process=False), "steel", method="tet", cache=False)
+
+
+def test_thin_free_square_plate_against_plate_theory():
+    """Free-free square plate, nu = 0.3: omega a^2 sqrt(rho h / D) = 13.468, 19.596, 24.270
+    (Leissa, *Vibration of Plates*, NASA SP-160, table 4.49): a 2 mm plate in one cell layer."""
+    E, nu, rho, a, h = 200e9, 0.3, 7800.0, 0.2, 0.002
+    D = E * h**3 / (12 * (1 - nu**2))
+    ref = np.array([13.468, 19.596, 24.270]) / (2 * np.pi * a * a) * np.sqrt(D / (rho * h))
+    m = analyze(f"box:{a},{a},{h}", f"E={E},nu={nu},rho={rho}", f_max=3000, cache=False, error_estimate=False)
+    assert m.info["grid"][2] == 1  # one layer through the thickness, no locking
+    assert np.all(np.abs(m.frequencies_hz[:3] / ref - 1) < 0.01), (m.frequencies_hz[:3], ref)

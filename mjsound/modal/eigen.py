@@ -30,7 +30,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-__all__ = ["solve_band", "factorize", "BandSolution", "backend_name"]
+__all__ = ["solve_band", "factorize", "count_below", "BandSolution", "backend_name"]
 
 
 class BandSolution:
@@ -135,6 +135,23 @@ def _pardiso_solver(A: sp.csr_matrix, definite: bool = False):
     return solve
 
 
+def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float) -> int | None:
+    """Number of eigenvalues of ``K phi = lambda M phi`` below ``lam`` (Sylvester inertia).
+
+    SuperLU with a symmetric ordering and no row pivoting factors ``K - lam M = L D L^T``
+    (``U = D L^T``); the count is the number of negative entries of ``D``. Returns None if
+    the factorization pivoted (then the count is not an inertia).
+    """
+    try:
+        lu = spla.splu(sp.csc_matrix(K - lam * M), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:  # exactly singular: lam is an eigenvalue
+        return None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None
+    return int(np.sum(lu.U.diagonal() < 0))
+
+
 def solve_band(
     K: sp.spmatrix,
     M: sp.spmatrix,
@@ -203,6 +220,11 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             progress(1.0)
         return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, 1, "lapack")
 
+    # Sylvester's law of inertia: the negative pivots of K - lam_max M (an LDL^T with a
+    # symmetric permutation) count the eigenvalues below lam_max, so the first slice can ask
+    # for exactly that many (+ a margin) and usually finds the whole band at once.
+    n_target = count_below(K, M, lam_max)
+    k_max = 2 * int(slice_modes)
     vals, vecs = [], []
     n_below = 0
     # Start just below zero so the (semi-definite) K - sigma M is definite and the rigid
@@ -211,7 +233,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     sigma = -0.5 * scale
     lo = -np.inf
     n_slices = 0
-    k = int(min(slice_modes, n - 2))
+    k = int(min(slice_modes if n_target is None or n_target + 4 > k_max else n_target + 4, n - 2))
     total = 0
     while lo <= lam_max:
         n_slices += 1
@@ -250,6 +272,18 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
         # of the k eigenvalues it finds are new; its radius must still reach back to hi.
         sigma = hi + 0.5 * rho
         lo = hi
+        if n_target is not None:
+            left = n_target - (n_below + total)
+            if left <= 0:
+                break
+            k = int(min(max(slice_modes, 2 * left + 4) if 2 * left + 4 <= k_max else slice_modes, n - 2))
+    if n_target is not None and max_modes is None and n_below + total != n_target:
+        warnings.warn(
+            f"eigensolver found {n_below + total} eigenvalues below the band top but the inertia "
+            f"count is {n_target}; the factorization may be inaccurate (badly scaled K, M?)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
     w = np.concatenate(vals) if vals else np.zeros(0)
     V = np.concatenate(vecs, axis=1) if vecs else np.zeros((n, 0))
     order = np.argsort(w)
