@@ -22,6 +22,14 @@ def __getattr__(name):
         from .synth.synthesizer import Synthesizer
 
         return Synthesizer
+    if name == "RerunLogger":
+        from .rerun_log import RerunLogger
+
+        return RerunLogger
+    if name == "AudioObservation":
+        from .wrappers import AudioObservation
+
+        return AudioObservation
     if name in ("AudioSimulator", "SoundScene"):
         from . import sim
 

@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version="mjsound 0.1.0")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_analyze(sub)
-    for module in ("mjsound.synth.events", "mjsound.sim.rollout"):
+    for module in ("mjsound.synth.events", "mjsound.sim.rollout", "mjsound.batch", "mjsound.report", "mjsound.fit"):
         try:
             mod = __import__(module, fromlist=["register_cli"])
         except ModuleNotFoundError as exc:  # an optional part that is not installed

@@ -117,6 +117,7 @@ def sonify(
     progress: bool = True,
     full_scale_pa: float | None = None,
     normalize: bool = False,
+    on_block=None,
 ) -> dict:
     """Simulate (or replay) a scene with sound and optionally write the audio.
 
@@ -144,6 +145,8 @@ def sonify(
         Pressure written as full scale [Pa] (default ``DEFAULT_FULL_SCALE_PA`` = 20 Pa).
     normalize : bool
         Peak-normalise the file to -1 dBFS instead (absolute level lost).
+    on_block : callable, optional
+        ``on_block(sim, block, n0)`` after every step (see ``AudioSimulator.on_block``).
 
     Returns
     -------
@@ -185,6 +188,7 @@ def sonify(
         _set_frame(model, data, r, 0)
         mujoco.mj_forward(model, data)
     sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate)
+    sim.on_block = on_block
     blocks = []
     max_err = None
     t_wall = _time.perf_counter()
@@ -271,6 +275,7 @@ def register_cli(subparsers) -> None:
     p.add_argument("--full-scale-pa", type=float, default=None, help="pressure written as full scale (default 20 Pa)")
     p.add_argument("--normalize", action="store_true", help="peak-normalise the file (absolute level lost)")
     p.add_argument("--json", action="store_true", help="print one JSON summary object")
+    p.add_argument("--rrd", default=None, help="also write a rerun recording (.rrd) of the take")
     p.set_defaults(func=_run_sonify)
 
     d = subparsers.add_parser(
@@ -283,6 +288,7 @@ def register_cli(subparsers) -> None:
     d.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="modal analysis quality")
     d.add_argument("--no-normalize", action="store_true", help="write absolute pressure (20 Pa full scale)")
     d.add_argument("--json", action="store_true", help="print one JSON summary object")
+    d.add_argument("--rrd", default="demo.rrd", help="rerun recording to write (default demo.rrd; '' for none)")
     d.set_defaults(func=_run_demo)
 
 
@@ -312,12 +318,22 @@ def _report(summary, args) -> int:
         print(f"resim      max |qpos - recorded| = {s['max_qpos_error']:.3g}")
     if s["out"]:
         print(f"wrote      {s['out']}")
+    if s.get("rrd"):
+        print(f"wrote      {s['rrd']}")
     return 0
 
 
+def _sonify_maybe_logged(args, scene, **kw) -> dict:
+    if args.rrd:
+        from ..rerun_log import log_sonify
+
+        return log_sonify(args.rrd, scene, **kw)
+    return sonify(scene, **kw)
+
+
 def _run_sonify(args) -> int:
-    summary = sonify(
-        args.scene, duration=args.duration, rollout=args.rollout, timestep=args.timestep,
+    summary = _sonify_maybe_logged(
+        args, args.scene, duration=args.duration, rollout=args.rollout, timestep=args.timestep,
         sample_rate=args.sample_rate, materials=args.materials, out=args.output,
         mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
         progress=not args.json and sys.stderr.isatty(), full_scale_pa=args.full_scale_pa, normalize=args.normalize,
@@ -330,8 +346,8 @@ def _run_demo(args) -> int:
 
     scene = find_demo_scene()
     args.scene = scene
-    summary = sonify(
-        scene, duration=args.duration, sample_rate=args.sample_rate, out=args.output, quality=args.quality,
+    summary = _sonify_maybe_logged(
+        args, scene, duration=args.duration, sample_rate=args.sample_rate, out=args.output, quality=args.quality,
         progress=not args.json and sys.stderr.isatty(), normalize=not args.no_normalize,
     )
     return _report(summary, args)

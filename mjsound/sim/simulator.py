@@ -214,6 +214,9 @@ class AudioSimulator:
         self._covered = {}  # (geom1, geom2, kind) -> sustained noise queued up to [s]
         self.samples = 0
         self.steps = 0
+        #: optional observer ``on_block(sim, block, n0)`` called with every step's audio block
+        #: and its first absolute sample index (e.g. :class:`mjsound.rerun_log.RerunLogger`)
+        self.on_block = None
         self.seconds_contacts = 0.0
         self.seconds_synth = 0.0
         self._mic_cache = None
@@ -243,6 +246,12 @@ class AudioSimulator:
         return self._process(n0, n1)
 
     def _process(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> np.ndarray:
+        block = self._process_block(n0, n1, t0, t1)
+        if self.on_block is not None:
+            self.on_block(self, block, n0)
+        return block
+
+    def _process_block(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> np.ndarray:
         fs = self.sample_rate
         if t0 is None:
             t0 = self.clock.time_at(self.clock.k - 1)
