@@ -65,7 +65,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 5  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 7  # bump when discretization or model contents change (invalidates cache)
 
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
@@ -295,10 +295,13 @@ def analyze(
     sol = _solve(disc, f_max, progress, max_modes)
     lam = np.maximum(sol.eigenvalues, 0.0)
     omega = np.sqrt(lam)
-    decay = 0.5 * (material.alpha + material.beta * omega**2)
+    shapes = (disc.interp @ sol.vectors).reshape(len(points), 3, -1)
+    radiation = _radiation(points, normals, shapes, omega, float(tm.area))
+    # Rayleigh damping d = (alpha + beta omega^2) / 2 plus what radiation takes away;
+    # overdamped modes (d >= omega) make no tone and are dropped
+    decay = 0.5 * (material.alpha + material.beta * omega**2) + radiation_damping(radiation, omega)
     under = decay < omega
-    shapes = (disc.interp @ sol.vectors[:, under]).reshape(len(points), 3, -1)
-    radiation = _radiation(points, normals, shapes, omega[under], float(tm.area))
+    shapes, radiation, decay = shapes[:, :, under], radiation[under], decay[under]
     ex = np.zeros(disc.dofs)
     ex[0::3] = 1.0  # rigid translation along x: e^T M e is the total mass
     mass = float(ex @ (disc.M @ ex))
@@ -316,7 +319,7 @@ def analyze(
                               omega[under] / (2 * np.pi))
     model = ModalModel(
         frequencies_hz=omega[under] / (2 * np.pi),
-        decay_per_s=decay[under],
+        decay_per_s=decay,
         points=points,
         normals=normals,
         shapes=shapes,
@@ -345,6 +348,8 @@ def _radiation(points, normals, shapes, omega, area):
     power than the surface can emit. A surface radiates at most with efficiency 1,
     ``W = rho0 c <v_n^2> A``, which at 1 m is ``R_max = rho0 c omega sqrt(A_eff / 4 pi)``
     with ``A_eff = sum_p a_p (phi . n)^2``: the weight is the smaller of the two.
+
+    The radiated power is energy the mode loses: see :func:`radiation_damping`.
     """
     if shapes.shape[2] == 0:
         return np.zeros(0)
@@ -357,6 +362,19 @@ def _radiation(points, normals, shapes, omega, area):
     compact = AIR_DENSITY * omega**2 / (4 * np.pi) * np.sqrt(Q**2 + (k * np.linalg.norm(D, axis=0)) ** 2 / 3.0)
     r_max = AIR_DENSITY * SPEED_OF_SOUND * omega * np.sqrt(a * np.einsum("pn,pn->n", un, un) / (4 * np.pi))
     return np.minimum(compact, r_max)
+
+
+def radiation_damping(radiation, omega):
+    """Decay rate [1/s] a mode gets from the sound it radiates.
+
+    A mode of amplitude q holds ``E = omega^2 q^2 / 2`` and radiates
+    ``W = 4 pi (R q)^2 / (2 rho0 c)`` (pressure amplitude ``R q`` at 1 m over a sphere),
+    so its energy decays at ``W / E = 2 d_rad`` with ``d_rad = 2 pi R^2 / (rho0 c omega^2)``.
+    Adding it to the Rayleigh decay keeps every mode from radiating more energy than it
+    loses (lightly damped thin plates above coincidence get tens of 1/s from this alone),
+    and a material without structural damping still rings down.
+    """
+    return 2 * np.pi * np.asarray(radiation) ** 2 / (AIR_DENSITY * SPEED_OF_SOUND * np.asarray(omega) ** 2)
 
 
 def _error_estimate(method, tm, material, h, points, quality, thickness, order, refine, f_fine, n=10):

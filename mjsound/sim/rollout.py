@@ -118,6 +118,7 @@ def sonify(
     full_scale_pa: float | None = None,
     normalize: bool = False,
     on_block=None,
+    models: dict | None = None,
 ) -> dict:
     """Simulate (or replay) a scene with sound and optionally write the audio.
 
@@ -147,6 +148,8 @@ def sonify(
         Peak-normalise the file to -1 dBFS instead (absolute level lost).
     on_block : callable, optional
         ``on_block(sim, block, n0)`` after every step (see ``AudioSimulator.on_block``).
+    models : dict, optional
+        Precomputed ``{geom_name: ModalModel}`` (skips their analysis; batch workers).
 
     Returns
     -------
@@ -170,7 +173,7 @@ def sonify(
     data = mujoco.MjData(model)
     scene = SoundScene.from_model(
         model, materials=_load_materials(materials), sample_rate=sample_rate, quality=quality,
-        budget_modes=budget_modes, progress=progress,
+        budget_modes=budget_modes, progress=progress, models=models,
     )
     r = None
     if rollout is not None:
