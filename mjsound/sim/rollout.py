@@ -292,6 +292,7 @@ def register_cli(subparsers) -> None:
     d.add_argument("--no-normalize", action="store_true", help="write absolute pressure (20 Pa full scale)")
     d.add_argument("--json", action="store_true", help="print one JSON summary object")
     d.add_argument("--rrd", default="demo.rrd", help="rerun recording to write (default demo.rrd; '' for none)")
+    d.add_argument("--png", default="demo.png", help="spectrogram picture to write (default demo.png; '' for none; needs matplotlib)")
     d.set_defaults(func=_run_demo)
 
 
@@ -323,6 +324,8 @@ def _report(summary, args) -> int:
         print(f"wrote      {s['out']}")
     if s.get("rrd"):
         print(f"wrote      {s['rrd']}")
+    if s.get("png"):
+        print(f"wrote      {s['png']}")
     return 0
 
 
@@ -353,4 +356,39 @@ def _run_demo(args) -> int:
         args, scene, duration=args.duration, sample_rate=args.sample_rate, out=args.output, quality=args.quality,
         progress=not args.json and sys.stderr.isatty(), normalize=not args.no_normalize,
     )
+    if args.png:
+        summary["png"] = write_spectrogram_png(args.png, summary["audio"], args.sample_rate)
     return _report(summary, args)
+
+
+def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str | None:
+    """Save a log-magnitude spectrogram of each channel (matplotlib, optional) atomically.
+
+    Returns the path, or None (with a message on stderr) when matplotlib is missing.
+    """
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("mjsound: matplotlib not installed; no spectrogram picture (pip install 'mjsound[report]')",
+              file=sys.stderr)
+        return None
+    from ..io import commit_temp, temp_beside
+
+    audio = np.atleast_2d(audio)
+    fig, axes = plt.subplots(len(audio), 1, figsize=(9, 2.4 * len(audio)), sharex=True, squeeze=False)
+    peak = float(np.abs(audio).max()) or 1.0
+    for ch, ax in zip(audio, axes[:, 0]):
+        ax.specgram(ch / peak, NFFT=1024, Fs=sample_rate, noverlap=768, cmap="magma", vmin=-120, vmax=-20)
+        ax.set_ylabel("Hz")
+    axes[0, 0].set_title(f"{title}: {audio.shape[1] / sample_rate:.1f} s, peak {peak:.3g} Pa")
+    axes[-1, 0].set_xlabel("simulation time [s]")
+    fig.tight_layout()
+    fd, tmp = temp_beside(path, ".png")
+    os.close(fd)
+    fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+    commit_temp(tmp, path)
+    return os.fspath(path)
