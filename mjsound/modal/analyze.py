@@ -65,7 +65,9 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 7  # bump when discretization or model contents change (invalidates cache)
+QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
+MAX_REFINE = 20  # fine cells per coarse cell per axis, at most
+MODEL_VERSION = 8  # bump when discretization or model contents change (invalidates cache)
 
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
@@ -98,8 +100,9 @@ def wall_thickness(mesh: trimesh.Trimesh) -> float:
 
 
 def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
-                 resolution: int | None = None, thickness: float | None = None) -> float:
-    """Target element size [m] (see the module docstring)."""
+                 resolution: int | None = None, thickness: float | None = None, order: int = 1) -> float:
+    """Target element size [m] (see the module docstring); quadratic elements (``order=2``)
+    may be ``QUADRATIC_SIZE`` times larger for the same waves."""
     size = float(np.max(mesh.extents))
     if resolution is not None:
         if int(resolution) < 1:
@@ -112,7 +115,7 @@ def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, qualit
         t = size
     plate = material.E * t**2 / (12.0 * material.rho * (1.0 - material.nu**2))
     lam_b = 2 * np.pi * plate**0.25 / np.sqrt(2 * np.pi * f_max)
-    h = min(lam_s, lam_b) / q["per_wavelength"]
+    h = min(lam_s, lam_b) / q["per_wavelength"] * (QUADRATIC_SIZE if order == 2 else 1.0)
     return float(min(h, size / q["min_per_side"]))
 
 
@@ -148,13 +151,19 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
             across = np.where(mesh.extents > 1.5 * t, np.ceil(mesh.extents / (0.5 * t)), 1)
         else:
             across = np.ones(3)
-        min_cells = np.minimum(_quality(quality)["min_across"], across).astype(int)
+        min_across = _quality(quality)["min_across"]
+        if order == 2:
+            min_across = (min_across + 1) // 2
+        min_cells = np.minimum(min_across, across).astype(int)
         if refine is None:
-            # fine voxels of at most a third of the wall, so thin walls are not smeared out
+            # Fine voxels of at most a quarter of the wall: a wall smeared over partly
+            # filled voxels is too thick in bending (a 20 cm bowl with 4 mm walls rang 12 %
+            # sharp with 2.4 mm voxels and 4 % with 1 mm ones).
             refine = _quality(quality)["refine"]
             if np.isfinite(t) and t > 0:
-                refine = int(np.clip(np.ceil(3 * h / t), refine, 8))
-        return discretize_hex(mesh, material, h, points, refine=refine, thickness=thickness, min_cells=min_cells)
+                refine = int(np.clip(np.ceil(4 * h / t), refine, MAX_REFINE))
+        return discretize_hex(mesh, material, h, points, refine=refine, thickness=thickness, min_cells=min_cells,
+                              order=order)
     if method == "tet":
         from .tet import discretize_tet
 
@@ -278,7 +287,7 @@ def analyze(
         raise ValueError(f"thickness={thickness} must be a positive length in metres")
 
     tm = load_mesh(mesh)
-    h = element_size(tm, material, f_max, quality, resolution, thickness)
+    h = element_size(tm, material, f_max, quality, resolution, thickness, order if method != "shell" else 1)
     params = dict(method=method, h=h, f_max=f_max, thickness=thickness, order=order, refine=refine, n_points=n_points, max_modes=max_modes,
                   error_estimate=error_estimate, version=MODEL_VERSION)
     key = hashlib.sha256((mesh_digest(tm) + material.key() + repr(sorted(params.items()))).encode()).hexdigest()[:40]

@@ -153,6 +153,40 @@ def _child_interpolations(r: int) -> np.ndarray:
     return L
 
 
+#: stiffness and mass of an empty child in a 27-node cell, as fractions of a full one
+VOID_K = 1e-5
+VOID_M = 1e-12
+
+
+def _lagrange_1d(u: np.ndarray, q: int) -> np.ndarray:
+    """Lagrange basis on ``q`` equally spaced nodes of [0, 1], evaluated at ``u``: (..., q)."""
+    x = np.linspace(0.0, 1.0, q)
+    out = np.ones(u.shape + (q,))
+    for j in range(q):
+        for m in range(q):
+            if m != j:
+                out[..., j] *= (u - x[m]) / (x[j] - x[m])
+    return out
+
+
+def _parent_weights(u: np.ndarray, q: int) -> np.ndarray:
+    """Tensor Lagrange weights (..., q^3) of points u (..., 3) in [0,1]^3, x index fastest."""
+    wx, wy, wz = (_lagrange_1d(u[..., d], q) for d in range(3))
+    return (wz[..., :, None, None] * wy[..., None, :, None] * wx[..., None, None, :]).reshape(u.shape[:-1] + (q**3,))
+
+
+def _child_interpolations_lagrange(r: int, q: int) -> np.ndarray:
+    """L_c (r^3, 24, 3 q^3): child corner dofs from a q^3-node parent."""
+    bits = _CORNERS > 0
+    L = np.zeros((r**3, 24, 3 * q**3))
+    for a in range(r):
+        for b in range(r):
+            for c in range(r):
+                u = (np.array([a, b, c]) + bits) / r
+                L[a * r * r + b * r + c] = np.kron(_parent_weights(u, q), np.eye(3))
+    return L
+
+
 def _taylor_correction(K33, G, W, D):
     """Make the bubbles pass the patch test in partly filled cells (in place).
 
@@ -245,6 +279,7 @@ def discretize_hex(
     incompatible: bool = True,
     min_fill: float = 1e-3,
     min_cells=1,
+    order: int = 1,
 ) -> Discretization:
     """Voxel-embedded hexahedral FEM of a surface mesh (any mesh: open, non-manifold ...).
 
@@ -269,12 +304,17 @@ def discretize_hex(
         Coarse cells filled less than this fraction are dropped.
     min_cells : int or (3,) ints
         Minimum coarse cells per axis (thin bars need a few across their section).
+    order : {1, 2}
+        Coarse element: 8-node (trilinear + condensed bubbles) or 27-node triquadratic,
+        which also follows curved thin walls (less membrane locking).
 
     Returns
     -------
     Discretization with ``info`` = element sizes, grid, cell and node counts.
     """
     r = int(refine)
+    if order not in (1, 2):
+        raise ValueError(f"hex order must be 1 or 2, got {order}")
     if r < 1:
         raise ValueError(f"refine must be >= 1, got {refine}")
     lo, n, hc = grid_for(mesh.bounds, h, min_cells)
@@ -293,40 +333,67 @@ def discretize_hex(
     child = child[active].astype(np.float64)
 
     Kf, Mf = hex_element_matrices(hc / r, material, incompatible=incompatible)
-    L = _child_interpolations(r)
-    Lu = L[:, :, :24]
-    if incompatible:
-        AK = _congruence(L, Kf).reshape(r**3, 33 * 33)
-        K33 = (child @ AK).reshape(-1, 33, 33)
-        S = hex_strain_integral(hc / r)
-        G = (child @ (S @ L).reshape(r**3, 6 * 33)).reshape(-1, 6, 33)
-        W = child.sum(axis=1) * np.prod(hc / r)
-        K33 = _taylor_correction(K33, G, W, _elasticity_matrix(material))
-        Ke = _condense(K33).reshape(-1, 576)
-    else:
-        Ke = child @ _congruence(Lu, Kf).reshape(r**3, 576)
-    # mass from the compatible (trilinear) field only, as for Wilson's element
-    Me = child @ _congruence(Lu, Mf).reshape(r**3, 576)
+    q = int(order) + 1  # parent nodes per axis
+    if order == 1:
+        L = _child_interpolations(r)
+        Lu = L[:, :, :24]
+        AK = _congruence(L if incompatible else Lu, Kf).reshape(r**3, -1)
+        AS = (hex_strain_integral(hc / r) @ L).reshape(r**3, 6 * 33)
+        D = _elasticity_matrix(material)
+        V_f = float(np.prod(hc / r))
 
-    # cell (i, j, k) corner (a, b, c) -> grid node (i+a, j+b, k+c)
+        def cell_K(ch):
+            if not incompatible:
+                return ch @ AK
+            K33 = (ch @ AK).reshape(-1, 33, 33)
+            G = (ch @ AS).reshape(-1, 6, 33)
+            K33 = _taylor_correction(K33, G, ch.sum(axis=1) * V_f, D)
+            return _condense(K33).reshape(len(ch), -1)
+
+        mass_weight = child
+    else:
+        # Triquadratic (27-node) parents follow curved thin walls without bubbles. Their 27
+        # nodes are not all pinned by the corners of a few filled children, so the empty
+        # children get a "stiff void": stiffness VOID_K and mass VOID_M of a full cell, which
+        # removes the null space and puts the void's own modes far above any audible band.
+        Lu = _child_interpolations_lagrange(r, q)
+        AK = _congruence(Lu, Kf).reshape(r**3, -1)
+        stiff_weight = child + VOID_K * (1.0 - child)
+        mass_weight = child + VOID_M * (1.0 - child)
+
+        def cell_K(ch, w=None):
+            return ch @ AK
+
+        child = stiff_weight
+
+    # mass from the compatible field only, as for Wilson's element
+    AM = _congruence(Lu, Mf).reshape(r**3, -1)
+
+    # cell (i, j, k) local node (a, b, c) -> lattice node ((q-1) i + a, ...)
     ci, cj, ck = np.unravel_index(active, tuple(n))
-    bits = (_CORNERS > 0).astype(int)
-    gi = ci[:, None] + bits[None, :, 0]
-    gj = cj[:, None] + bits[None, :, 1]
-    gk = ck[:, None] + bits[None, :, 2]
-    gnode = np.ravel_multi_index((gi, gj, gk), tuple(n + 1))  # (cells, 8)
+    loc = np.array([[a, b, c] for c in range(q) for b in range(q) for a in range(q)])  # x fastest
+    gnode = np.ravel_multi_index(
+        ((q - 1) * ci[:, None] + loc[None, :, 0], (q - 1) * cj[:, None] + loc[None, :, 1],
+         (q - 1) * ck[:, None] + loc[None, :, 2]), tuple((q - 1) * n + 1))  # (cells, q^3)
     used, node = np.unique(gnode, return_inverse=True)
     node = node.reshape(gnode.shape)
-    dof = (3 * node[:, :, None] + np.arange(3)[None, None, :]).reshape(len(active), 24)
-    rows = np.repeat(dof, 24, axis=1).ravel()
-    cols = np.tile(dof, (1, 24)).ravel()
     ndof = 3 * len(used)
-    K = sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(ndof, ndof))
-    M = sp.csr_matrix((Me.ravel(), (rows, cols)), shape=(ndof, ndof))
+    nd = 3 * q**3
+    dof = (3 * node[:, :, None] + np.arange(3)[None, None, :]).reshape(len(active), nd)
+    K = sp.csr_matrix((ndof, ndof))
+    M = sp.csr_matrix((ndof, ndof))
+    # assemble in chunks: a 27-node cell has 81^2 entries, all cells at once would not fit
+    chunk = max(1, int(4e6 // nd**2))
+    for s0 in range(0, len(active), chunk):
+        d = dof[s0:s0 + chunk]
+        rows = np.repeat(d, nd, axis=1).ravel()
+        cols = np.tile(d, (1, nd)).ravel()
+        K = K + sp.csr_matrix((cell_K(child[s0:s0 + chunk]).ravel(), (rows, cols)), shape=(ndof, ndof))
+        M = M + sp.csr_matrix(((mass_weight[s0:s0 + chunk] @ AM).ravel(), (rows, cols)), shape=(ndof, ndof))
 
-    interp = _point_interpolation(points, lo, n, hc, active, node)
+    interp = _point_interpolation(points, lo, n, hc, active, node, q)
     info = {
-        "element": "hex8-incompatible" if incompatible else "hex8",
+        "element": "hex27" if order == 2 else ("hex8-incompatible" if incompatible else "hex8"),
         "h": hc.tolist(),
         "grid": n.tolist(),
         "refine": r,
@@ -338,8 +405,8 @@ def discretize_hex(
     return Discretization(K=K, M=M, interp=interp, n_rigid=6, info=info)
 
 
-def _point_interpolation(points, lo, n, hc, active, node):
-    """Trilinear interpolation (3p, ndof) of each point from its (nearest active) cell."""
+def _point_interpolation(points, lo, n, hc, active, node, q=2):
+    """Interpolation (3p, ndof) of each point from its (nearest active) cell's q^3 nodes."""
     from scipy.spatial import cKDTree
 
     pts = np.asarray(points, float).reshape(-1, 3)
@@ -356,10 +423,9 @@ def _point_interpolation(points, lo, n, hc, active, node):
         pos[~ok] = near
     ijk = np.c_[np.unravel_index(active[pos], tuple(n))]
     u = np.clip((pts - lo) / hc - ijk, 0.0, 1.0)  # (p, 3) local coords in [0,1]
-    bits = _CORNERS > 0
-    W = np.where(bits[None], u[:, None, :], 1.0 - u[:, None, :]).prod(axis=2)  # (p, 8)
+    W = _parent_weights(u, q)  # (p, q^3)
     p = len(pts)
-    rows = (3 * np.arange(p)[:, None, None] + np.arange(3)[None, None, :]).repeat(8, axis=1)  # (p, 8, 3)
+    rows = (3 * np.arange(p)[:, None, None] + np.arange(3)[None, None, :]).repeat(q**3, axis=1)  # (p, q^3, 3)
     cols = 3 * node[pos][:, :, None] + np.arange(3)[None, None, :]
     vals = np.broadcast_to(W[:, :, None], rows.shape)
     ndof = 3 * (node.max() + 1)
