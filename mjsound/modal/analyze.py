@@ -239,7 +239,8 @@ def analyze(
     thickness : float, optional
         Wall thickness [m] for open surfaces (hex) and the shell model.
     order : {1, 2}
-        Tetrahedron order (quadratic is the accurate reference).
+        Element order for hex (27-node triquadratic cells by default; 1 = 8-node cells with
+        condensed bubbles) and tet (10-node by default; 1 = 4-node, which locks).
     refine : int, optional
         Hex fine cells per coarse cell per axis (default from ``quality``).
     n_points : int
