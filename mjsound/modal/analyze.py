@@ -82,6 +82,26 @@ def default_f_max(sample_rate: float | None = None) -> float:
     return 20000.0 if sample_rate is None else min(20000.0, 0.45 * float(sample_rate))
 
 
+#: Modes whose quality factor omega / (2 d) falls below this ring for less than a cycle:
+#: the analysis stops at the frequency where Rayleigh damping reaches it.
+MIN_Q = 2.0
+
+
+def ringing_below(material: Material, q_min: float = MIN_Q) -> float:
+    """Frequency [Hz] above which Rayleigh damping leaves every mode a quality factor < q_min.
+
+    ``d = (alpha + beta w^2) / 2 = w / (2 Q)`` at ``w = (1/Q + sqrt(1/Q^2 - 4 alpha beta)) / (2 beta)``;
+    inf without stiffness damping, 0 when no frequency reaches ``q_min``.
+    """
+    a, b = material.alpha, material.beta
+    if b <= 0:
+        return float("inf")
+    disc = 1.0 / q_min**2 - 4 * a * b
+    if disc < 0:
+        return 0.0
+    return float((1.0 / q_min + np.sqrt(disc)) / (2 * b) / (2 * np.pi))
+
+
 def cache_dir() -> str:
     """``$MJSOUND_CACHE_DIR`` or the platform user cache dir (``~/.cache/mjsound``)."""
     env = os.environ.get("MJSOUND_CACHE_DIR")
@@ -160,7 +180,7 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
             # filled voxels is too thick in bending (a 20 cm bowl with 4 mm walls rang 12 %
             # sharp with 2.4 mm voxels and 4 % with 1 mm ones).
             refine = _quality(quality)["refine"]
-            if np.isfinite(t) and t > 0:
+            if np.isfinite(t) and t > 0 and mesh.is_watertight:  # open surfaces are slabs of t
                 refine = int(np.clip(np.ceil(4 * h / t), refine, MAX_REFINE))
         return discretize_hex(mesh, material, h, points, refine=refine, thickness=thickness, min_cells=min_cells,
                               order=order)
@@ -288,6 +308,13 @@ def analyze(
         raise ValueError(f"thickness={thickness} must be a positive length in metres")
 
     tm = load_mesh(mesh)
+    # Modes above the frequency where Rayleigh damping leaves them less than a cycle of
+    # ringing (Q < MIN_Q; overdamped a little higher) make a thud, not a tone: neither the
+    # mesh nor the solve is sized for them (rubber: 0.7 kHz instead of 20 kHz shear waves,
+    # ~100 modes instead of millions of dofs).
+    f_ring = ringing_below(material)
+    if f_ring < f_max:
+        f_max = max(f_ring, 2 * F_MIN_HZ)
     h = element_size(tm, material, f_max, quality, resolution, thickness, order if method != "shell" else 1)
     params = dict(method=method, h=h, f_max=f_max, thickness=thickness, order=order, refine=refine, n_points=n_points, max_modes=max_modes,
                   error_estimate=error_estimate, version=MODEL_VERSION)
@@ -320,6 +347,7 @@ def analyze(
         h_target=h, f_max=f_max, quality=quality if resolution is None else f"resolution={resolution}",
         solver=sol.backend, slices=sol.n_slices, n_rigid=int(sol.n_below), n_overdamped=int((~under).sum()),
         solve_seconds=sol.seconds, size_m=float(np.max(tm.extents)), area_m2=float(tm.area),
+        ringing_limit_hz=f_ring,
         watertight=bool(tm.is_watertight),
     )
     err = float("nan")

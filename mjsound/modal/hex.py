@@ -262,9 +262,18 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
             frac = inside.reshape(nfine[0], s, nfine[1], s, nfine[2], s).mean(axis=(1, 3, 5), dtype=np.float32)
             occ = np.maximum(occ, frac)
         else:
-            t = float(np.min(hfine)) if thickness is None else float(thickness)
-            fill = min(1.0, t / float(np.min(hfine)))
-            occ = np.maximum(occ, surface_voxels(tris, lo, hfine, nfine).astype(np.float32) * fill)
+            # An open surface becomes a slab of the wall thickness around it: the voxels
+            # touched by copies of the surface offset along its vertex normals by up to t/2
+            # (a slab thinner than a voxel fills its voxels fractionally).
+            hmin = float(np.min(hfine))
+            t = hmin if thickness is None else float(thickness)
+            fill = min(1.0, t / hmin)
+            n_off = int(min(64, 2 * np.ceil(0.5 * t / (0.5 * hmin)) + 1))
+            shell = np.zeros(tuple(nfine), np.uint8)
+            normals = part.vertex_normals[part.faces]  # (F, 3, 3)
+            for off in np.linspace(-0.5 * t, 0.5 * t, n_off) if t > hmin else [0.0]:
+                shell |= surface_voxels(tris + off * normals, lo, hfine, nfine)
+            occ = np.maximum(occ, shell.astype(np.float32) * fill)
     return occ
 
 
@@ -317,7 +326,14 @@ def discretize_hex(
         raise ValueError(f"hex order must be 1 or 2, got {order}")
     if r < 1:
         raise ValueError(f"refine must be >= 1, got {refine}")
-    lo, n, hc = grid_for(mesh.bounds, h, min_cells)
+    # A flat (zero-volume) surface has a zero extent: give it the wall thickness (or one
+    # fine voxel) so the grid has cells to fill.
+    bounds = np.array(mesh.bounds, dtype=float)
+    wall = float(thickness) if thickness is not None else h / r
+    thin = (bounds[1] - bounds[0]) < 0.5 * wall
+    bounds[0, thin] -= 0.5 * wall
+    bounds[1, thin] += 0.5 * wall
+    lo, n, hc = grid_for(bounds, h, min_cells)
     nfine = n * r
     if np.prod(nfine.astype(float)) * supersample**3 > 4e9:
         raise ValueError(
