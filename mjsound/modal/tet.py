@@ -67,6 +67,8 @@ _A, _B = 0.5854101966249685, 0.1381966011250105
 _Q4_POINTS = np.full((4, 4), _B) + np.eye(4) * (_A - _B)
 _Q4_WEIGHTS = np.full(4, 0.25)
 
+#: surface edges shorter than h / SLIVER_RATIO are refused (see discretize_tet)
+SLIVER_RATIO = 50.0
 _HEX_HINT = 'use method="hex", which handles open, non-manifold and self-intersecting meshes'
 
 
@@ -189,6 +191,16 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
             "tet method: the surface mesh is not watertight (it has open edges or "
             f"non-manifold edges), so it has no inside to fill with tetrahedra; {_HEX_HINT}"
         )
+    if h is not None:
+        # TetGen must keep every surface edge: sliver triangles far smaller than the element
+        # size force millions of tiny tetrahedra (minutes, gigabytes). Refuse them up front.
+        shortest = float(mesh.edges_unique_length.min())
+        if shortest < h / SLIVER_RATIO:
+            raise ValueError(
+                f"tet method: the surface has edges of {shortest * 1e3:.3g} mm, {h / shortest:.0f}x shorter "
+                f"than the element size {h * 1e3:.3g} mm (sliver triangles); TetGen would need millions of "
+                f"tetrahedra. Remesh the surface evenly, or {_HEX_HINT}"
+            )
     V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     F = np.ascontiguousarray(mesh.faces, dtype=np.int32)
     if len(F) == 0 or not np.all(np.isfinite(V)):
