@@ -66,8 +66,8 @@ F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
 QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
-MAX_REFINE = 20  # fine cells per coarse cell per axis, at most
-MODEL_VERSION = 8  # bump when discretization or model contents change (invalidates cache)
+MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
+MODEL_VERSION = 9  # bump when discretization or model contents change (invalidates cache)
 
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
