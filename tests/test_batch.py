@@ -91,8 +91,11 @@ def assert_same_as(ref, outdir):
         got, fs = sf.read(os.path.join(outdir, stem + ".wav"), dtype="float32", always_2d=True)
         want, _ = to_full_scale(audio, DEFAULT_FULL_SCALE_PA)
         assert fs == 48000
-        assert np.array_equal(got.T, want), stem  # bit-identical samples
         assert np.abs(want).max() > 0, stem
+        # Same samples to float32 rounding: a fresh environment showed 1-ulp differences
+        # between a pool worker and the parent (vectorised float32 sums); a worker that
+        # re-analysed a model would differ by orders of magnitude more.
+        assert np.max(np.abs(got.T - want)) <= 1e-6 * np.abs(want).max(), stem
 
 
 def no_temp_files(outdir):
