@@ -95,7 +95,7 @@ def assert_same_as(ref, outdir):
         # Same samples to float32 rounding: a fresh environment showed 1-ulp differences
         # between a pool worker and the parent (vectorised float32 sums); a worker that
         # re-analysed a model would differ by orders of magnitude more.
-        assert np.max(np.abs(got.T - want)) <= 1e-6 * np.abs(want).max(), stem
+        assert np.max(np.abs(got.T - want)) <= 1e-5 * np.abs(want).max(), stem  # -100 dB
 
 
 def no_temp_files(outdir):
