@@ -579,14 +579,9 @@ def register_cli(subparsers) -> None:
                    help="run on Ray: 'auto' (running cluster), a Ray address, or 'local' (private instance)")
     p.add_argument("--rrd", action="store_true", help="also write a rerun recording <stem>.rrd per rollout")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds per rollout (default: all)")
-    p.add_argument("--replay", action="store_true", help="replay recorded states instead of re-simulating")
-    p.add_argument("--timestep", type=float, default=None, help="physics timestep in s (overrides the MJCF)")
-    p.add_argument("--sample-rate", type=int, default=48000, help="audio sample rate in Hz (default 48000)")
-    p.add_argument("--materials", default=None, help="JSON file or text {geom_or_body: material}")
-    p.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="modal analysis quality")
-    p.add_argument("--budget-modes", type=int, default=None, help="total modes for the scene (shared by importance)")
-    p.add_argument("--full-scale-pa", type=float, default=None, help="pressure written as full scale (default 20 Pa)")
-    p.add_argument("--normalize", action="store_true", help="peak-normalise each file (absolute level lost)")
+    from .sim.rollout import add_sonify_options
+
+    add_sonify_options(p)
     p.add_argument("--force", action="store_true", help="redo every rollout (do not skip finished outputs)")
     p.add_argument("--retries", type=int, default=2, help="retries of a task whose worker process died (default 2)")
     p.add_argument("--json", action="store_true", help="print one JSON summary object")

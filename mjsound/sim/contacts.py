@@ -621,15 +621,7 @@ class ContactReader:
             # nothing touches: every open record closes
             self._st[5][: self._nslots] = False
         if self._open:
-            s_open, s_rimp, s_rsteps, s_rtime = self._st[5], self._st[8], self._st[9], self._st[6]
-            for j, rec in list(self._open.items()):
-                rec.impulse_sim = float(s_rimp[j])
-                rec.steps = int(s_rsteps[j])
-                if self._st[1][j] == step:
-                    rec.duration = t1 - float(s_rtime[j])
-                if not s_open[j]:
-                    rec.open = False
-                    del self._open[j]
+            self._sync_open(step, t1)
         return impacts, contacts, cf
 
     def events_fast(self, data, t0: float, t1: float):

@@ -256,6 +256,18 @@ def sonify(
 
 
 # ---------------------------------------------------------------------- CLI
+def add_sonify_options(p) -> None:
+    """The options ``sonify`` and ``sonify-batch`` share (they map onto :func:`sonify`)."""
+    p.add_argument("--replay", action="store_true", help="replay recorded states instead of re-simulating")
+    p.add_argument("--timestep", type=float, default=None, help="physics timestep in s (overrides the MJCF)")
+    p.add_argument("--sample-rate", type=int, default=48000, help="audio sample rate in Hz (default 48000)")
+    p.add_argument("--materials", default=None, help="JSON file or text {geom_or_body: material}")
+    p.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="modal analysis quality")
+    p.add_argument("--budget-modes", type=int, default=None, help="total modes for the scene (shared by importance)")
+    p.add_argument("--full-scale-pa", type=float, default=None, help="pressure written as full scale (default 20 Pa)")
+    p.add_argument("--normalize", action="store_true", help="peak-normalise each file (absolute level lost)")
+
+
 def register_cli(subparsers) -> None:
     """Add the ``sonify`` and ``demo`` subcommands to an argparse ``subparsers``."""
     p = subparsers.add_parser(
@@ -269,14 +281,7 @@ def register_cli(subparsers) -> None:
     p.add_argument("-o", "--output", default="out.wav", help="audio file to write (default out.wav)")
     p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: 3, or the whole rollout)")
     p.add_argument("--rollout", default=None, help="rollout .npz to sonify")
-    p.add_argument("--replay", action="store_true", help="replay recorded states instead of re-simulating")
-    p.add_argument("--timestep", type=float, default=None, help="physics timestep in s (overrides the MJCF)")
-    p.add_argument("--sample-rate", type=int, default=48000, help="audio sample rate in Hz (default 48000)")
-    p.add_argument("--materials", default=None, help="JSON file or text {geom_or_body: material}")
-    p.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="modal analysis quality")
-    p.add_argument("--budget-modes", type=int, default=None, help="total modes for the scene (shared by importance)")
-    p.add_argument("--full-scale-pa", type=float, default=None, help="pressure written as full scale (default 20 Pa)")
-    p.add_argument("--normalize", action="store_true", help="peak-normalise the file (absolute level lost)")
+    add_sonify_options(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary object")
     p.add_argument("--rrd", default=None, help="also write a rerun recording (.rrd) of the take")
     p.set_defaults(func=_run_sonify)
