@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.mujoco import MujocoEnv
 
-from mjsound.wrappers import AudioWindow, concat_blocks
+from mjsound.wrappers import AudioWindow
 
 __all__ = ["AudioMujocoEnv", "modal_model"]
 
@@ -52,7 +52,6 @@ class AudioMujocoEnv(MujocoEnv):
         self.observation_space = spaces.Dict({"audio": self.audio.space, "state": state_space})
         self._sims = {}
         self.sim = None
-        self._blocks = []
 
     def _set_action_space(self):
         self.action_space = self._action_space_spec
@@ -78,22 +77,20 @@ class AudioMujocoEnv(MujocoEnv):
             sim.synth.seed = int(self.np_random.integers(2**31 - 1))
         sim.reset()
         self.audio.reset()
-        self._blocks.clear()
 
     def _step_mujoco_simulation(self, ctrl, n_frames):
         if self.model.nu:
             self.data.ctrl[:] = ctrl
         for _ in range(int(n_frames)):
             mujoco.mj_step(self.model, self.data)
-            self._blocks.append(self.sim.step())
+            self.sim.step(render=False)  # rendered once per env step, in _listen
         mujoco.mj_rnePostConstraint(self.model, self.data)
 
     def _listen(self, n_frames=None) -> dict:
         """Run ``n_frames`` substeps (default ``frame_skip``) with sound; the audio info."""
         n_imp = self.sim.events["impact"]
         self._step_mujoco_simulation(np.zeros(self.model.nu), self.frame_skip if n_frames is None else n_frames)
-        blocks, self._blocks = self._blocks, []
-        block = concat_blocks(blocks, 1)
+        block = self.sim.flush()
         clipped, peak = self.audio.push(block)
         return {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": int(block.shape[1]),
                 "audio_impacts": int(self.sim.events["impact"] - n_imp)}

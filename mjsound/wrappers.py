@@ -28,6 +28,7 @@ import warnings
 
 import gymnasium as gym
 import numpy as np
+from numba import njit
 
 __all__ = ["AudioObservation", "AudioWindow", "build_scene", "resolve_materials", "stft_log1p"]
 
@@ -291,37 +292,40 @@ class AudioWindow:
 
     def push(self, block: np.ndarray) -> tuple[int, float]:
         """Append a (channels, n) pressure block; returns (clipped samples, peak |p| [Pa])."""
-        n = block.shape[1]
-        if n == 0:
+        if block.shape[1] == 0:
             return 0, 0.0
-        x = block * np.float32(1.0 / self.full_scale_pa)
-        finite = np.isfinite(x)
-        if finite.all():
-            a = np.abs(x)
-            peak = float(a.max()) * self.full_scale_pa
-            clipped = int(np.count_nonzero(a > 1.0))
-            if clipped:
-                np.clip(x, -1.0, 1.0, out=x)
-        else:
-            clipped = int((~finite).sum())
-            x = np.where(finite, x, 0.0).astype(np.float32)
-            clipped += int(np.count_nonzero(np.abs(x) > 1.0))
-            peak = float(np.abs(x).max()) * self.full_scale_pa
-            np.clip(x, -1.0, 1.0, out=x)
-        W = self.window
-        buf = self.buf
-        if n >= W:
-            buf[:] = x[:, n - W:]
-        else:
-            buf[:, : W - n] = buf[:, n:]
-            buf[:, W - n:] = x
-        return clipped, peak
+        clipped, peak = _push_kernel(self.buf, np.ascontiguousarray(block, dtype=np.float32), 1.0 / self.full_scale_pa)
+        return int(clipped), float(peak) * self.full_scale_pa
 
 
-def concat_blocks(blocks, channels: int) -> np.ndarray:
-    if not blocks:
-        return np.zeros((channels, 0), np.float32)
-    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+@njit(cache=True)
+def _push_kernel(buf, block, scale):
+    """Shift ``buf`` (C, W) left and append ``block * scale`` clipped to [-1, 1] (NaN/Inf: 0 and
+    counted as clipped). Returns (clipped samples, peak |x| before clipping, NaN excluded)."""
+    C, W = buf.shape
+    n = block.shape[1]
+    clipped = 0
+    peak = 0.0
+    keep = W - n if n < W else 0
+    for c in range(C):
+        for k in range(keep):
+            buf[c, k] = buf[c, k + n]
+        for k in range(n):
+            x = block[c, k] * scale
+            if not np.isfinite(x):
+                clipped += 1
+                x = 0.0
+            else:
+                a = abs(x)
+                if a > peak:
+                    peak = a
+                if a > 1.0:
+                    clipped += 1
+                    x = 1.0 if x > 0 else -1.0
+            j = k - (n - W) if n > W else keep + k
+            if j >= 0:
+                buf[c, j] = x
+    return clipped, peak
 
 
 # ---------------------------------------------------------------------- wrapper
@@ -406,9 +410,6 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     audio state is silenced at every reset.
     """
 
-    #: Distance a followed body moves before the listener is moved with it [m].
-    FOLLOW_TOL_M = 0.01
-
     def __init__(
         self,
         env: gym.Env,
@@ -482,7 +483,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             if body is not None:
                 d0 = mujoco.MjData(model)
                 mujoco.mj_forward(model, d0)
-                self._follow = (int(body), np.asarray(scene.mic_positions) - d0.xpos[body], np.array(d0.xpos[body]))
+                self._follow = (int(body), np.asarray(scene.mic_positions) - d0.xpos[body])
+                self.sim.follow(*self._follow)
 
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
         audio_space = self.audio.space
@@ -496,7 +498,6 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._dict_obs = False
             self.observation_space = gym.spaces.Dict({"observation": inner, "audio": audio_space})
 
-        self._blocks = []
         self._rng = None
         self._hooked = False
         if hasattr(uw, "_step_mujoco_simulation"):
@@ -522,19 +523,10 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._hooked = True
 
     def on_substep(self) -> None:
-        """Read the contacts of the ``mj_step`` just taken and render its audio block.
-
-        A following listener is moved when its body has moved more than ``FOLLOW_TOL_M``
-        since the last update (the synthesizer uses microphone positions only when an event is
-        added: 1 cm is < 30 us of propagation delay and < 1 % of level at 1 m)."""
-        if self._follow is not None:
-            body, offset, last = self._follow
-            p = self._data.xpos[body]
-            d = p - last
-            if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > self.FOLLOW_TOL_M**2 and np.isfinite(p).all():
-                last[:] = p
-                self.sim.synth.set_microphones(p + offset)
-        self._blocks.append(self.sim.step())
+        """Read the contacts of the ``mj_step`` just taken and queue its sound (rendered once
+        per env step, in :meth:`step`). A following listener is moved to its body whenever an
+        event needs the microphone positions (:meth:`AudioSimulator.follow`)."""
+        self.sim.step(render=False)
 
     # ------------------------------------------------------------------ gym API
     def _observe(self, obs):
@@ -553,10 +545,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self.sim.synth.seed = int(self._rng.integers(2**31 - 1))
         self.sim.reset()
         if self._follow is not None:
-            body, offset, last = self._follow
-            last[:] = self._data.xpos[body]
-            self.sim.synth.set_microphones(last + offset)
-        self._blocks.clear()
+            body, offset = self._follow
+            self.sim.synth.set_microphones(self._data.xpos[body] + offset)
         self.audio.reset()
         info = dict(info)
         info.update(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
@@ -565,8 +555,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def step(self, action):
         n_imp = self.sim.events["impact"]
         obs, reward, terminated, truncated, info = self.env.step(action)
-        blocks, self._blocks = self._blocks, []
-        block = concat_blocks(blocks, self.n_channels)
+        block = self.sim.flush()
         clipped, peak = self.audio.push(block)
         info = dict(info)
         info.update(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),

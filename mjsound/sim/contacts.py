@@ -222,59 +222,101 @@ def _pair_kernel(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm):
 
 
 @_njit(cache=True, nogil=True)
-def _state_kernel(pkey, vmax, ftot, slip, roll, slotmap, st_vprev, st_last, st_touch, st_hit, st_calm,
-                  st_open, st_rtime, st_rspeed, st_rimp, st_rsteps, nslots, t0, t1, dt, step,
-                  v_impact, v_hard, min_apart, refractory, max_event, v_slide, v_roll):
-    """Per-pair state machine of :meth:`ContactReader.events` (the rules are
-    in the module docstring). Returns per pair: slot, onset (an impact starts: Python computes its impulse),
-    sustained kind (0 none, 1 slide, 2 roll) and speed, and the new number of slots. Pairs
-    seen before but not in this step close their open impact record."""
+def _slot_of(hkeys, hvals, key, nslots):
+    """Slot of pair ``key`` in the open-addressing table ``hkeys``/``hvals`` (power-of-two size,
+    -1 = empty; the caller keeps it at most half full), inserted as slot ``nslots`` when new.
+    Returns ``(slot, is_new)``. (A plain array table: numba's typed Dict costs seconds of
+    compilation per process and microseconds per call to pass in.)"""
+    mask = hkeys.shape[0] - 1
+    h = (key * 2654435761) & mask
+    while True:
+        k = hkeys[h]
+        if k == key:
+            return hvals[h], False
+        if k < 0:
+            hkeys[h] = key
+            hvals[h] = nslots
+            return nslots, True
+        h = (h + 1) & mask
+
+
+@_njit(cache=True, nogil=True)
+def _rehash(keys, vals, size):
+    """A new table of ``size`` entries holding the (key, slot) pairs of ``keys``/``vals``."""
+    hk = np.full(size, -1, np.int64)
+    hv = np.zeros(size, np.int64)
+    mask = size - 1
+    for i in range(keys.shape[0]):
+        key = keys[i]
+        if key < 0:
+            continue
+        h = (key * 2654435761) & mask
+        while hk[h] >= 0:
+            h = (h + 1) & mask
+        hk[h] = key
+        hv[h] = vals[i]
+    return hk, hv
+
+
+#: Rows of the packed per-slot state: float rows ``SF`` and integer rows ``SI``.
+SF_VPREV, SF_TOUCH, SF_HIT, SF_RTIME, SF_RSPEED, SF_RIMP = range(6)
+SI_LAST, SI_CALM, SI_OPEN, SI_RSTEPS = range(4)
+#: Thresholds passed to the kernels as one array (``ContactReader._params``).
+P_V_IMPACT, P_V_HARD, P_MIN_APART, P_REFRACTORY, P_MAX_EVENT, P_V_SLIDE, P_V_ROLL, P_FMAX = range(8)
+
+
+@_njit(cache=True, nogil=True)
+def _state_kernel(pkey, vmax, ftot, slip, roll, hkeys, hvals, SF, SI, nslots, t0, t1, dt, step, prm):
+    """Per-pair state machine of :meth:`ContactReader.events` (the rules are in the module
+    docstring). ``SF`` (6, cap) / ``SI`` (4, cap) hold each slot's state (rows ``SF_*``,
+    ``SI_*``), ``prm`` the thresholds (``P_*``). Returns per pair: slot, onset (an impact
+    starts: Python computes its impulse), sustained kind (0 none, 1 slide, 2 roll) and speed,
+    and the new number of slots. Pairs seen before but not in this step close their open
+    impact record."""
+    v_impact, v_hard, min_apart, refractory = prm[P_V_IMPACT], prm[P_V_HARD], prm[P_MIN_APART], prm[P_REFRACTORY]
+    max_event, v_slide, v_roll = prm[P_MAX_EVENT], prm[P_V_SLIDE], prm[P_V_ROLL]
     P = pkey.shape[0]
     slot = np.empty(P, np.int64)
     onset_out = np.zeros(P, np.bool_)
     kind = np.zeros(P, np.int64)
     speed = np.zeros(P)
     for p in range(P):
-        key = pkey[p]
-        if key in slotmap:
-            j = slotmap[key]
-        else:
-            j = nslots
+        j, new = _slot_of(hkeys, hvals, pkey[p], nslots)
+        if new:
             nslots += 1
-            slotmap[key] = j
-            st_vprev[j] = 0.0
-            st_last[j] = -10
-            st_touch[j] = -np.inf
-            st_hit[j] = -np.inf
-            st_calm[j] = 0
-            st_open[j] = False
+            SF[SF_VPREV, j] = 0.0
+            SI[SI_LAST, j] = -10
+            SF[SF_TOUCH, j] = -np.inf
+            SF[SF_HIT, j] = -np.inf
+            SI[SI_CALM, j] = 0
+            SI[SI_OPEN, j] = 0
         slot[p] = j
         vm = vmax[p]
         if vm > v_impact:
-            vp = max(st_vprev[j], 0.0)
-            if st_last[j] != step - 1:
-                onset = vm >= v_hard or t0 - st_touch[j] >= min_apart
+            vp = max(SF[SF_VPREV, j], 0.0)
+            if SI[SI_LAST, j] != step - 1:
+                onset = vm >= v_hard or t0 - SF[SF_TOUCH, j] >= min_apart
             else:
                 onset = vm > 2.0 * vp and vm - vp > 2.0 * v_impact
-            if onset and t0 - st_hit[j] >= refractory - 1e-12:
+            if onset and t0 - SF[SF_HIT, j] >= refractory - 1e-12:
                 onset_out[p] = True
-                st_open[j] = True
-                st_rtime[j] = t0
-                st_rspeed[j] = vm
-                st_rimp[j] = 0.0
-                st_rsteps[j] = 0
-                st_calm[j] = 0
-                st_hit[j] = t0
-        if st_open[j]:
-            st_rimp[j] += ftot[p] * dt
-            st_rsteps[j] += 1
-            tol = max(0.02 * st_rspeed[j], 1e-3)
-            st_calm[j] = st_calm[j] + 1 if abs(vm) < tol else 0
-            if st_calm[j] >= 2 or t1 - st_rtime[j] >= max_event:
-                st_open[j] = False
-        st_vprev[j] = vm
-        st_last[j] = step
-        st_touch[j] = t0
+                SI[SI_OPEN, j] = 1
+                SF[SF_RTIME, j] = t0
+                SF[SF_RSPEED, j] = vm
+                SF[SF_RIMP, j] = 0.0
+                SI[SI_RSTEPS, j] = 0
+                SI[SI_CALM, j] = 0
+                SF[SF_HIT, j] = t0
+        if SI[SI_OPEN, j]:
+            SF[SF_RIMP, j] += ftot[p] * dt
+            SI[SI_RSTEPS, j] += 1
+            tol = max(0.02 * SF[SF_RSPEED, j], 1e-3)
+            SI[SI_CALM, j] = SI[SI_CALM, j] + 1 if abs(vm) < tol else 0
+            if SI[SI_CALM, j] >= 2 or t1 - SF[SF_RTIME, j] >= max_event:
+                SI[SI_OPEN, j] = 0
+        SF[SF_VPREV, j] = vm
+        SI[SI_LAST, j] = step
+        SF[SF_TOUCH, j] = t0
         if ftot[p] > 0.0:
             if slip[p] > v_slide and slip[p] > 0.3 * roll[p]:
                 kind[p] = 1
@@ -283,42 +325,58 @@ def _state_kernel(pkey, vmax, ftot, slip, roll, slotmap, st_vprev, st_last, st_t
                 kind[p] = 2
                 speed[p] = roll[p]
     for j in range(nslots):
-        if st_open[j] and st_last[j] != step:
-            st_open[j] = False
+        if SI[SI_OPEN, j] and SI[SI_LAST, j] != step:
+            SI[SI_OPEN, j] = 0
     return slot, onset_out, kind, speed, nslots
 
 
+#: Columns of the rows :func:`_fused_kernel` returns, one row per touching geom pair.
+R_G1, R_G2, R_KIND, R_FORCE, R_SPEED, R_POINT, R_NORMAL, R_ONSET, R_SLOT = 0, 1, 2, 3, 4, 5, 8, 11, 12
+R_COLS = 13
+
+
 @_njit(cache=True, nogil=True)
-def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, fmax, ngeom,
-                  slotmap, st_vprev, st_last, st_touch, st_hit, st_calm, st_open, st_rtime, st_rspeed, st_rimp,
-                  st_rsteps, nslots, t0, t1, dt, step, v_impact, v_hard, min_apart, refractory, max_event, v_slide,
-                  v_roll):
+def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
+                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm):
     """:func:`_contact_kernel`, :func:`_pair_kernel` and :func:`_state_kernel` in one call (the
-    per-step hot path). Returns ``(rows, nbad, nhuge, nslots)``; ``rows`` (pairs, 12):
+    per-step hot path). Returns ``(rows, sustained, nbad, nhuge, n_onset, nslots)``; ``rows``
+    (pairs, ``R_COLS``), ``sustained`` the rows of kind > 0:
     geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed, point (3),
-    normal (3), onset (1: an impact starts)."""
+    normal (3), onset (1: an impact starts), slot (the pair's state slot)."""
     fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge = _contact_kernel(
-        geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, fmax)
+        geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, prm[P_FMAX])
     order, starts, pkey, vmax, ftot, slip, roll, point, normal = _pair_kernel(
         geom, ngeom, fn, vapp, vslip, vroll, pos, nrm)
     slot, onset, kind, speed, nslots = _state_kernel(
-        pkey, vmax, ftot, slip, roll, slotmap, st_vprev, st_last, st_touch, st_hit, st_calm, st_open, st_rtime,
-        st_rspeed, st_rimp, st_rsteps, nslots, t0, t1, dt, step, v_impact, v_hard, min_apart, refractory,
-        max_event, v_slide, v_roll)
+        pkey, vmax, ftot, slip, roll, hkeys, hvals, SF, SI, nslots, t0, t1, t1 - t0, step, prm)
     P = pkey.shape[0]
-    rows = np.empty((P, 12))
+    rows = np.empty((P, R_COLS))
     for p in range(P):
         i0 = order[starts[p]]
-        rows[p, 0] = geom[i0, 0]
-        rows[p, 1] = geom[i0, 1]
-        rows[p, 2] = kind[p]
-        rows[p, 3] = ftot[p]
-        rows[p, 4] = speed[p]
+        rows[p, R_G1] = geom[i0, 0]
+        rows[p, R_G2] = geom[i0, 1]
+        rows[p, R_KIND] = kind[p]
+        rows[p, R_FORCE] = ftot[p]
+        rows[p, R_SPEED] = speed[p]
         for c in range(3):
-            rows[p, 5 + c] = point[p, c]
-            rows[p, 8 + c] = normal[p, c]
-        rows[p, 11] = 1.0 if onset[p] else 0.0
-    return rows, nbad, nhuge, nslots
+            rows[p, R_POINT + c] = point[p, c]
+            rows[p, R_NORMAL + c] = normal[p, c]
+        rows[p, R_ONSET] = 1.0 if onset[p] else 0.0
+        rows[p, R_SLOT] = slot[p]
+    n_onset = 0
+    n_sust = 0
+    for p in range(P):
+        if onset[p]:
+            n_onset += 1
+        if kind[p] > 0:
+            n_sust += 1
+    sustained = np.empty((n_sust, R_COLS))
+    q = 0
+    for p in range(P):
+        if kind[p] > 0:
+            sustained[q] = rows[p]
+            q += 1
+    return rows, sustained, nbad, nhuge, n_onset, nslots
 
 
 @dataclass
@@ -487,12 +545,13 @@ class ContactReader:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget all pairs (call after ``mj_resetData`` or a state jump)."""
-        from numba import types
-        from numba.typed import Dict
-
-        # per contact pair (slot), state kept in arrays for the numba state machine
-        self._slotmap = Dict.empty(key_type=types.int64, value_type=types.int64)
+        # per contact pair (slot): its state in two packed arrays for the numba state machine,
+        # and an open-addressing table pair key -> slot
         self._nslots = 0
+        self._SF = np.zeros((6, 0))
+        self._SI = np.zeros((4, 0), np.int64)
+        self._hkeys = np.full(0, -1, np.int64)
+        self._hvals = np.zeros(0, np.int64)
         self._alloc_slots(64)
         self._open: dict[int, ImpactRecord] = {}  # slot -> its open ImpactRecord
         self._step = 0
@@ -500,18 +559,23 @@ class ContactReader:
         self.n_impacts = 0
         self.n_clamped = 0
         self._prev_cvel = None
+        self._params = np.array([self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s,
+                                 self.max_event_s, self.v_slide, self.v_roll, self.max_force])
 
     def _alloc_slots(self, cap):
-        names = ("vprev", "last", "touch", "hit", "calm", "open", "rtime", "rspeed", "rimp", "rsteps")
-        dtypes = (np.float64, np.int64, np.float64, np.float64, np.int64, np.bool_, np.float64, np.float64,
-                  np.float64, np.int64)
-        old = getattr(self, "_st", None)
-        st = [np.zeros(cap, d) for d in dtypes]
-        if old is not None:
-            for a, b in zip(st, old):
-                a[: len(b)] = b
-        self._st = st
-        self._st_names = names
+        """Room for ``cap`` pair slots (state kept; the table stays at most half full)."""
+        n = self._SF.shape[1]
+        SF = np.zeros((6, cap))
+        SI = np.zeros((4, cap), np.int64)
+        SF[:, :n] = self._SF
+        SI[:, :n] = self._SI
+        self._SF, self._SI = SF, SI
+        size = 1 << max(7, int(2 * cap - 1).bit_length())
+        self._hkeys, self._hvals = _rehash(self._hkeys, self._hvals, size)
+
+    def _room(self, n_new):
+        if self._nslots + n_new > self._SF.shape[1]:
+            self._alloc_slots(2 * (self._nslots + n_new))
 
     def _warn_once(self, key, msg):
         if key not in self._warned:
@@ -594,12 +658,10 @@ class ContactReader:
             order, starts, pkey, vmax, ftot, slip, roll, point, normal = _pair_kernel(
                 cf.geom, self.model.ngeom, cf.force_n, cf.v_approach, cf.v_slip, cf.v_roll, cf.pos, cf.normal
             )
-            if self._nslots + len(pkey) > len(self._st[0]):
-                self._alloc_slots(2 * (self._nslots + len(pkey)))
+            self._room(len(pkey))
             slot, onset, kind, speed, self._nslots = _state_kernel(
-                pkey, vmax, ftot, slip, roll, self._slotmap, *self._st, self._nslots, t0, t1, step_dt, step,
-                self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s, self.max_event_s,
-                self.v_slide, self.v_roll,
+                pkey, vmax, ftot, slip, roll, self._hkeys, self._hvals, self._SF, self._SI, self._nslots,
+                t0, t1, step_dt, step, self._params,
             )
             if onset.any():
                 for p in np.flatnonzero(onset).tolist():
@@ -619,34 +681,35 @@ class ContactReader:
                         point[p], normal[p], float(ftot[p]), float(speed[p])))
         elif self._open:
             # nothing touches: every open record closes
-            self._st[5][: self._nslots] = False
+            self._SI[SI_OPEN, : self._nslots] = 0
         if self._open:
             self._sync_open(step, t1)
         return impacts, contacts, cf
 
     def events_fast(self, data, t0: float, t1: float):
-        """:meth:`events` for the per-step driver: the same events and state, one numba call
-        per step (the :class:`ContactFrame` is only built on a step with an impact onset).
+        """:meth:`events` for the per-step driver: the same events and state in one numba call
+        per step; sustained contact comes back as rows, not objects (a
+        :class:`ContactFrame` is only built on a step with an impact onset).
 
         Returns
         -------
-        (impacts, contacts) : (list[ImpactEvent], list[ContactEvent])
+        impacts : list[ImpactEvent]
+        rows : (pairs, R_COLS) float array | None
+            The step's sounding pairs (kind slide or roll), columns ``R_*``; None when none.
         """
         self._step += 1
         step = self._step
         impacts: list[ImpactEvent] = []
-        contacts: list[ContactEvent] = []
+        sustained = None
         n = data.ncon
         if n:
-            if self._nslots + n > len(self._st[0]):
-                self._alloc_slots(2 * (self._nslots + n))
+            self._room(n)
             con = data.contact
-            rows, nbad, nhuge, self._nslots = _fused_kernel(
+            rows, srows, nbad, nhuge, n_onset, self._nslots = _fused_kernel(
                 con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                 data.cvel, data.subtree_com, data.geom_xpos, self.geom_body, self.body_root, self._plane,
-                self.max_force, self.model.ngeom, self._slotmap, *self._st, self._nslots, t0, t1, t1 - t0, step,
-                self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s, self.max_event_s,
-                self.v_slide, self.v_roll,
+                self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
+                self._params,
             )
             if nbad or nhuge:
                 self.n_clamped += int(nbad + nhuge)
@@ -655,26 +718,35 @@ class ContactReader:
                     f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
                     "velocities clamped (exploding simulation?); reported once",
                 )
-            if rows[:, 11].any():
+            if n_onset:
+                onset = rows[:, R_ONSET]
                 cf = self.read(data) if not (nbad or nhuge) else self._read_quiet(data)
                 order, starts, pkey = _pair_kernel(cf.geom, self.model.ngeom, cf.force_n, cf.v_approach,
                                                    cf.v_slip, cf.v_roll, cf.pos, cf.normal)[:3]
-                for p in np.flatnonzero(rows[:, 11]).tolist():
-                    j = self._slotmap[int(pkey[p])]
+                for p in np.flatnonzero(onset).tolist():
+                    j = int(rows[p, R_SLOT])
                     old = self._open.pop(j, None)
                     if old is not None:
                         old.open = False
                     idx = order[starts[p]: starts[p + 1]]
                     hit = idx[cf.v_approach[idx] > self.v_impact]
                     self._open[j] = self._impact(data, cf, hit, t0, impacts)
-            for r in rows[rows[:, 2] > 0].tolist():
-                contacts.append(ContactEvent("slide" if r[2] == 1.0 else "roll", t0, t1, int(r[0]), int(r[1]),
-                                             np.array(r[5:8]), np.array(r[8:11]), r[3], r[4]))
+            if len(srows):
+                sustained = srows
         elif self._open:
-            self._st[5][: self._nslots] = False
+            self._SI[SI_OPEN, : self._nslots] = 0
         if self._open:
             self._sync_open(step, t1)
-        return impacts, contacts
+        return impacts, sustained
+
+    @staticmethod
+    def contact_events(rows, t0: float, t1: float) -> list[ContactEvent]:
+        """:class:`ContactEvent` objects from the sustained rows of :meth:`events_fast`."""
+        if rows is None:
+            return []
+        return [ContactEvent("slide" if r[R_KIND] == 1.0 else "roll", t0, t1, int(r[R_G1]), int(r[R_G2]),
+                             np.array(r[R_POINT:R_POINT + 3]), np.array(r[R_NORMAL:R_NORMAL + 3]), r[R_FORCE],
+                             r[R_SPEED]) for r in rows.tolist()]
 
     def _read_quiet(self, data):
         n0 = self.n_clamped
@@ -683,11 +755,12 @@ class ContactReader:
         return cf
 
     def _sync_open(self, step, t1):
-        s_open, s_rimp, s_rsteps, s_rtime = self._st[5], self._st[8], self._st[9], self._st[6]
+        SF, SI = self._SF, self._SI
+        s_open, s_rimp, s_rsteps, s_rtime = SI[SI_OPEN], SF[SF_RIMP], SI[SI_RSTEPS], SF[SF_RTIME]
         for j, rec in list(self._open.items()):
             rec.impulse_sim = float(s_rimp[j])
             rec.steps = int(s_rsteps[j])
-            if self._st[1][j] == step:
+            if SI[SI_LAST, j] == step:
                 rec.duration = t1 - float(s_rtime[j])
             if not s_open[j]:
                 rec.open = False
@@ -730,7 +803,10 @@ class ContactReader:
                 mj.mj_solveM(m, data, MinvJt, Jn)
                 A = Jn @ MinvJt.T
                 A = 0.5 * (A + A.T)
-                if np.isfinite(A).all():
+                if k == 1:
+                    a = float(A[0, 0])
+                    lam = np.array([(1.0 + e) * float(v[0]) / a]) if a > 0 and math.isfinite(a) else None
+                elif np.isfinite(A).all():
                     # rcond: near-duplicate contacts make A nearly singular; do not amplify noise
                     lam = np.linalg.pinv(A, rcond=1e-4) @ ((1.0 + e) * v)
                     lam = np.maximum(lam, 0.0)

@@ -25,7 +25,9 @@ from fractions import Fraction
 
 import numpy as np
 
-from .contacts import ContactReader
+from .contacts import R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED, ContactReader
+from ..synth.kernels import SI_DUE as _SI_DUE
+from .drive import drive_rows
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -186,8 +188,8 @@ class AudioSimulator:
             from ..synth import synthesizer as _sy
             from ..synth.synthesizer import Synthesizer
 
-            self._sust_params = {"slide": (_sy.SLIDE_ROUGHNESS, _sy.SLIDE_GRAIN_M),
-                                 "roll": (_sy.ROLL_ROUGHNESS, _sy.ROLL_PATCH_M)}
+            self._rough = np.array([_sy.SLIDE_ROUGHNESS, _sy.ROLL_ROUGHNESS])
+            self._length = np.array([_sy.SLIDE_GRAIN_M, _sy.ROLL_PATCH_M])
 
             kw = dict(synth_kwargs or {})
             self.synth = Synthesizer(sample_rate=self.sample_rate, microphones=np.asarray(scene.mic_positions), **kw)
@@ -198,6 +200,17 @@ class AudioSimulator:
                     position=np.array(self.data.geom_xpos[s.geom_id]),
                     rotation=np.array(self.data.geom_xmat[s.geom_id]).reshape(3, 3),
                 )
+            self.synth.on_regain = self._pose_object
+        # synth object index of each geom (-1: silent, or no modes to drive)
+        self._geom_obj = np.full(model.ngeom, -1, np.int64)
+        self._obj_geom = {}
+        if self.synth is not None:
+            for g, s in self._sounding.items():
+                ob = self.synth._objects[s.name]
+                self._obj_geom[ob.index] = g
+                if len(ob.keep):
+                    self._geom_obj[g] = ob.index
+        self._follow = None
         self.reset(clear_reader=True)
 
     # ------------------------------------------------------------------ state
@@ -211,7 +224,6 @@ class AudioSimulator:
         self._origin = self.clock.n  # synth sample 0 is absolute sample n = origin
         self.events = {"impact": 0, "slide": 0, "roll": 0}
         self.event_log = []  # (time [s], kind, geom1, geom2, impulse [N s] or speed [m/s])
-        self._covered = {}  # (geom1, geom2, kind) -> sustained noise queued up to [s]
         self.samples = 0
         self.steps = 0
         #: optional observer ``on_block(sim, block, n0)`` called with every step's audio block
@@ -219,7 +231,10 @@ class AudioSimulator:
         self.on_block = None
         self.seconds_contacts = 0.0
         self.seconds_synth = 0.0
-        self._mic_cache = None
+        self._pending = 0  # samples stepped but not rendered yet (step(render=False))
+        self._pending_n0 = self.clock.n
+        self._sidx = np.full((0, 2, 2), -1, np.int64)
+        self._sidx_epoch = None
 
     # ------------------------------------------------------------------ stepping
     def _sync_clock(self) -> None:
@@ -233,127 +248,204 @@ class AudioSimulator:
             c.anchor(dt, float(self.data.time) - dt)
             self._origin += c.n - n_prev
 
-    def step(self) -> np.ndarray:
+    def follow(self, body: int, offsets) -> None:
+        """Move the microphones with ``body`` (translation only): microphone m sits at
+        ``data.xpos[body] + offsets[m]``, updated whenever an event needs the positions
+        (an impact, or a sustained contact's gains). ``body=None`` stops following."""
+        self._follow = None if body is None else (int(body), np.asarray(offsets, np.float64).reshape(-1, 3))
+
+    def step(self, render: bool = True) -> np.ndarray | None:
         """Process the step just taken by ``mj_step``; return its audio block.
+
+        Parameters
+        ----------
+        render : bool
+            False: read the step's contacts and queue its sound, but render later (in
+            :meth:`flush`, one synthesizer call for many steps: e.g. once per env step of a
+            gymnasium env with ``frame_skip``). The step returns None then. The audio is the
+            same except that a sliding contact's gains follow its point once per render.
 
         Returns
         -------
-        (channels, n) float32 array
-            Sound pressure at each microphone [Pa] for the samples ``t_k <= n/fs < t_{k+1}``.
+        (channels, n) float32 array | None
+            Sound pressure at each microphone [Pa] for the samples ``t_k <= n/fs < t_{k+1}``
+            (with ``render=True``: the samples of earlier unrendered steps come first).
         """
         self._sync_clock()
         n0, n1 = self.clock.advance()
-        return self._process(n0, n1)
+        return self._process(n0, n1, render=render)
 
-    def _process(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> np.ndarray:
-        block = self._process_block(n0, n1, t0, t1)
+    def flush(self) -> np.ndarray:
+        """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
+        ``(channels, n)`` float32 pressure [Pa]."""
+        return self._render_pending()
+
+    def _process(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None,
+                 render: bool = True) -> np.ndarray | None:
+        if self._pending == 0:
+            self._pending_n0 = n0
+        self._pending += n1 - n0
+        self._queue(n0, n1, t0, t1)
+        return self._render_pending() if render else None
+
+    def _render_pending(self) -> np.ndarray:
+        n, n0 = self._pending, self._pending_n0
+        self._pending = 0
+        self._pending_n0 = self.clock.n
+        if self.synth is None:
+            block = np.zeros((self.n_channels, n), dtype=np.float32)
+        else:
+            tc = _time.perf_counter()
+            if self._follow is not None or (self.scene.mic_site_ids and self.scene.mics_move):
+                SI = self.synth._st["SI"] if self.synth._st is not None else None
+                if SI is not None and SI[: self.synth._st_n, _SI_DUE].any():  # a stream's gains are due
+                    self._update_mics()
+            block = self.synth.render(n)
+            if not np.isfinite(block).all():  # never hand out NaN audio
+                block = np.nan_to_num(block, nan=0.0, posinf=0.0, neginf=0.0)
+            self.seconds_synth += _time.perf_counter() - tc
         if self.on_block is not None:
             self.on_block(self, block, n0)
         return block
 
-    def _process_block(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> np.ndarray:
+    def _update_mics(self) -> None:
+        """Microphones to where their sites / the followed body are now."""
+        data = self.data
+        if self._follow is not None:
+            body, offsets = self._follow
+            mics = data.xpos[body] + offsets
+        else:
+            mics = np.array(data.site_xpos[self.scene.mic_site_ids])
+        if np.isfinite(mics).all() and mics.shape == self.synth._mics.shape:
+            self.synth._mics = mics  # (Synthesizer.set_microphones without its checks: same channels, finite)
+
+    def _pose_object(self, ob) -> None:
+        """Pose of synth object ``ob`` from its geom (``Synthesizer.on_regain``)."""
+        g = self._obj_geom.get(ob.index)
+        if g is None or not self._sounding[g].dynamic:
+            return
+        p = self.data.geom_xpos[g]
+        R = self.data.geom_xmat[g]
+        if np.isfinite(p).all() and np.isfinite(R).all():
+            ob.pos = np.array(p)
+            ob.R = np.array(R).reshape(3, 3)
+
+    def _queue(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> None:
+        """Read the step's contacts and queue its impacts and sustained drives."""
         fs = self.sample_rate
         if t0 is None:
             t0 = self.clock.time_at(self.clock.k - 1)
             t1 = self.clock.time_at(self.clock.k)
         self.steps += 1
         nblock = n1 - n0
+        self.samples += nblock
         if self.synth is None:
-            # nothing sounds: no contact work at all
-            self.samples += nblock
-            return np.zeros((self.n_channels, nblock), dtype=np.float32)
+            return  # nothing sounds: no contact work at all
         tc = _time.perf_counter()
-        impacts, contacts = self.reader.events_fast(self.data, t0, t1)
+        impacts, rows = self.reader.events_fast(self.data, t0, t1)
         self.seconds_contacts += _time.perf_counter() - tc
         synth = self.synth
-        data = self.data
-        # microphones, then poses at t_k (the state the contacts belong to); a pose only
-        # matters for events added after it, so only objects that get an event are updated.
-        if self.scene.mic_site_ids and self.scene.mics_move:
-            mics = np.array(data.site_xpos[self.scene.mic_site_ids])
-            if np.isfinite(mics).all():
-                synth.set_microphones(mics)
-        posed = set()
-        objs = synth._objects
-
-        def pose(g, name):
-            ob = objs[name]
-            if g in posed or not self._sounding[g].dynamic:
-                return ob
-            posed.add(g)
-            p = data.geom_xpos[g]
-            R = data.geom_xmat[g]
-            if np.isfinite(p).all() and np.isfinite(R).all():
-                ob.pos = np.array(p)
-                ob.R = np.array(R).reshape(3, 3)
-            return ob
-
-        # synth time: sample index relative to the synthesizer's sample 0
-        base = self._origin / fs
-        t_floor = (n0 - self._origin) / fs  # what the synthesizer has rendered [s]
-        names = self._names
         if impacts:
-            # one call per struck object: all points of all pairs' onsets at once (the Hertz
-            # pulse length is computed per (struck, other) group, then the groups are joined)
-            groups = {}
-            for ev in impacts:
-                for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
-                    if g in names:
-                        groups.setdefault(g, {}).setdefault(other, []).append((ev, sign))
-                self.events["impact"] += 1
-                if len(self.event_log) < self.keep_events:
-                    self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
-            for g, by_other in groups.items():
-                ob = pose(g, names[g])
-                P, J, T, TAU = [], [], [], []
-                for other, evs in by_other.items():
-                    pts = np.array([ev.point for ev, _ in evs])
-                    imp = np.array([sign * ev.impulse * ev.normal for ev, sign in evs])
-                    spd = np.array([ev.speed for ev, _ in evs])
-                    tau = synth._hertz_tau(ob, imp, self.scene.geom_material[other], float(self._other_mass[other]),
-                                           float(self._radius[other]), np.abs(spd),
-                                           float(self._radius[g]) if np.isfinite(self._radius[g]) else None)
-                    P.append(pts)
-                    J.append(imp)
-                    T.append(np.array([max(ev.time - base, t_floor) for ev, _ in evs]))
-                    TAU.append(tau)
-                if len(ob.keep):
-                    P, J = np.concatenate(P), np.concatenate(J)
-                    if np.isfinite(P).all() and np.isfinite(J).all():
-                        synth._impacts_trusted(ob, P, J, np.concatenate(T), np.concatenate(TAU))
-        if self.sustained and contacts:
-            # one persistent noise stream per (pair, kind, side): its force and speed are
-            # updated every step (numba generates the noise), its gains follow the contact
-            # point every ``sustained_block_s``
-            k0 = synth.samples_rendered
-            k1 = k0 + nblock
-            regain = max(1, int(round(self.sustained_block_s * fs)))
-            params = self._sust_params
+            self._queue_impacts(impacts, n0)
+        if rows is not None:
+            kinds = rows[:, R_KIND]
+            n_slide = int(np.count_nonzero(kinds == 1.0))
+            self.events["slide"] += n_slide
+            self.events["roll"] += len(kinds) - n_slide
             log = self.event_log
-            counts = self.events
-            for ev in contacts:
-                counts[ev.kind] += 1
-                if len(log) < self.keep_events:
-                    log.append((ev.t0, ev.kind, ev.geom1, ev.geom2, ev.speed))
-                if nblock == 0:
-                    continue
-                fn = float(ev.force_n)
-                spd = float(ev.speed)
-                if not (math.isfinite(fn) and math.isfinite(spd)):
-                    continue  # (points and normals are sanitised by the reader)
-                rough, length = params[ev.kind]
-                for g, sign in ((ev.geom2, 1.0), (ev.geom1, -1.0)):
-                    name = names.get(g)
-                    if name is None:
-                        continue
-                    synth._stream_drive((ev.geom1, ev.geom2, ev.kind, g), objs[name], ev.point, sign * ev.normal,
-                                        fn, spd, k0, k1, rough, length, regain, pose, g, name)
-        out = synth.render(nblock)
+            if len(log) < self.keep_events:
+                for r in rows.tolist():
+                    log.append((t0, "slide" if r[R_KIND] == 1.0 else "roll", int(r[R_G1]), int(r[R_G2]), r[R_SPEED]))
+            if self.sustained and nblock:
+                self._drive(rows, n0, n1)
         self.seconds_synth += _time.perf_counter() - tc
-        self.samples += nblock
-        if not np.isfinite(out).all():  # never hand out NaN audio
-            out = np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
-        return out
+
+    def _queue_impacts(self, impacts, n0) -> None:
+        # one call per struck object: all points of all pairs' onsets at once (the Hertz
+        # pulse length is computed per (struck, other) group, then the groups are joined)
+        synth = self.synth
+        fs = self.sample_rate
+        base = self._origin / fs  # synth time 0 in absolute time
+        t_floor = (n0 - self._origin) / fs  # the step's first synth sample [s]
+        names = self._names
+        objs = synth._objects
+        if self._follow is not None or (self.scene.mic_site_ids and self.scene.mics_move):
+            self._update_mics()
+        groups = {}
+        for ev in impacts:
+            for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
+                if g in names:
+                    groups.setdefault(g, {}).setdefault(other, []).append((ev, sign))
+            self.events["impact"] += 1
+            if len(self.event_log) < self.keep_events:
+                self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
+        for g, by_other in groups.items():
+            ob = objs[names[g]]
+            self._pose_object(ob)
+            P, J, T, TAU = [], [], [], []
+            for other, evs in by_other.items():
+                pts = np.array([ev.point for ev, _ in evs])
+                imp = np.array([sign * ev.impulse * ev.normal for ev, sign in evs])
+                spd = np.array([ev.speed for ev, _ in evs])
+                tau = synth._hertz_tau(ob, imp, self.scene.geom_material[other], float(self._other_mass[other]),
+                                       float(self._radius[other]), np.abs(spd),
+                                       float(self._radius[g]) if np.isfinite(self._radius[g]) else None)
+                P.append(pts)
+                J.append(imp)
+                T.append(np.array([max(ev.time - base, t_floor) for ev, _ in evs]))
+                TAU.append(tau)
+            if len(ob.keep):
+                P, J = np.concatenate(P), np.concatenate(J)
+                if np.isfinite(P).all() and np.isfinite(J).all():
+                    synth._impacts_trusted(ob, P, J, np.concatenate(T), np.concatenate(TAU))
+
+    def _drive(self, rows, n0, n1) -> None:
+        """One persistent noise stream per (pair, kind, side): its force and speed are updated
+        every step (numba generates the noise), its gains follow the contact point every
+        ``sustained_block_s`` (see :mod:`.drive`)."""
+        synth = self.synth
+        fs = self.sample_rate
+        k0 = n0 - self._origin  # synth samples of this step
+        k1 = n1 - self._origin
+        regain = max(1, int(round(self.sustained_block_s * fs)))
+        if self._sidx_epoch != synth._st_epoch:  # the synthesizer forgot its streams
+            self._sidx = np.full((0, 2, 2), -1, np.int64)
+            self._sidx_epoch = synth._st_epoch
+        slots = self.reader._nslots
+        if slots > len(self._sidx):
+            grown = np.full((max(2 * len(self._sidx), slots, 16), 2, 2), -1, np.int64)
+            grown[: len(self._sidx)] = self._sidx
+            self._sidx = grown
+        st = synth._st
+        if st is None:  # no stream yet: every sounding side needs one
+            missing = [(r, sd) for r in range(len(rows)) for sd in (0, 1)
+                       if self._geom_obj[int(rows[r, R_G2 if sd == 0 else R_G1])] >= 0]
+        else:
+            missing, need = drive_rows(rows, self._sidx, self._geom_obj, self._rough, self._length, float(fs), k0,
+                                       k1, regain, synth.samples_rendered, synth._RING_SLACK, st["SF"], st["SI"],
+                                       st["D"], st["ring"])
+            if need:
+                synth._streams_grow_ring(need)
+                st = synth._st
+                missing, need = drive_rows(rows, self._sidx, self._geom_obj, self._rough, self._length, float(fs),
+                                           k0, k1, regain, synth.samples_rendered, synth._RING_SLACK, st["SF"],
+                                           st["SI"], st["D"], st["ring"])
+            if not len(missing):
+                return
+            missing = missing.tolist()
+        for r, side in missing:
+            row = rows[r]
+            if not (math.isfinite(row[R_FORCE]) and math.isfinite(row[R_SPEED])):
+                continue
+            g1, g2, kind = int(row[R_G1]), int(row[R_G2]), int(row[R_KIND])
+            g = g2 if side == 0 else g1
+            ob = synth._objects[self._names[g]]
+            key = (g1, g2, "slide" if kind == 1 else "roll", g)
+            j = synth._stream_index(key, ob)
+            self._sidx[int(row[R_SLOT]), kind - 1, side] = j
+            sign = 1.0 if side == 0 else -1.0
+            synth._stream_drive(j, row[R_POINT:R_POINT + 3], sign * row[R_NORMAL:R_NORMAL + 3], float(row[R_FORCE]),
+                                float(row[R_SPEED]), k0, k1, self._rough[kind - 1], self._length[kind - 1], regain)
 
     def advance(self, nstep: int = 1) -> np.ndarray:
         """``mj_step`` then :meth:`step`, ``nstep`` times; the blocks concatenated."""

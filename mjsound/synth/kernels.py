@@ -425,55 +425,91 @@ def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c,
             gi[m, k] = 0.0
 
 
+#: Columns of the per-stream state: floats ``SF`` (streams, 9) and integers ``SI`` (streams, 9).
+SF_AMP, SF_ALPHA, SF_Y, SF_P, SF_N = 0, 1, 2, 3, 6
+SI_LIVE, SI_OBJ, SI_K0, SI_K1, SI_GEN, SI_LAST, SI_GUPD, SI_DUE, SI_RNG = range(9)
+
+
 @njit(cache=True)
-def streams_block(st_live, st_obj, st_k0, st_k1, st_amp, st_alpha, st_y, st_rng, st_gen, st_last,
-                  st_D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
-    """Generate every driven stream's noise up to source sample ``end`` and return the
-    block's source rows for :func:`render_all` (sorted by voice; rows active on
-    ``[start, min(end, last + D))``)."""
-    S = st_live.shape[0]
-    M = st_D.shape[1]
+def stream_generate(s, k0, k1, amp, alpha, SF, SI, ring):
+    """Drive stream ``s`` on source samples ``[k0, k1)``: its noise (force [N]) is generated now
+    into the ring, so several drives may precede one render. Samples between the last drive
+    and ``k0`` are silent; the low-pass restarts when the drive does not continue the last
+    one (as :meth:`Synthesizer.slide`)."""
+    cap = ring.shape[1]
+    mask = cap - 1
+    if k0 != SI[s, SI_K1]:
+        SF[s, SF_Y] = 0.0
+    SI[s, SI_K0] = k0
+    SI[s, SI_K1] = k1
+    SF[s, SF_AMP] = amp
+    SF[s, SF_ALPHA] = alpha
+    k = SI[s, SI_GEN]
+    if k < k1 - cap:
+        k = k1 - cap
+    b = 1.0 - alpha
+    y = SF[s, SF_Y]
+    state = np.uint64(SI[s, SI_RNG])
+    while k < k1:
+        if k >= k0:
+            state, z1 = _splitmix(state)
+            state, z2 = _splitmix(state)
+            u1 = ((z1 >> _S11) + np.uint64(1)) * _INV53
+            u2 = (z2 >> _S11) * _INV53
+            x = np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
+            y = alpha * x + b * y
+            ring[s, k & mask] = y * amp
+        else:
+            ring[s, k & mask] = 0.0
+        k += 1
+    SF[s, SF_Y] = y
+    SI[s, SI_RNG] = np.int64(state)
+    if k1 > SI[s, SI_GEN]:
+        SI[s, SI_GEN] = k1
+    if amp != 0.0 and k1 > SI[s, SI_LAST]:
+        SI[s, SI_LAST] = k1
+
+
+@njit(cache=True)
+def stream_drive(s, k0, k1, amp, alpha, p, nrm, regain, rendered, slack, SF, SI, D, ring):
+    """Drive stream ``s`` (see :func:`stream_generate`) at world point ``p`` along unit ``nrm``;
+    marks its gains due every ``regain`` samples. Returns 0, or the ring length needed first
+    (nothing changed then)."""
+    if k1 <= k0 or amp == 0.0:
+        return 0
+    dmax = 0
+    for m in range(D.shape[1]):
+        if D[s, m] > dmax:
+            dmax = D[s, m]
+    need = dmax + (k1 - rendered) + slack
+    if need > ring.shape[1]:
+        return need
+    for c in range(3):
+        SF[s, SF_P + c] = p[c]
+        SF[s, SF_N + c] = nrm[c]
+    g = SI[s, SI_GUPD]
+    if k0 >= g + regain or k0 < g:
+        SI[s, SI_GUPD] = k0
+        SI[s, SI_DUE] = 1
+    stream_generate(s, k0, k1, amp, alpha, SF, SI, ring)
+    return 0
+
+
+@njit(cache=True)
+def streams_block(SF, SI, D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
+    """The block's source rows of every stream for :func:`render_all` (sorted by voice; rows
+    active on ``[start, min(end, last + D))``, read from the ring: the noise was generated
+    when the stream was driven)."""
+    S = SF.shape[0]
+    M = D.shape[1]
     mask = ring.shape[1] - 1
     cap = ring.shape[1]
-    # ---- generate
-    for s in range(S):
-        if not st_live[s]:
-            continue
-        if st_k1[s] > st_gen[s]:
-            k = st_gen[s]
-            if k < end - cap:
-                k = end - cap
-            k0 = st_k0[s]
-            k1 = st_k1[s]
-            amp = st_amp[s]
-            a = st_alpha[s]
-            b = 1.0 - a
-            y = st_y[s]
-            state = st_rng[s]
-            while k < end:
-                if k >= k0 and k < k1:
-                    state, z1 = _splitmix(state)
-                    state, z2 = _splitmix(state)
-                    u1 = ((z1 >> _S11) + np.uint64(1)) * _INV53
-                    u2 = (z2 >> _S11) * _INV53
-                    x = np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
-                    y = a * x + b * y
-                    ring[s, k & mask] = y * amp
-                else:
-                    ring[s, k & mask] = 0.0
-                k += 1
-            st_y[s] = y
-            st_rng[s] = state
-            st_gen[s] = end
-            if amp != 0.0 and k1 > st_last[s]:
-                st_last[s] = k1 if k1 < end else end
-    # ---- rows
     q = 0
     for s in range(S):
-        if not st_live[s]:
+        if not SI[s, SI_LIVE]:
             continue
         for m in range(M):
-            if st_last[s] + st_D[s, m] > start:
+            if SI[s, SI_LAST] + D[s, m] > start:
                 q += 1
     voice = np.empty(q, np.int64)
     sa = np.empty(q, np.int64)
@@ -484,25 +520,103 @@ def streams_block(st_live, st_obj, st_k0, st_k1, st_amp, st_alpha, st_y, st_rng,
     F = np.zeros((q, n), st_gr.dtype)
     j = 0
     for s in range(S):
-        if not st_live[s]:
+        if not SI[s, SI_LIVE]:
             continue
+        gen = SI[s, SI_GEN]
         for m in range(M):
-            Dm = st_D[s, m]
-            hi = st_last[s] + Dm
+            Dm = D[s, m]
+            hi = SI[s, SI_LAST] + Dm
             if hi <= start:
                 continue
-            voice[j] = vbase[st_obj[s]] + m
+            voice[j] = vbase[SI[s, SI_OBJ]] + m
             sa[j] = start
             sb[j] = hi if hi < end else end
             w = min(nmax, st_gr.shape[2])
             for k in range(w):
                 gr[j, k] = st_gr[s, m, k]
                 gi[j, k] = st_gi[s, m, k]
-            lo_src = st_gen[s] - cap  # oldest sample still in the ring
+            lo_src = gen - cap  # oldest sample still in the ring
             for t in range(start, sb[j]):
                 ks = t - Dm
-                if ks >= lo_src and ks < st_gen[s]:
+                if ks >= lo_src and ks < gen:
                     F[j, t - start] = ring[s, ks & mask]
             j += 1
     order = np.argsort(voice, kind="mergesort")
     return voice[order], sa[order], sb[order], gr[order], gi[order], F[order]
+
+
+@njit(cache=True)
+def half_sine(x):
+    """:func:`mjsound.synth.pulse.half_sine_spectrum` at ``x = w tau`` (scalar, numba)."""
+    u = x - np.pi
+    if abs(u) >= 0.25:
+        return (1.0 + np.exp(-1j * x)) / (2.0 * (1.0 - (x / np.pi) ** 2))
+    if u == 0.0:
+        return -1j * np.pi / 4.0
+    # expm1(-j u) without cancellation: cos(u) - 1 = -2 sin^2(u / 2)
+    s = np.sin(0.5 * u)
+    em1 = -2.0 * s * s - 1j * np.sin(u)
+    return np.pi**2 * em1 / (2.0 * u * (2.0 * np.pi + u))
+
+
+@njit(cache=True)
+def impact_amplitudes(pts, shk, pos, R, P, J, t, tau, wd, weights, lam, logeps, mics, c, fs, rmin, tol,
+                      rendered, grid):
+    """Modal amplitudes of ``k`` impacts on one object at every microphone (the numerics of
+    ``Synthesizer._impacts_trusted``).
+
+    ``P``, ``J`` (k, 3) world points [m] and impulses [N s], ``t`` (k,) synth times [s],
+    ``tau`` (k,) pulse lengths [s]. Returns ``(na, a, amax)``: arrival samples (M k,) and
+    complex amplitudes (M k, n) in the row order mic-major (row ``m k + i``), and the largest
+    ``|a|``. ``a = phi(x).J / w_d * S(w_d tau) * w / r * e^{lam dt} * eps^{-(na % grid)}``.
+    """
+    k = P.shape[0]
+    n = wd.shape[0]
+    M = mics.shape[0]
+    c_mode = np.empty((k, n), np.complex128)
+    for i in range(k):
+        pl = np.zeros(3)
+        jl = np.zeros(3)
+        for a in range(3):
+            for b in range(3):
+                pl[b] += (P[i, a] - pos[a]) * R[a, b]
+                jl[b] += J[i, a] * R[a, b]
+        best = np.inf
+        bi = 0
+        for q in range(pts.shape[0]):
+            dx = pts[q, 0] - pl[0]
+            dy = pts[q, 1] - pl[1]
+            dz = pts[q, 2] - pl[2]
+            dd = dx * dx + dy * dy + dz * dz
+            if dd < best:
+                best = dd
+                bi = q
+        for m in range(n):
+            G = shk[bi, 0, m] * jl[0] + shk[bi, 1, m] * jl[1] + shk[bi, 2, m] * jl[2]
+            c_mode[i, m] = G / wd[m] * half_sine(wd[m] * tau[i])
+    na = np.empty(M * k, np.int64)
+    out = np.empty((M * k, n), np.complex128)
+    amax = 0.0
+    for mi in range(M):
+        dx = mics[mi, 0] - pos[0]
+        dy = mics[mi, 1] - pos[1]
+        dz = mics[mi, 2] - pos[2]
+        r = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if r < rmin:
+            r = rmin
+        for i in range(k):
+            ta = t[i] + r / c
+            nn = np.int64(np.ceil(ta * fs - tol))
+            if nn < rendered:
+                nn = rendered
+            row = mi * k + i
+            na[row] = nn
+            dts = nn / fs - ta
+            g = nn % grid
+            for m in range(n):
+                v = c_mode[i, m] * (weights[m] / r) * np.exp(lam[m] * dts - g * logeps[m])
+                out[row, m] = v
+                av = abs(v)
+                if not (av <= amax):  # NaN propagates into amax
+                    amax = av
+    return na, out, amax

@@ -246,6 +246,8 @@ class Synthesizer:
         p = self._check_mics(positions)
         old = len(self._mics)
         self._mics = p
+        if len(p) == old:
+            return  # same channels: only later events see the new positions
         for ob in self._objects.values():
             n = len(ob.keep)
             ob.voices = ob.voices[: len(p)] + [_Voice(n) for _ in range(max(0, len(p) - old))]
@@ -371,7 +373,8 @@ class Synthesizer:
         self._ev = [c for c in self._ev if c[0] != ob.index]
         self._src = [c for c in self._src if c[0] != ob.index]
         if self._st_n:
-            self._st["live"][: self._st_n][self._st["obj"][: self._st_n] == ob.index] = False
+            SI = self._st["SI"][: self._st_n]
+            SI[SI[:, kernels.SI_OBJ] == ob.index, kernels.SI_LIVE] = 0
         self._dirty = True
 
     def set_pose(self, name, position, rotation) -> None:
@@ -511,40 +514,29 @@ class Synthesizer:
         if v is None:
             v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e))
         Estar = 1.0 / comp
-        with np.errstate(divide="ignore"):
-            tau = 2.87 * (mstar**2 / (Rstar * Estar**2 * v)) ** 0.2
-        return np.clip(np.where(v > 0, tau, TAU_MAX_S), TAU_MIN_S, TAU_MAX_S)
+        coef = 2.87 * (mstar**2 / (Rstar * Estar**2)) ** 0.2  # tau = coef v^-1/5
+        return np.array([min(max(coef * vi**-0.2, TAU_MIN_S), TAU_MAX_S) if vi > 0 else TAU_MAX_S
+                         for vi in np.asarray(v, np.float64).tolist()])
 
     def _impacts_trusted(self, ob, P, J, t, tau):
         """Internal fast path of :meth:`impacts`: finite (k, 3) world ``P``, ``J``, (k,) times
         already >= :attr:`time` and pulse lengths ``tau``. State is unchanged on error."""
         k = len(P)
         name = ob.name
-        Pl = (P - ob.pos) @ ob.R  # R^T (p - pos), row-wise
-        Jl = J @ ob.R
-        idx = self._nearest(ob, Pl)
-        G = np.einsum("kcn,kc->kn", ob.shk[idx], Jl)
-        S = half_sine_spectrum(ob.wd[None, :], tau[:, None])
-        c = G / ob.wd[None, :] * S
-        r = self._distances(ob)  # (M,)
-        fs = self.sample_rate
-        M = len(r)
-        ta = t[None, :] + (r / self.speed_of_sound)[:, None]  # (M, k)
-        na = np.maximum(np.ceil(ta * fs - _SAMPLE_TOL).astype(np.int64), self.samples_rendered)
-        dts = na / fs - ta
-        # (M, k, n): c * w / r * e^{lam dt} * eps^{-(na % GRID)}
-        a = c[None, :, :] * (ob.weights[None, :] / r[:, None])[:, None, :]
-        a *= np.exp(ob.lam[None, None, :] * dts[:, :, None] - (na % GRID)[:, :, None] * ob.logeps[None, None, :])
-        if a.size:
-            amax = np.abs(a).max()
-            if not (amax <= MAX_AMPLITUDE):  # also catches NaN
-                raise ValueError(
-                    f"impulse on {name!r} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
-                    "check the impulse units (N s) and magnitude"
-                )
+        M = self.n_channels
+        na, a, amax = kernels.impact_amplitudes(
+            ob.pts, ob.shk, ob.pos, ob.R, np.ascontiguousarray(P, np.float64), np.ascontiguousarray(J, np.float64),
+            np.ascontiguousarray(t, np.float64), np.ascontiguousarray(tau, np.float64), ob.wd, ob.weights, ob.lam,
+            ob.logeps, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M, _SAMPLE_TOL,
+            self.samples_rendered, GRID)
+        if a.size and not (amax <= MAX_AMPLITUDE):  # also catches NaN
+            raise ValueError(
+                f"impulse on {name!r} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
+                "check the impulse units (N s) and magnitude"
+            )
         # ---- commit (nothing above mutated state)
         mic = np.repeat(np.arange(M, dtype=np.int64), k)
-        self._ev.append((ob.index, mic, na.reshape(-1), np.zeros(M * k, np.int8), a.reshape(M * k, -1)))
+        self._ev.append((ob.index, mic, na, np.zeros(M * k, np.int8), a))
         self._ev_next = min(self._ev_next, int(na.min()))
 
     @staticmethod
@@ -655,35 +647,36 @@ class Synthesizer:
     # ------------------------------------------------------------------ persistent streams
     #: Ring buffer length of a stream [samples] (power of two; grows for long blocks/delays).
     _RING = 4096
+    #: Ring samples kept free for a stream's delay growing between gain updates [samples].
+    _RING_SLACK = 1024
 
     def _streams_clear(self) -> None:
         """Forget all sustained-contact streams (their ringing modes keep ringing)."""
         self._st_keys: dict = {}
         self._st_n = 0
         self._st = None
-        self._st_view = None
+        self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
+        #: optional ``on_regain(obj)`` called before a stream's gains are computed (a driver
+        #: updates the object's pose there)
+        self.on_regain = getattr(self, "on_regain", None)
 
     def _streams_alloc(self, cap, nmax, ring):
         M = self.n_channels
         old = self._st
         n = self._st_n
-        st = {
-            "live": np.zeros(cap, np.bool_), "obj": np.zeros(cap, np.int64),
-            "k0": np.zeros(cap, np.int64), "k1": np.zeros(cap, np.int64),
-            "amp": np.zeros(cap), "alpha": np.zeros(cap), "y": np.zeros(cap),
-            "rng": np.zeros(cap, np.uint64), "gen": np.zeros(cap, np.int64),
-            "last": np.full(cap, -(2**62), np.int64), "gupd": np.full(cap, -(2**62), np.int64),
-            "D": np.zeros((cap, M), np.int64),
-            "gr": np.zeros((cap, M, nmax), self.dtype), "gi": np.zeros((cap, M, nmax), self.dtype),
-            "ring": np.zeros((cap, ring)),
-        }
+        SI = np.zeros((cap, 9), np.int64)
+        SI[:, kernels.SI_LAST] = -(2**62)
+        SI[:, kernels.SI_GUPD] = -(2**62)
+        st = {"SF": np.zeros((cap, 9)), "SI": SI, "D": np.zeros((cap, M), np.int64),
+              "gr": np.zeros((cap, M, nmax), self.dtype), "gi": np.zeros((cap, M, nmax), self.dtype),
+              "ring": np.zeros((cap, ring))}
         if old is not None and n:
             for k, a in old.items():
                 if k == "ring":
                     # keep every sample's slot: ring[k & mask]
                     ro = a.shape[1]
                     for j in range(n):
-                        g = int(old["gen"][j])
+                        g = int(old["SI"][j, kernels.SI_GEN])
                         ks = np.arange(max(g - ro, 0), g)
                         st[k][j, ks & (ring - 1)] = a[j, ks & (ro - 1)]
                 elif k in ("gr", "gi"):
@@ -691,60 +684,87 @@ class Synthesizer:
                 else:
                     st[k][:n] = a[:n]
         self._st = st
-        self._st_view = None
 
-    def _stream_drive(self, key, ob, p, nv, fn, v, k0, k1, rough, length, regain, posefn=None, *poseargs):
-        """Drive the persistent stream ``key`` (any hashable, e.g. (geom1, geom2, kind, side))
-        on synth samples ``[k0, k1)`` with sliding/rolling noise of force ``fn`` [N] and speed
-        ``v`` [m/s] at world ``p`` along world unit ``nv`` (see :meth:`slide`). Internal fast
-        path of the per-step driver: call once per block, before rendering it, with ``k0`` the
-        block's first sample. The gains follow the point every ``regain`` samples
-        (``posefn(*poseargs)``, if given, updates and returns the object's pose first)."""
-        if len(ob.keep) == 0 or v == 0.0 or fn == 0.0 or rough == 0.0 or k1 <= k0:
-            return
+    def _stream_index(self, key, ob) -> int:
+        """Index of the persistent stream ``key`` (any hashable, e.g. (geom1, geom2, kind,
+        side)) on object ``ob``, created on first use (seeded from the synthesizer seed, the
+        object and the key, so the noise does not depend on the order streams appear)."""
         j = self._st_keys.get(key)
+        if j is not None:
+            return j
         st = self._st
-        if j is None:
-            nmax = max([len(o.keep) for o in self._objects.values()], default=0)
-            if st is None or self._st_n == len(st["live"]) or st["gr"].shape[2] < nmax:
-                cap = 8 if st is None else max(len(st["live"]), 4) * (2 if self._st_n == len(st["live"]) else 1)
-                self._streams_alloc(cap, nmax, self._RING if st is None else st["ring"].shape[1])
-                st = self._st
-            j = self._st_n
-            self._st_n += 1
-            self._st_keys[key] = j
-            st["live"][j] = True
-            st["obj"][j] = ob.index
-            st["rng"][j] = kernels.stream_seed(self.seed, ob.index, zlib.crc32(repr(key).encode()))  # not hash(): str hashes vary by process
-            st["gen"][j] = k0
-            self._st_view = None
+        nmax = max([len(o.keep) for o in self._objects.values()], default=0)
+        if st is None or self._st_n == len(st["SF"]) or st["gr"].shape[2] < nmax:
+            cap = 8 if st is None else max(len(st["SF"]), 4) * (2 if self._st_n == len(st["SF"]) else 1)
+            self._streams_alloc(cap, nmax, self._RING if st is None else st["ring"].shape[1])
+            st = self._st
+        j = self._st_n
+        self._st_n += 1
+        self._st_keys[key] = j
+        SI = st["SI"]
+        SI[j, kernels.SI_LIVE] = 1
+        SI[j, kernels.SI_OBJ] = ob.index
+        seed = kernels.stream_seed(self.seed, ob.index, zlib.crc32(repr(key).encode()))  # not hash(): varies by process
+        SI[j, kernels.SI_RNG] = np.array([seed], np.uint64).view(np.int64)[0]
+        SI[j, kernels.SI_GEN] = self.samples_rendered
+        return j
+
+    def _streams_grow_ring(self, need) -> None:
+        st = self._st
+        self._streams_alloc(len(st["SF"]), st["gr"].shape[2], 1 << (int(need) - 1).bit_length())
+
+    def _stream_drive(self, j, p, nv, fn, v, k0, k1, rough, length, regain) -> None:
+        """Drive stream ``j`` (:meth:`_stream_index`) on synth samples ``[k0, k1)`` with
+        sliding/rolling noise of force ``fn`` [N] and speed ``v`` [m/s] at world ``p`` along
+        world unit ``nv`` (see :meth:`slide`); the noise is generated now, so several drives may
+        come before one :meth:`render`. The gains follow the point every ``regain`` samples
+        (computed at the next render from the last point). Internal fast path of the per-step
+        driver (:func:`mjsound.sim.drive.drive_rows` is the numba version for many rows)."""
         fs = self.sample_rate
-        if k0 != st["k1"][j]:
-            st["y"][j] = 0.0  # a new run of the stream: the filter restarts (as in slide())
-        st["k0"][j] = k0
-        st["k1"][j] = k1
-        st["amp"][j] = rough * abs(fn) * abs(v)
+        amp = rough * abs(fn) * abs(v)
         fc = min(abs(v) / length, 0.45 * fs)
-        st["alpha"][j] = 1.0 - math.exp(-2 * math.pi * fc / fs)
-        if k0 >= st["gupd"][j] + regain or k0 < st["gupd"][j]:
-            st["gupd"][j] = k0
-            if posefn is not None:
-                ob = posefn(*poseargs)  # the object's pose is only needed for the gains
-            kernels.stream_gains(ob.pts, ob.shk, ob.pos, ob.R, p, nv, ob.wd, ob.weights, ob.lam_re, ob.lam_im,
-                                 self._mics, self.speed_of_sound, float(fs), R_MIN_M, _SAMPLE_TOL,
-                                 st["gr"][j], st["gi"][j], st["D"][j])
-            # the ring must hold a block plus the longest delay
-            need = int(st["D"][j].max()) + (k1 - k0) + 1
+        alpha = 1.0 - math.exp(-2 * math.pi * fc / fs)
+        st = self._st
+        args = (int(j), int(k0), int(k1), amp, alpha, np.asarray(p, np.float64), np.asarray(nv, np.float64),
+                int(regain), self.samples_rendered, self._RING_SLACK)
+        need = kernels.stream_drive(*args, st["SF"], st["SI"], st["D"], st["ring"])
+        if need:
+            self._streams_grow_ring(need)
+            st = self._st
+            kernels.stream_drive(*args, st["SF"], st["SI"], st["D"], st["ring"])
+
+    def _streams_regain(self, n) -> None:
+        """Gains of the streams marked due (from their last point and normal, the object's
+        pose after ``on_regain``), then make sure the ring holds a block plus the delays."""
+        st = self._st
+        SI, SF = st["SI"], st["SF"]
+        due = np.flatnonzero(SI[: self._st_n, kernels.SI_DUE])
+        if len(due):
+            by_index = {ob.index: ob for ob in self._objects.values()}
+            fs = float(self.sample_rate)
+            seen = set()
+            for j in due.tolist():
+                SI[j, kernels.SI_DUE] = 0
+                ob = by_index.get(int(SI[j, kernels.SI_OBJ]))
+                if ob is None:
+                    continue
+                if self.on_regain is not None and ob.index not in seen:
+                    seen.add(ob.index)
+                    self.on_regain(ob)
+                kernels.stream_gains(ob.pts, ob.shk, ob.pos, ob.R, SF[j, kernels.SF_P: kernels.SF_P + 3],
+                                     SF[j, kernels.SF_N: kernels.SF_N + 3], ob.wd, ob.weights, ob.lam_re,
+                                     ob.lam_im, self._mics, self.speed_of_sound, fs, R_MIN_M, _SAMPLE_TOL,
+                                     st["gr"][j], st["gi"][j], st["D"][j])
+            need = int(st["D"][: self._st_n].max()) + n + 1
             if need > st["ring"].shape[1]:
-                self._streams_alloc(len(st["live"]), st["gr"].shape[2], 1 << (need - 1).bit_length())
+                self._streams_grow_ring(need)
 
     def _streams_rows(self, start, end):
+        self._streams_regain(end - start)
         st = self._st
-        if self._st_view is None:
-            n = self._st_n
-            self._st_view = tuple(st[k][:n] for k in ("live", "obj", "k0", "k1", "amp", "alpha", "y", "rng", "gen",
-                                                      "last", "D", "gr", "gi", "ring"))
-        return kernels.streams_block(*self._st_view, self._vb_arr, start, end, self._nmax, self.dtype.type(0))
+        n = self._st_n
+        return kernels.streams_block(st["SF"][:n], st["SI"][:n], st["D"][:n], st["gr"][:n], st["gi"][:n],
+                                     st["ring"][:n], self._vb_arr, start, end, self._nmax, self.dtype.type(0))
 
     # ------------------------------------------------------------------ rendering
     def _rebuild(self) -> None:

@@ -1,0 +1,97 @@
+"""Sustained contact -> synthesizer streams, one numba call per physics step.
+
+:meth:`ContactReader.events_fast` returns the step's sliding / rolling pairs as rows (columns
+``R_*`` of :mod:`.contacts`); each pair, kind and side that sounds owns a persistent noise
+stream of the synthesizer (:meth:`mjsound.synth.Synthesizer._stream_index`). The table
+``sidx[slot, kind - 1, side]`` maps the reader's pair slot to that stream (-1: none yet), so a
+step's drives cost no Python per contact: :func:`drive_rows` computes each drive's force
+amplitude and low-pass from the row and generates its noise (``kernels.stream_drive``).
+Side 0 is ``geom2`` (pushed along the normal), side 1 ``geom1`` (pushed against it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..synth import kernels
+from .contacts import R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED
+
+__all__ = ["drive_rows"]
+
+
+@njit(cache=True)
+def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring):
+    """Drive the streams of every sounding side of every row on synth samples ``[k0, k1)``.
+
+    Parameters
+    ----------
+    rows : (pairs, R_COLS) float
+        Sustained rows of the step (kind 1 slide, 2 roll).
+    sidx : (slots, 2, 2) int64
+        Stream of (pair slot, kind - 1, side); -1 where none exists yet.
+    geom_obj : (ngeom,) int64
+        Synth object index of each geom (-1: silent or no modes).
+    rough, length : (2,) float
+        Roughness [1/(m/s)] and low-pass length [m] of slide and roll.
+    fs : float
+        Sample rate [Hz].
+    k0, k1, regain, rendered, slack : int
+        Block samples, gain refresh interval, samples rendered so far, ring slack.
+    SF, SI, D, ring
+        The synthesizer's stream arrays.
+
+    Returns
+    -------
+    missing : (k, 2) int64
+        (row, side) pairs that need a stream first (nothing was driven for them).
+    need : int
+        0, or the ring length needed before anything can be driven (nothing driven at all).
+    """
+    P = rows.shape[0]
+    missing = np.empty((2 * P, 2), np.int64)
+    nm = 0
+    cap = ring.shape[1]
+    # the ring must hold the pending samples plus every stream's delay: check before any drive
+    for r in range(P):
+        kind = int(rows[r, R_KIND])
+        slot = int(rows[r, R_SLOT])
+        if kind == 0 or slot >= sidx.shape[0]:
+            continue
+        for side in range(2):
+            s = sidx[slot, kind - 1, side]
+            if s >= 0:
+                for m in range(D.shape[1]):
+                    need = D[s, m] + (k1 - rendered) + slack
+                    if need > cap:
+                        return missing[:0], need
+    p = np.empty(3)
+    nrm = np.empty(3)
+    for r in range(P):
+        kind = int(rows[r, R_KIND])
+        if kind == 0:
+            continue
+        fn = rows[r, R_FORCE]
+        spd = rows[r, R_SPEED]
+        if not (np.isfinite(fn) and np.isfinite(spd)):
+            continue  # (points and normals are sanitised by the reader)
+        slot = int(rows[r, R_SLOT])
+        amp = rough[kind - 1] * abs(fn) * abs(spd)
+        fc = min(abs(spd) / length[kind - 1], 0.45 * fs)
+        alpha = 1.0 - np.exp(-2.0 * np.pi * fc / fs)
+        for side in range(2):
+            g = int(rows[r, R_G2]) if side == 0 else int(rows[r, R_G1])
+            if geom_obj[g] < 0:
+                continue
+            s = sidx[slot, kind - 1, side] if slot < sidx.shape[0] else -1
+            if s < 0:
+                missing[nm, 0] = r
+                missing[nm, 1] = side
+                nm += 1
+                continue
+            sign = 1.0 if side == 0 else -1.0
+            for c in range(3):
+                p[c] = rows[r, R_POINT + c]
+                nrm[c] = sign * rows[r, R_NORMAL + c]
+            kernels.stream_drive(s, k0, k1, amp, alpha, p, nrm, regain, rendered, slack, SF, SI, D, ring)
+    return missing[:nm], 0
