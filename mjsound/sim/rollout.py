@@ -204,6 +204,8 @@ def sonify(
         if mode == "resim":
             max_err = 0.0
             dt = float(model.opt.timestep)
+            every = sim._render_every()
+            k = 0
             for i in range(last):
                 if i > 0:
                     max_err = max(max_err, float(np.abs(data.qpos - r["qpos"][i]).max()))
@@ -211,7 +213,11 @@ def sonify(
                 n = max(1, int(round((times[i + 1] - times[i]) / dt)))
                 for _ in range(n):
                     mujoco.mj_step(model, data)
-                    blocks.append(sim.step())
+                    k += 1
+                    b = sim.step(render=k % every == 0)
+                    if b is not None:
+                        blocks.append(b)
+            blocks.append(sim.flush())
         else:  # replay
             fs = int(sample_rate)
             n_prev = int(np.ceil(times[0] * fs - 1e-6))

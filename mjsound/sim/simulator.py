@@ -111,6 +111,13 @@ class AudioSimulator:
         Extra keyword arguments for :class:`ContactReader` (thresholds).
     sustained : bool
         Drive sliding and rolling sound (default True).
+    sustained_block_s : float
+        A sliding / rolling contact's gains follow its point at most this often [s].
+    render_block_s : float
+        :meth:`run` and :meth:`advance` render once per this much simulated time [s]
+        (default 10 ms: one synthesizer call per 10 steps of 1 ms, which is most of the
+        per-step cost saved; 0 renders every step). :meth:`step` renders every call unless
+        told otherwise.
 
     Notes
     -----
@@ -142,6 +149,7 @@ class AudioSimulator:
         sustained: bool = True,
         keep_events: int = 100_000,
         sustained_block_s: float = 0.004,
+        render_block_s: float = 0.01,
     ):
         import mujoco
 
@@ -170,6 +178,9 @@ class AudioSimulator:
         self.sustained = bool(sustained)
         self.keep_events = int(keep_events)
         self.sustained_block_s = float(sustained_block_s)
+        self.render_block_s = float(render_block_s)
+        if not (math.isfinite(self.render_block_s) and self.render_block_s >= 0):
+            raise ValueError(f"render_block_s={render_block_s!r} must be a duration >= 0 in seconds")
         restitution = [m.restitution if m is not None else None for m in scene.geom_material]
         self.reader = ContactReader(model, restitution=restitution, **(reader_kwargs or {}))
         self._sounding = scene.by_geom()
@@ -204,10 +215,13 @@ class AudioSimulator:
         # synth object index of each geom (-1: silent, or no modes to drive)
         self._geom_obj = np.full(model.ngeom, -1, np.int64)
         self._obj_geom = {}
+        self._dyn_geom = {}  # synth object index -> geom, for objects that move
         if self.synth is not None:
             for g, s in self._sounding.items():
                 ob = self.synth._objects[s.name]
                 self._obj_geom[ob.index] = g
+                if s.dynamic:
+                    self._dyn_geom[ob.index] = g
                 if len(ob.keep):
                     self._geom_obj[g] = ob.index
         self._follow = None
@@ -321,14 +335,14 @@ class AudioSimulator:
 
     def _pose_object(self, ob) -> None:
         """Pose of synth object ``ob`` from its geom (``Synthesizer.on_regain``)."""
-        g = self._obj_geom.get(ob.index)
-        if g is None or not self._sounding[g].dynamic:
+        g = self._dyn_geom.get(ob.index)
+        if g is None:
             return
         p = self.data.geom_xpos[g]
         R = self.data.geom_xmat[g]
-        if np.isfinite(p).all() and np.isfinite(R).all():
-            ob.pos = np.array(p)
-            ob.R = np.array(R).reshape(3, 3)
+        if math.isfinite(float(p.sum()) + float(R.sum())):  # an exploding simulation keeps the last pose
+            ob.pos = p.copy()
+            ob.R = R.reshape(3, 3).copy()
 
     def _queue(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> None:
         """Read the step's contacts and queue its impacts and sustained drives."""
@@ -447,15 +461,15 @@ class AudioSimulator:
             synth._stream_drive(j, row[R_POINT:R_POINT + 3], sign * row[R_NORMAL:R_NORMAL + 3], float(row[R_FORCE]),
                                 float(row[R_SPEED]), k0, k1, self._rough[kind - 1], self._length[kind - 1], regain)
 
+    def _render_every(self) -> int:
+        """Steps per render in :meth:`run` / :meth:`advance` (``render_block_s``)."""
+        return max(1, int(round(self.render_block_s / float(self.model.opt.timestep))))
+
     def advance(self, nstep: int = 1) -> np.ndarray:
         """``mj_step`` then :meth:`step`, ``nstep`` times; the blocks concatenated."""
-        blocks = []
-        for _ in range(int(nstep)):
-            self._mj.mj_step(self.model, self.data)
-            blocks.append(self.step())
-        return np.concatenate(blocks, axis=1) if blocks else np.zeros((self.n_channels, 0), np.float32)
+        return self.run(int(nstep) * float(self.model.opt.timestep), nsteps=int(nstep))
 
-    def run(self, duration: float, callback=None) -> np.ndarray:
+    def run(self, duration: float, callback=None, nsteps: int | None = None) -> np.ndarray:
         """Simulate ``duration`` seconds (``round(duration / timestep)`` steps) with sound.
 
         Parameters
@@ -464,22 +478,29 @@ class AudioSimulator:
             Simulated time [s].
         callback : callable, optional
             ``callback(model, data)`` before every ``mj_step`` (e.g. to set controls).
+        nsteps : int, optional
+            Number of steps (overrides ``duration``).
 
         Returns
         -------
         (channels, n) float32 array [Pa], ``n = ceil(t_end fs) - ceil(t_start fs)``.
         """
-        nsteps = int(round(float(duration) / float(self.model.opt.timestep)))
-        out = np.zeros((self.n_channels, 0), np.float32)
+        if nsteps is None:
+            nsteps = int(round(float(duration) / float(self.model.opt.timestep)))
+        every = self._render_every()
         blocks = []
-        for _ in range(nsteps):
+        if self._pending:
+            blocks.append(self.flush())
+        for i in range(nsteps):
             if callback is not None:
                 callback(self.model, self.data)
             self._mj.mj_step(self.model, self.data)
-            blocks.append(self.step())
-        if blocks:
-            out = np.concatenate(blocks, axis=1)
-        return out
+            b = self.step(render=(i + 1) % every == 0 or i == nsteps - 1)
+            if b is not None:
+                blocks.append(b)
+        if not blocks:
+            return np.zeros((self.n_channels, 0), np.float32)
+        return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
 
     # ------------------------------------------------------------------ reporting
     @property

@@ -738,12 +738,12 @@ class Synthesizer:
         pose after ``on_regain``), then make sure the ring holds a block plus the delays."""
         st = self._st
         SI, SF = st["SI"], st["SF"]
-        due = np.flatnonzero(SI[: self._st_n, kernels.SI_DUE])
-        if len(due):
-            by_index = {ob.index: ob for ob in self._objects.values()}
+        due = SI[: self._st_n, kernels.SI_DUE]
+        if due.any():
+            by_index = self._by_index
             fs = float(self.sample_rate)
             seen = set()
-            for j in due.tolist():
+            for j in np.flatnonzero(due).tolist():
                 SI[j, kernels.SI_DUE] = 0
                 ob = by_index.get(int(SI[j, kernels.SI_OBJ]))
                 if ob is None:
@@ -807,6 +807,7 @@ class Synthesizer:
             live[i] = ACT[v_off[i]: v_off[i] + v_len[i]].any()
         self._live = live
         self._vbase = {ob.index: ob.vbase for ob in obs}
+        self._by_index = {ob.index: ob for ob in obs}
         vb_arr = np.zeros(self._next_index + 1, np.int64)
         for ob in obs:
             vb_arr[ob.index] = ob.vbase
