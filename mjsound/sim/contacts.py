@@ -333,14 +333,18 @@ def _state_kernel(pkey, vmax, ftot, slip, roll, hkeys, hvals, SF, SI, nslots, t0
 #: Columns of the rows :func:`_fused_kernel` returns, one row per touching geom pair.
 R_G1, R_G2, R_KIND, R_FORCE, R_SPEED, R_POINT, R_NORMAL, R_ONSET, R_SLOT = 0, 1, 2, 3, 4, 5, 8, 11, 12
 R_COLS = 13
+#: Columns of the impact contacts :func:`_fused_kernel` returns (``hits``).
+H_ROW, H_G1, H_G2, H_POINT, H_NORMAL, H_SPEED = 0, 1, 2, 3, 6, 9
+H_COLS = 10
 
 
 @_njit(cache=True, nogil=True)
 def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
                   hkeys, hvals, SF, SI, nslots, t0, t1, step, prm):
     """:func:`_contact_kernel`, :func:`_pair_kernel` and :func:`_state_kernel` in one call (the
-    per-step hot path). Returns ``(rows, sustained, nbad, nhuge, n_onset, nslots)``; ``rows``
-    (pairs, ``R_COLS``), ``sustained`` the rows of kind > 0:
+    per-step hot path). Returns ``(rows, sustained, hits, nbad, nhuge, n_onset, nslots)``;
+    ``hits`` (contacts, ``H_COLS``) the impacting contacts of onset pairs; ``rows`` (pairs,
+    ``R_COLS``), ``sustained`` the rows of kind > 0:
     geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed, point (3),
     normal (3), onset (1: an impact starts), slot (the pair's state slot)."""
     fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge = _contact_kernel(
@@ -376,7 +380,129 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
         if kind[p] > 0:
             sustained[q] = rows[p]
             q += 1
-    return rows, sustained, nbad, nhuge, n_onset, nslots
+    # the contacts of onset pairs that approach faster than v_impact: (row, geom1, geom2,
+    # point (3), normal (3), approach speed), grouped by row
+    nh = 0
+    if n_onset:
+        for p in range(P):
+            if onset[p]:
+                for j in range(starts[p], starts[p + 1]):
+                    if vapp[order[j]] > prm[P_V_IMPACT]:
+                        nh += 1
+    hits = np.empty((nh, H_COLS))
+    h = 0
+    if nh:
+        for p in range(P):
+            if onset[p]:
+                for j in range(starts[p], starts[p + 1]):
+                    i = order[j]
+                    if vapp[i] > prm[P_V_IMPACT]:
+                        hits[h, H_ROW] = p
+                        hits[h, H_G1] = geom[i, 0]
+                        hits[h, H_G2] = geom[i, 1]
+                        for c in range(3):
+                            hits[h, H_POINT + c] = pos[i, c]
+                            hits[h, H_NORMAL + c] = nrm[i, c]
+                        hits[h, H_SPEED] = vapp[i]
+                        h += 1
+    return rows, sustained, hits, nbad, nhuge, n_onset, nslots
+
+
+#: Columns of the impact array :meth:`ContactReader.events_fast` returns, one row per
+#: impacting contact: geom1, geom2, point (3), normal (3), impulse on geom2 along the normal
+#: [N s], approach speed [m/s].
+I_G1, I_G2, I_POINT, I_NORMAL, I_IMPULSE, I_SPEED = 0, 1, 2, 5, 8, 9
+I_COLS = 10
+
+
+@_njit(cache=True, nogil=True)
+def _normal_jacobian(jps, nrm):
+    """``Jn[r] = n_r . (J_geom2 - J_geom1)`` from the point Jacobians ``jps`` (k, 2, 3, nv)
+    (side 0: geom1's body, side 1: geom2's; zero for the world)."""
+    k = jps.shape[0]
+    nv = jps.shape[3]
+    Jn = np.zeros((k, nv))
+    for r in range(k):
+        for j in range(nv):
+            acc = 0.0
+            for c in range(3):
+                acc += nrm[r, c] * (jps[r, 1, c, j] - jps[r, 0, c, j])
+            Jn[r, j] = acc
+    return Jn
+
+
+@_njit(cache=True, nogil=True)
+def _impulse_kernel(Jn, MinvJt, v, e, m1, m2, cap_mass, jmax):
+    """Per-contact normal impulses ``lambda = A^+ (1 + e) v`` with ``A = Jn M^-1 Jn^T``
+    (contact-space inverse inertia), or the body-mass fallback when ``A`` is degenerate; the
+    total is capped at ``(1 + e) max(v) cap_mass`` and each at ``jmax``. Returns
+    ``(lambda, clamped)``."""
+    k = v.shape[0]
+    nv = Jn.shape[1]
+    lam = np.zeros(k)
+    ok = False
+    if nv > 0:
+        A = np.zeros((k, k))
+        finite = True
+        amax = 0.0
+        for a in range(k):
+            for b in range(k):
+                acc = 0.0
+                for j in range(nv):
+                    acc += Jn[a, j] * MinvJt[b, j]
+                A[a, b] = acc
+        for a in range(k):
+            for b in range(k):
+                x = 0.5 * (A[a, b] + A[b, a])
+                if not np.isfinite(x):
+                    finite = False
+                elif abs(x) > amax:
+                    amax = abs(x)
+        if finite and amax > 0:
+            if k == 1:
+                if A[0, 0] > 0:
+                    lam[0] = (1.0 + e) * v[0] / A[0, 0]
+                    ok = True
+            else:
+                S = 0.5 * (A + A.T)
+                # rcond: near-duplicate contacts make A nearly singular; do not amplify noise
+                Ap = np.linalg.pinv(S, 1e-4)
+                for a in range(k):
+                    acc = 0.0
+                    for b in range(k):
+                        acc += Ap[a, b] * (1.0 + e) * v[b]
+                    lam[a] = acc if acc > 0.0 else 0.0
+                ok = True
+        for a in range(k):
+            if not np.isfinite(lam[a]):
+                ok = False
+    if not ok:
+        # no dofs (both static) or a degenerate system: unit-free fallback with body masses
+        inv = 0.0
+        if np.isfinite(m1) and m1 > 0:
+            inv += 1.0 / m1
+        if np.isfinite(m2) and m2 > 0:
+            inv += 1.0 / m2
+        mstar = 1.0 / inv if inv > 0 else 0.0
+        for a in range(k):
+            lam[a] = (1.0 + e) * v[a] * mstar / k
+    # the effective mass never exceeds the lighter moving tree: cap the total impulse
+    vmax = 0.0
+    tot = 0.0
+    for a in range(k):
+        vmax = max(vmax, v[a])
+        tot += lam[a]
+    if np.isfinite(cap_mass):
+        cap = (1.0 + e) * vmax * cap_mass
+        if tot > cap > 0:
+            for a in range(k):
+                lam[a] *= cap / tot
+    clamped = False
+    for a in range(k):
+        if lam[a] > jmax:
+            lam[a] = jmax
+            clamped = True
+    return lam, clamped
 
 
 @dataclass
@@ -532,6 +658,11 @@ class ContactReader:
                 if r is not None and np.isfinite(r):
                     e[g] = float(r)
         self.restitution = e
+        self._e_list = e.tolist()
+        # moving mass of each body's subtree and of its whole tree (inf: welded to the world)
+        welded = np.asarray(model.body_weldid) == 0
+        self._tree_mass = np.where(welded, np.inf, np.asarray(model.body_subtreemass))
+        self._root_mass = np.where(welded, np.inf, np.asarray(model.body_subtreemass)[np.asarray(model.body_rootid)])
         self.geom_body = np.asarray(model.geom_bodyid, dtype=np.int64)
         self.body_root = np.asarray(model.body_rootid, dtype=np.int64)
         T = mujoco.mjtGeom
@@ -671,7 +802,16 @@ class ContactReader:
                         old.open = False
                     idx = order[starts[p]: starts[p + 1]]
                     hit = idx[cf.v_approach[idx] > self.v_impact]
-                    self._open[j] = self._impact(data, cf, hit, t0, impacts)
+                    lam, self._open[j] = self._impact(data, cf.geom[hit], cf.pos[hit], cf.normal[hit],
+                                                      cf.v_approach[hit], t0)
+                    for r, i in enumerate(hit.tolist()):
+                        if lam[r] > 0:
+                            impacts.append(ImpactEvent(
+                                time=t0, geom1=int(cf.geom[i, 0]), geom2=int(cf.geom[i, 1]), point=cf.pos[i].copy(),
+                                normal=cf.normal[i].copy(), impulse=float(lam[r]), speed=float(cf.v_approach[i]),
+                                effective_mass=float(lam[r] / ((1.0 + self._restitution(int(cf.geom[i, 0]),
+                                                                                        int(cf.geom[i, 1])))
+                                                               * cf.v_approach[i])) if cf.v_approach[i] > 0 else 0.0))
             if kind.any():
                 geom = cf.geom
                 for p in np.flatnonzero(kind).tolist():
@@ -693,19 +833,20 @@ class ContactReader:
 
         Returns
         -------
-        impacts : list[ImpactEvent]
+        impacts : (k, I_COLS) float array | None
+            The step's impacting contacts (columns ``I_*``; all at ``t0``); None when none.
         rows : (pairs, R_COLS) float array | None
             The step's sounding pairs (kind slide or roll), columns ``R_*``; None when none.
         """
         self._step += 1
         step = self._step
-        impacts: list[ImpactEvent] = []
+        impacts = None
         sustained = None
         n = data.ncon
         if n:
             self._room(n)
             con = data.contact
-            rows, srows, nbad, nhuge, n_onset, self._nslots = _fused_kernel(
+            rows, srows, hits, nbad, nhuge, n_onset, self._nslots = _fused_kernel(
                 con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                 data.cvel, data.subtree_com, data.geom_xpos, self.geom_body, self.body_root, self._plane,
                 self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
@@ -719,18 +860,24 @@ class ContactReader:
                     "velocities clamped (exploding simulation?); reported once",
                 )
             if n_onset:
-                onset = rows[:, R_ONSET]
-                cf = self.read(data) if not (nbad or nhuge) else self._read_quiet(data)
-                order, starts, pkey = _pair_kernel(cf.geom, self.model.ngeom, cf.force_n, cf.v_approach,
-                                                   cf.v_slip, cf.v_roll, cf.pos, cf.normal)[:3]
-                for p in np.flatnonzero(onset).tolist():
+                hit_rows = hits[:, H_ROW].astype(np.int64)
+                parts = []
+                for p in np.flatnonzero(rows[:, R_ONSET]).tolist():
                     j = int(rows[p, R_SLOT])
                     old = self._open.pop(j, None)
                     if old is not None:
                         old.open = False
-                    idx = order[starts[p]: starts[p + 1]]
-                    hit = idx[cf.v_approach[idx] > self.v_impact]
-                    self._open[j] = self._impact(data, cf, hit, t0, impacts)
+                    hp = hits[hit_rows == p]
+                    lam, self._open[j] = self._impact(data, hp[:, H_G1:H_G2 + 1].astype(np.int64),
+                                                      hp[:, H_POINT:H_POINT + 3], hp[:, H_NORMAL:H_NORMAL + 3],
+                                                      hp[:, H_SPEED], t0)
+                    imp = np.empty((len(hp), I_COLS))
+                    imp[:, I_G1:I_G2 + 1] = hp[:, H_G1:H_G2 + 1]
+                    imp[:, I_POINT:I_NORMAL + 3] = hp[:, H_POINT:H_NORMAL + 3]
+                    imp[:, I_IMPULSE] = lam
+                    imp[:, I_SPEED] = hp[:, H_SPEED]
+                    parts.append(imp[lam > 0])
+                impacts = parts[0] if len(parts) == 1 else np.concatenate(parts)
             if len(srows):
                 sustained = srows
         elif self._open:
@@ -748,12 +895,6 @@ class ContactReader:
                              np.array(r[R_POINT:R_POINT + 3]), np.array(r[R_NORMAL:R_NORMAL + 3]), r[R_FORCE],
                              r[R_SPEED]) for r in rows.tolist()]
 
-    def _read_quiet(self, data):
-        n0 = self.n_clamped
-        cf = self.read(data)
-        self.n_clamped = n0  # already counted by the fused kernel
-        return cf
-
     def _sync_open(self, step, t1):
         SF, SI = self._SF, self._SI
         s_open, s_rimp, s_rsteps, s_rtime = SI[SI_OPEN], SF[SF_RIMP], SI[SI_RSTEPS], SF[SF_RTIME]
@@ -767,86 +908,51 @@ class ContactReader:
                 del self._open[j]
 
     def _restitution(self, g1, g2) -> float:
-        e1, e2 = self.restitution[g1], self.restitution[g2]
-        if np.isfinite(e1) and np.isfinite(e2):
-            return float(math.sqrt(e1 * e2))
-        if np.isfinite(e1):
-            return float(e1)
-        if np.isfinite(e2):
-            return float(e2)
+        e1, e2 = self._e_list[g1], self._e_list[g2]
+        if e1 == e1 and e2 == e2:  # (NaN: unknown)
+            return math.sqrt(e1 * e2)
+        if e1 == e1:
+            return e1
+        if e2 == e2:
+            return e2
         return 0.5
 
-    def _impact(self, data, cf, hit, t0, impacts):
+    def _impact(self, data, geom, pos, nrm, v, t0):
+        """One impact event of a pair: ``geom`` (k, 2), world points ``pos`` and normals ``nrm``
+        (k, 3) and approach speeds ``v`` (k,) of its impacting contacts. Returns
+        ``(impulses (k,), record)``: the :class:`ImpactRecord` of the event."""
         mj = self._mj
         m = self.model
-        k = len(hit)
+        k = len(v)
         nv = m.nv
-        g1, g2 = int(cf.geom[hit[0], 0]), int(cf.geom[hit[0], 1])
-        b1, b2 = int(self.geom_body[g1]), int(self.geom_body[g2])
+        gb = self.geom_body
+        g1, g2 = int(geom[0, 0]), int(geom[0, 1])
+        b1, b2 = int(gb[g1]), int(gb[g2])
         e = self._restitution(g1, g2)
-        v = cf.v_approach[hit]
-        lam = None
         if nv > 0:
-            Jn = np.zeros((k, nv))
-            jp = self._jacp
-            for row, i in enumerate(hit):
-                p = cf.pos[i]
-                n = cf.normal[i]
-                gi0, gi1 = int(cf.geom[i, 0]), int(cf.geom[i, 1])
-                for sign, body in ((1.0, int(self.geom_body[gi1])), (-1.0, int(self.geom_body[gi0]))):
-                    if body == 0:
-                        continue
-                    mj.mj_jac(m, data, jp, None, p, body)
-                    Jn[row] += sign * (n @ jp)
-            if np.isfinite(Jn).all() and np.abs(Jn).max() > 0:
-                MinvJt = np.zeros((k, nv))
-                mj.mj_solveM(m, data, MinvJt, Jn)
-                A = Jn @ MinvJt.T
-                A = 0.5 * (A + A.T)
-                if k == 1:
-                    a = float(A[0, 0])
-                    lam = np.array([(1.0 + e) * float(v[0]) / a]) if a > 0 and math.isfinite(a) else None
-                elif np.isfinite(A).all():
-                    # rcond: near-duplicate contacts make A nearly singular; do not amplify noise
-                    lam = np.linalg.pinv(A, rcond=1e-4) @ ((1.0 + e) * v)
-                    lam = np.maximum(lam, 0.0)
-        if lam is None or not np.isfinite(lam).all():
-            # No dofs (both static) or a degenerate system: unit-free fallback with body masses.
-            m1 = m.body_subtreemass[b1] if m.body_weldid[b1] != 0 else np.inf
-            m2 = m.body_subtreemass[b2] if m.body_weldid[b2] != 0 else np.inf
-            inv = (1.0 / m1 if np.isfinite(m1) and m1 > 0 else 0.0) + (1.0 / m2 if np.isfinite(m2) and m2 > 0 else 0.0)
-            mstar = 1.0 / inv if inv > 0 else 0.0
-            lam = (1.0 + e) * v * mstar / k
-        # The effective mass never exceeds the lighter moving tree: cap the total impulse.
-        caps = [m.body_subtreemass[m.body_rootid[b]] for b in (b1, b2) if m.body_weldid[b] != 0]
-        if caps and np.isfinite(lam).all():
-            cap = (1.0 + e) * float(v.max()) * min(caps)
-            tot = float(lam.sum())
-            if tot > cap > 0:
-                lam = lam * (cap / tot)
-        jmax = self.max_force * 0.01
-        if (lam > jmax).any():
+            jps = np.zeros((k, 2, 3, nv))
+            for row in range(k):
+                for side in (0, 1):
+                    body = int(gb[geom[row, side]])
+                    if body != 0:
+                        mj.mj_jac(m, data, jps[row, side], None, pos[row], body)
+            Jn = _normal_jacobian(jps, nrm)
+            MinvJt = np.zeros((k, nv))
+            mj.mj_solveM(m, data, MinvJt, Jn)
+        else:
+            Jn = MinvJt = np.zeros((k, 0))
+        m1 = float(self._tree_mass[b1])
+        m2 = float(self._tree_mass[b2])
+        cap = min(float(self._root_mass[b1]), float(self._root_mass[b2]))
+        lam, clamped = _impulse_kernel(Jn, MinvJt, np.ascontiguousarray(v, np.float64), e, m1, m2, cap,
+                                       self.max_force * 0.01)
+        if clamped:
             self.n_clamped += 1
-            self._warn_once("impulse", f"mjsound: impact impulse above {jmax:g} N s clamped; reported once")
-            lam = np.minimum(lam, jmax)
+            self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
+                            "reported once")
         vmax = float(v.max())
         total = float(lam.sum())
         mstar = total / ((1.0 + e) * vmax) if vmax > 0 else 0.0
-        for row, i in enumerate(hit):
-            if lam[row] <= 0:
-                continue
-            impacts.append(
-                ImpactEvent(
-                    time=t0,
-                    geom1=int(cf.geom[i, 0]),
-                    geom2=int(cf.geom[i, 1]),
-                    point=cf.pos[i].copy(),
-                    normal=cf.normal[i].copy(),
-                    impulse=float(lam[row]),
-                    speed=float(v[row]),
-                    effective_mass=float(lam[row] / ((1.0 + e) * v[row])) if v[row] > 0 else 0.0,
-                )
-            )
         rec = ImpactRecord(
             time=t0, geom1=g1, geom2=g2, speed=vmax, impulse_pred=total, impulse_sim=0.0,
             restitution=e, effective_mass=mstar,
@@ -855,4 +961,4 @@ class ContactReader:
         self.impacts.append(rec)
         if len(self.impacts) > self.keep_records:
             del self.impacts[: len(self.impacts) - self.keep_records]
-        return rec
+        return lam, rec

@@ -25,7 +25,8 @@ from fractions import Fraction
 
 import numpy as np
 
-from .contacts import R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED, ContactReader
+from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
+                       R_POINT, R_SLOT, R_SPEED, ContactReader)
 from ..synth.kernels import SI_DUE as _SI_DUE
 from .drive import drive_rows
 from .scene import SoundScene, geom_contact_radius
@@ -225,6 +226,7 @@ class AudioSimulator:
                 if len(ob.keep):
                     self._geom_obj[g] = ob.index
         self._follow = None
+        self._tau_coef = {}  # (struck geom, other geom) -> Hertz coefficient (Synthesizer._hertz_coef)
         self.reset(clear_reader=True)
 
     # ------------------------------------------------------------------ state
@@ -330,7 +332,7 @@ class AudioSimulator:
             mics = data.xpos[body] + offsets
         else:
             mics = np.array(data.site_xpos[self.scene.mic_site_ids])
-        if np.isfinite(mics).all() and mics.shape == self.synth._mics.shape:
+        if math.isfinite(float(mics.sum())) and mics.shape == self.synth._mics.shape:
             self.synth._mics = mics  # (Synthesizer.set_microphones without its checks: same channels, finite)
 
     def _pose_object(self, ob) -> None:
@@ -358,9 +360,8 @@ class AudioSimulator:
         tc = _time.perf_counter()
         impacts, rows = self.reader.events_fast(self.data, t0, t1)
         self.seconds_contacts += _time.perf_counter() - tc
-        synth = self.synth
-        if impacts:
-            self._queue_impacts(impacts, n0)
+        if impacts is not None:
+            self._queue_impacts(impacts, t0, n0)
         if rows is not None:
             kinds = rows[:, R_KIND]
             n_slide = int(np.count_nonzero(kinds == 1.0))
@@ -374,44 +375,51 @@ class AudioSimulator:
                 self._drive(rows, n0, n1)
         self.seconds_synth += _time.perf_counter() - tc
 
-    def _queue_impacts(self, impacts, n0) -> None:
-        # one call per struck object: all points of all pairs' onsets at once (the Hertz
-        # pulse length is computed per (struck, other) group, then the groups are joined)
+    def _queue_impacts(self, imp, t0, n0) -> None:
+        """Queue the step's impacts (rows of :meth:`ContactReader.events_fast`, columns ``I_*``):
+        each struck sounding geom gets one synthesizer call with all its points, impulses and
+        Hertz pulse lengths (per struck/other pair, cached)."""
         synth = self.synth
         fs = self.sample_rate
-        base = self._origin / fs  # synth time 0 in absolute time
-        t_floor = (n0 - self._origin) / fs  # the step's first synth sample [s]
+        # synth time of the step start (never before what the synthesizer has rendered)
+        t_ev = max(t0 - self._origin / fs, (n0 - self._origin) / fs)
         names = self._names
         objs = synth._objects
         if self._follow is not None or (self.scene.mic_site_ids and self.scene.mics_move):
             self._update_mics()
+        rows = imp.tolist()
+        self.events["impact"] += len(rows)
+        log = self.event_log
         groups = {}
-        for ev in impacts:
-            for g, other, sign in ((ev.geom2, ev.geom1, 1.0), (ev.geom1, ev.geom2, -1.0)):
-                if g in names:
-                    groups.setdefault(g, {}).setdefault(other, []).append((ev, sign))
-            self.events["impact"] += 1
-            if len(self.event_log) < self.keep_events:
-                self.event_log.append((ev.time, "impact", ev.geom1, ev.geom2, ev.impulse))
-        for g, by_other in groups.items():
+        for r in rows:
+            g1, g2 = int(r[I_G1]), int(r[I_G2])
+            if len(log) < self.keep_events:
+                log.append((t0, "impact", g1, g2, r[I_IMPULSE]))
+            for g, other, sign in ((g2, g1, 1.0), (g1, g2, -1.0)):
+                if self._geom_obj[g] >= 0:
+                    groups.setdefault(g, []).append((r, other, sign))
+        for g, items in groups.items():
             ob = objs[names[g]]
             self._pose_object(ob)
-            P, J, T, TAU = [], [], [], []
-            for other, evs in by_other.items():
-                pts = np.array([ev.point for ev, _ in evs])
-                imp = np.array([sign * ev.impulse * ev.normal for ev, sign in evs])
-                spd = np.array([ev.speed for ev, _ in evs])
-                tau = synth._hertz_tau(ob, imp, self.scene.geom_material[other], float(self._other_mass[other]),
-                                       float(self._radius[other]), np.abs(spd),
-                                       float(self._radius[g]) if np.isfinite(self._radius[g]) else None)
-                P.append(pts)
-                J.append(imp)
-                T.append(np.array([max(ev.time - base, t_floor) for ev, _ in evs]))
-                TAU.append(tau)
-            if len(ob.keep):
-                P, J = np.concatenate(P), np.concatenate(J)
-                if np.isfinite(P).all() and np.isfinite(J).all():
-                    synth._impacts_trusted(ob, P, J, np.concatenate(T), np.concatenate(TAU))
+            k = len(items)
+            P = np.empty((k, 3))
+            J = np.empty((k, 3))
+            tau = np.empty(k)
+            for i, (r, other, sign) in enumerate(items):
+                P[i] = r[I_POINT:I_POINT + 3]
+                a = sign * r[I_IMPULSE]
+                J[i, 0] = a * r[I_NORMAL]
+                J[i, 1] = a * r[I_NORMAL + 1]
+                J[i, 2] = a * r[I_NORMAL + 2]
+                coef = self._tau_coef.get((g, other))
+                if coef is None:
+                    coef = synth._hertz_coef(ob, self.scene.geom_material[other], float(self._other_mass[other]),
+                                             float(self._radius[other]),
+                                             float(self._radius[g]) if np.isfinite(self._radius[g]) else None)[0]
+                    self._tau_coef[(g, other)] = coef
+                tau[i] = synth._tau_of(coef, abs(r[I_SPEED]))
+            if np.isfinite(P).all() and np.isfinite(J).all():
+                synth._impacts_trusted(ob, P, J, np.full(k, t_ev), tau)
 
     def _drive(self, rows, n0, n1) -> None:
         """One persistent noise stream per (pair, kind, side): its force and speed are updated

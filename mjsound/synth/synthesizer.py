@@ -496,9 +496,10 @@ class Synthesizer:
             return
         self._impacts_trusted(ob, P, J, t, tau)
 
-    def _hertz_tau(self, ob, J, other_material, m2, R2, v, radius_m):
-        """Hertz contact time per impact (see :mod:`.pulse`); ``v`` None: from |J| / (m*(1+e))."""
-        k = len(J)
+    def _hertz_coef(self, ob, other_material, m2, R2, radius_m):
+        """``(coef, e)``: Hertz contact time ``tau = coef * v^(-1/5)`` [s] of ``ob`` against
+        the other body (``coef = 0``: rigid and infinite, i.e. ``TAU_MIN_S``) and the
+        restitution of the pair (see :mod:`.pulse`)."""
         mat1 = ob.model.material
         mat2 = other_material
         mstar = effective(ob.mass, m2)
@@ -507,16 +508,29 @@ class Synthesizer:
         else:
             R1 = float(radius_m)
         Rstar = effective(R1, R2)
-        if math.isinf(mstar) or math.isinf(Rstar):
-            return np.full(k, TAU_MIN_S)
-        comp = (1 - mat1.nu**2) / mat1.E + (0.0 if mat2 is None else (1 - mat2.nu**2) / mat2.E)
         e = mat1.restitution if mat2 is None else min(mat1.restitution, mat2.restitution)
-        if v is None:
-            v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e))
+        if math.isinf(mstar) or math.isinf(Rstar):
+            return 0.0, e
+        comp = (1 - mat1.nu**2) / mat1.E + (0.0 if mat2 is None else (1 - mat2.nu**2) / mat2.E)
         Estar = 1.0 / comp
-        coef = 2.87 * (mstar**2 / (Rstar * Estar**2)) ** 0.2  # tau = coef v^-1/5
-        return np.array([min(max(coef * vi**-0.2, TAU_MIN_S), TAU_MAX_S) if vi > 0 else TAU_MAX_S
-                         for vi in np.asarray(v, np.float64).tolist()])
+        return 2.87 * (mstar**2 / (Rstar * Estar**2)) ** 0.2, e
+
+    @staticmethod
+    def _tau_of(coef, v) -> float:
+        """Contact time [s] from :meth:`_hertz_coef`'s ``coef`` at approach speed ``v``."""
+        if coef == 0.0:
+            return TAU_MIN_S
+        if not v > 0:
+            return TAU_MAX_S
+        return min(max(coef * v**-0.2, TAU_MIN_S), TAU_MAX_S)
+
+    def _hertz_tau(self, ob, J, other_material, m2, R2, v, radius_m):
+        """Hertz contact time per impact (see :mod:`.pulse`); ``v`` None: from |J| / (m*(1+e))."""
+        coef, e = self._hertz_coef(ob, other_material, m2, R2, radius_m)
+        if v is None:
+            mstar = effective(ob.mass, m2)
+            v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e)) if not math.isinf(mstar) else np.zeros(len(J))
+        return np.array([self._tau_of(coef, vi) for vi in np.asarray(v, np.float64).reshape(-1).tolist()])
 
     def _impacts_trusted(self, ob, P, J, t, tau):
         """Internal fast path of :meth:`impacts`: finite (k, 3) world ``P``, ``J``, (k,) times
