@@ -277,8 +277,13 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             max_modes is None or n_target <= 2 * max_modes + 12):
         # The whole band from one definite factorization, by block Lanczos (its solves run
         # as BLAS-3 on blocks of vectors), complete by the Sylvester count.
-        solve = factorize(K - sigma0 * M, backend, definite=True)
-        res = _block_band(K, M, sigma0, lam_max, n_target, solve)
+        # The shift sits a thousandth of the band below zero: right below zero the rigid
+        # modes' mu = 1/|sigma| is ~1e7 x the band top's (cube to 60 kHz), and rounding of
+        # that size cost the basis its orthogonality (5e-6) and mixed close clusters; at
+        # 1e-3 the basis stays orthonormal to 1e-13 and the basis size did not change.
+        sigma_b = -max(0.5 * scale, 1e-3 * float(lam_max))
+        solve = factorize(K - sigma_b * M, backend, definite=True)
+        res = _block_band(K, M, sigma_b, lam_max, n_target, solve)
         if res is not None:
             w, V = res
             n_below = int(np.sum(w < lam_min))
@@ -360,6 +365,8 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
 
 #: most eigenvalues :func:`_block_band` is asked for in one go (else: ARPACK slices)
 BLOCK_MAX_MODES = 400
+#: Ritz residual ||T y - mu y||_M / mu at which a pair is accepted
+BLOCK_TOL = 1e-9
 #: block Krylov basis memory cap [bytes] (basis and its M-image, float64)
 BLOCK_MAX_BYTES = 1.5e9
 
@@ -374,7 +381,7 @@ def _block_size(n_target: int) -> int:
 _LAST = {}
 
 
-def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=1e-9, seed=0, max_dim=None):
+def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None):
     """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
 
     Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
@@ -393,6 +400,8 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=1e-9, seed=0, max_
     Returns ``(w, V)`` ascending, or None if the basis would outgrow ``max_dim``.
     """
     n = K.shape[0]
+    if tol is None:
+        tol = BLOCK_TOL
     b = _block_size(n_target)
     if max_dim is None:
         max_dim = int(min(n - b, max(4 * n_target + 8 * b, 64), BLOCK_MAX_BYTES / (16 * n)))
