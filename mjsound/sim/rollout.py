@@ -155,8 +155,9 @@ def sonify(
     -------
     dict
         ``scene`` (SoundScene.summary()), ``events``, ``impacts``, ``sim_seconds``,
-        ``wall_seconds``, ``analysis_seconds``, ``realtime_factor`` (simulated seconds per wall
-        second, analysis excluded), ``samples``, ``channels``, ``peak_pa``, ``clipped``,
+        ``wall_seconds``, ``observer_seconds`` (spent in ``on_block``), ``analysis_seconds``,
+        ``realtime_factor`` (simulated seconds per wall second, analysis and ``on_block``
+        excluded), ``samples``, ``channels``, ``peak_pa``, ``clipped``,
         ``out``, ``mode``, ``max_qpos_error`` (resim of a rollout), and ``audio`` (the
         (channels, n) float32 pressure array [Pa]).
     """
@@ -191,7 +192,14 @@ def sonify(
         _set_frame(model, data, r, 0)
         mujoco.mj_forward(model, data)
     sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate)
-    sim.on_block = on_block
+    t_obs = [0.0]  # wall time spent in on_block (e.g. rerun logging): reported apart
+    if on_block is not None:
+        def timed_on_block(sim_, block, n0):
+            t = _time.perf_counter()
+            on_block(sim_, block, n0)
+            t_obs[0] += _time.perf_counter() - t
+
+        sim.on_block = timed_on_block
     blocks = []
     max_err = None
     t_wall = _time.perf_counter()
@@ -248,8 +256,9 @@ def sonify(
         "impacts": len(sim.impacts),
         "sim_seconds": sim_seconds,
         "wall_seconds": wall,
+        "observer_seconds": t_obs[0],
         "analysis_seconds": scene.analysis_seconds,
-        "realtime_factor": sim_seconds / wall if wall > 0 else float("inf"),
+        "realtime_factor": sim_seconds / (wall - t_obs[0]) if wall > t_obs[0] else float("inf"),
         "samples": int(audio.shape[1]),
         "channels": int(audio.shape[0]),
         "peak_pa": peak,
@@ -328,7 +337,10 @@ def _report(summary, args) -> int:
     print(f"events     {ev.get('impact', 0)} impacts, {ev.get('slide', 0)} slide steps, {ev.get('roll', 0)} roll steps")
     print(f"audio      {s['samples']} samples x {s['channels']} ch ({s['sim_seconds']:.2f} s), peak {s['peak_pa']:.3g} Pa"
           + (f", {s['clipped']} clipped" if s["clipped"] else ""))
-    print(f"speed      {s['realtime_factor']:.1f}x real time ({s['wall_seconds']:.2f} s wall, analysis excluded)")
+    obs = s.get("observer_seconds", 0.0)
+    extra = f"; rerun logging {obs:.2f} s more" if obs > 0 else ""
+    print(f"speed      {s['realtime_factor']:.1f}x real time ({s['wall_seconds'] - obs:.2f} s wall for simulation and "
+          f"audio, analysis excluded{extra})")
     if s["max_qpos_error"] is not None:
         print(f"resim      max |qpos - recorded| = {s['max_qpos_error']:.3g}")
     if s["out"]:
