@@ -77,6 +77,23 @@ def bank_forced(wr, wi, pr, pi, na, out, o0, n, zero, gwr, gwi, F, act, nact):
         out[s] += acc
 
 
+@njit(cache=True, fastmath=True)
+def bank_forced1(wr, wi, pr, pi, na, out, o0, n, zero, gr1, gi1, F1):
+    """:func:`bank_forced` with exactly one active source (gains ``gr1``/``gi1`` (>=na,),
+    force ``F1`` (N,)): one fused pass over the modes per sample (the common case of one
+    sliding contact per object)."""
+    for s in range(o0, o0 + n):
+        acc = zero
+        fv = F1[s]
+        for k in range(na):
+            a = wr[k] + gr1[k] * fv
+            b = wi[k] + gi1[k] * fv
+            acc += b
+            wr[k] = a * pr[k] - b * pi[k]
+            wi[k] = a * pi[k] + b * pr[k]
+        out[s] += acc
+
+
 @njit(cache=True)
 def _gather(zr, zi, active, pr, pi, gr, gi, wr, wi, wpr, wpi, gwr, gwi, idx):
     k = 0
@@ -249,6 +266,9 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
         o0 = pos - start
         if nact == 0:
             bank_free(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero)
+        elif nact == 1:
+            j = act[0]
+            bank_forced1(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr[j], gwi[j], F[j])
         else:
             bank_forced(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact)
         pos = stop
@@ -625,3 +645,22 @@ def impact_amplitudes(pts, shk, pos, R, P, J, t, tau, wd, weights, lam, logeps, 
                 if not (av <= amax):  # NaN propagates into amax
                     amax = av
     return na, out, amax
+
+
+@njit(cache=True)
+def place_rows(voice, re, im, v_rel, v_len, v_mic, width):
+    """Rows of per-voice amplitudes/gains ``re``, ``im`` (k, >= v_len) moved into their
+    microphone bank: row i's first ``v_len[voice[i]]`` values go to columns
+    ``v_rel[voice[i]] ...`` of a (k, width) row. Returns ``(mic (k,), re, im)``."""
+    k = voice.shape[0]
+    out_re = np.zeros((k, width), re.dtype)
+    out_im = np.zeros((k, width), im.dtype)
+    mic = np.empty(k, np.int64)
+    for i in range(k):
+        v = voice[i]
+        o = v_rel[v]
+        mic[i] = v_mic[v]
+        for j in range(v_len[v]):
+            out_re[i, o + j] = re[i, j]
+            out_im[i, o + j] = im[i, j]
+    return mic, out_re, out_im

@@ -790,16 +790,24 @@ class Synthesizer:
         v_off = np.zeros(nv, np.int64)
         v_len = np.zeros(nv, np.int64)
         v_mic = np.zeros(nv, np.int64)
-        total = 0
+        # voice ids are object-major (vbase + mic) but the state is laid out microphone-major:
+        # all voices of one microphone form one contiguous bank, rendered in one pass
+        # (a loop over many modes per sample vectorises; a few modes per voice does not)
         j = 0
         for ob in obs:
             ob.vbase = j
             for m in range(M):
-                v_off[j] = total
                 v_len[j] = len(ob.keep)
                 v_mic[j] = m
-                total += len(ob.keep)
                 j += 1
+        mic_off = np.zeros(M + 1, np.int64)
+        total = 0
+        for m in range(M):
+            mic_off[m] = total
+            for ob in obs:
+                v_off[ob.vbase + m] = total
+                total += len(ob.keep)
+        mic_off[M] = total
         dt = self.dtype
         Zr, Zi, P2 = np.zeros(total), np.zeros(total), np.zeros(total)
         ACT = np.zeros(total, np.bool_)
@@ -816,17 +824,23 @@ class Synthesizer:
                 PR[sl], PI[sl], CR[sl], CI[sl] = ob.pr, ob.pi, ob.corr_r, ob.corr_i
                 j += 1
         self._flat = (Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic)
-        live = np.zeros(nv, np.bool_)
-        for i in range(nv):
-            live[i] = ACT[v_off[i]: v_off[i] + v_len[i]].any()
-        self._live = live
+        self._mic_off = mic_off
+        self._mic_len = np.diff(mic_off)
+        self._mic_ids = np.arange(M, dtype=np.int64)
+        self._mic_ptr = np.arange(M + 1)
+        self._v_rel = v_off - mic_off[v_mic]  # offset of each voice inside its microphone's bank
+        self._mic_width = int(self._mic_len.max()) if M else 0
+        live = np.zeros(M, np.bool_)
+        for m in range(M):
+            live[m] = ACT[mic_off[m]: mic_off[m + 1]].any()
+        self._live = live  # per microphone bank
         self._vbase = {ob.index: ob.vbase for ob in obs}
         self._by_index = {ob.index: ob for ob in obs}
         vb_arr = np.zeros(self._next_index + 1, np.int64)
         for ob in obs:
             vb_arr[ob.index] = ob.vbase
         self._vb_arr = vb_arr
-        self._ev_ptr0 = np.zeros(nv + 1, np.int64)
+        self._ev_ptr0 = np.zeros(M + 1, np.int64)
         self._ev_none = np.zeros(0, np.int64)
         self._voices = np.arange(nv + 1)
         self._nmax = max([len(ob.keep) for ob in obs], default=0)
@@ -858,14 +872,18 @@ class Synthesizer:
             self._rebuild()
         start = self.samples_rendered
         end = start + n
-        nv = len(self._live)
         streams = self._st_n > 0
         if self._ev or self._src or streams or self._live.any():
             nmax = self._nmax
             # ---- events due in this block, sorted by (voice, sample), insertion order kept
             if self._ev and self._ev_next < end:
                 ev_v, ev_n, ev_kind, ev_re, ev_im = self._due_events(end, nmax)
-                ev_ptr = np.searchsorted(ev_v, self._voices)
+                # rows into the microphone banks, sorted by (microphone, sample), ties in order
+                ev_m, ev_re, ev_im = kernels.place_rows(ev_v, ev_re, ev_im, self._v_rel, self._flat[9],
+                                                        self._flat[10], self._mic_width)
+                order = np.lexsort((ev_n, ev_m))
+                ev_n, ev_kind, ev_re, ev_im = ev_n[order], ev_kind[order], ev_re[order], ev_im[order]
+                ev_ptr = np.searchsorted(ev_m[order], self._mic_ptr)
             else:
                 ev_n, ev_kind, ev_re, ev_im = self._empty_ev
                 ev_ptr = self._ev_ptr0
@@ -913,9 +931,17 @@ class Synthesizer:
                         F = np.concatenate([F, s_F])[order]
                     else:
                         sv, src_a, src_b, gr, gi, F = s_v, s_a, s_b, s_gr, s_gi, s_F
-            src_ptr = np.searchsorted(sv, self._voices) if len(sv) else self._ev_ptr0
-            Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic = self._flat
-            kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, self._live,
+            if len(sv):
+                sm, gr, gi = kernels.place_rows(sv, gr, gi, self._v_rel, self._flat[9], self._flat[10],
+                                                self._mic_width)
+                order = np.argsort(sm, kind="stable")
+                src_a, src_b, gr, gi, F = src_a[order], src_b[order], gr[order], gi[order], F[order]
+                src_ptr = np.searchsorted(sm[order], self._mic_ptr)
+            else:
+                src_ptr = self._ev_ptr0
+            Zr, Zi, P2, ACT, PR, PI, CR, CI = self._flat[:8]
+            kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, self._mic_off[:-1], self._mic_len, self._mic_ids,
+                               self._live,
                                ev_ptr, ev_n, ev_kind, ev_re, ev_im,
                                src_ptr, src_a, src_b, gr, gi, F,
                                start, n, GRID, self._cull2, FLOOR_PA**2, out, dt.type(0))
