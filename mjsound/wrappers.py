@@ -510,13 +510,13 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def _install_hook(self, uw) -> None:
         mj = self._mj
         model, data = uw.model, uw.data
-        on_substep = self.on_substep
+        step = self.sim.step  # (= on_substep, without one call level per substep)
 
         def _step_mujoco_simulation(ctrl, n_frames):
             data.ctrl[:] = ctrl
             for _ in range(int(n_frames)):
                 mj.mj_step(model, data)
-                on_substep()
+                step(False)
             mj.mj_rnePostConstraint(model, data)
 
         uw._step_mujoco_simulation = _step_mujoco_simulation
