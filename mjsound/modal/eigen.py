@@ -22,6 +22,7 @@ Eigenvectors are mass-normalised (``phi^T M phi = 1``). Eigenvalues below the ba
 
 from __future__ import annotations
 
+import os
 import time
 import warnings
 
@@ -66,7 +67,7 @@ def backend_name() -> str:
 
 
 #: below this size SuperLU (minimum degree on A+A^T) beats PARDISO's set-up cost here
-PARDISO_MIN_DOFS = 20000
+PARDISO_MIN_DOFS = 10000
 
 
 def factorize(A: sp.spmatrix, backend: str | None = None, definite: bool = False):
@@ -102,6 +103,10 @@ def _pardiso_setup(A: sp.spmatrix, mtype: int):
 
     _quiet_openmp()
     solver = pypardiso.PyPardisoSolver(mtype=mtype)
+    if not os.environ.get("PYPARDISO_MKL_RT") and getattr(solver.libmkl, "_name", None):
+        # pypardiso finds MKL by a recursive glob of sys.prefix on every construction
+        # (1 s in a virtual environment); its own variable skips that next time
+        os.environ["PYPARDISO_MKL_RT"] = solver.libmkl._name
     solver.iparm[0] = 1  # use the values below, not PARDISO's defaults
     for i, v in {2: 2, 8: 0, 10: 8, 11: 0, 13: 0, 21: 1 if mtype == -2 else 0, 25: 2}.items():
         solver.iparm[i - 1] = v  # 1-based numbering of the PARDISO documentation

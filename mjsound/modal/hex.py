@@ -33,13 +33,14 @@ matrix product ``occupancy (n_cells, r^3) @ A (r^3, 576)``: no per-element Pytho
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import trimesh
 
 from ..materials import Material
 from .discretization import Discretization
-from .voxelize import surface_voxels, winding_fill
+from .voxelize import block_mean, surface_voxels, winding_fill
 
 __all__ = ["discretize_hex", "hex_element_matrices", "grid_for"]
 
@@ -177,14 +178,14 @@ def _parent_weights(u: np.ndarray, q: int) -> np.ndarray:
 
 def _child_interpolations_lagrange(r: int, q: int) -> np.ndarray:
     """L_c (r^3, 24, 3 q^3): child corner dofs from a q^3-node parent."""
-    bits = _CORNERS > 0
-    L = np.zeros((r**3, 24, 3 * q**3))
-    for a in range(r):
-        for b in range(r):
-            for c in range(r):
-                u = (np.array([a, b, c]) + bits) / r
-                L[a * r * r + b * r + c] = np.kron(_parent_weights(u, q), np.eye(3))
-    return L
+    bits = (_CORNERS > 0).astype(float)
+    abc = np.stack(np.meshgrid(np.arange(r), np.arange(r), np.arange(r), indexing="ij"), -1).reshape(-1, 3)
+    u = (abc[:, None, :] + bits[None, :, :]) / r  # (r^3 children, 8 corners, 3)
+    W = _parent_weights(u, q)  # (r^3, 8, q^3)
+    L = np.zeros((r**3, 8, 3, q**3, 3))
+    for j in range(3):
+        L[:, :, j, :, j] = W
+    return L.reshape(r**3, 24, 3 * q**3)
 
 
 def _taylor_correction(K33, G, W, D):
@@ -210,6 +211,24 @@ def _taylor_correction(K33, G, W, D):
 def _congruence(L: np.ndarray, A: np.ndarray) -> np.ndarray:
     """``L_c^T A L_c`` for every child c (batched matmuls; einsum of three operands is slow)."""
     return np.swapaxes(L, 1, 2) @ (A @ L)
+
+
+class _SymmetricSum:
+    """``w @ A.reshape(len(A), -1)`` for a stack of symmetric matrices ``A`` (c, m, m):
+    the product runs over the upper triangle only (half the flops of the assembly's
+    largest matrix product) and is mirrored after."""
+
+    def __init__(self, A: np.ndarray):
+        m = A.shape[1]
+        iu, ju = np.triu_indices(m)
+        self.Au = np.ascontiguousarray(A[:, iu, ju])
+        pos = np.empty((m, m), np.int64)
+        pos[iu, ju] = np.arange(len(iu))
+        pos[ju, iu] = np.arange(len(iu))
+        self.pos = pos.ravel()
+
+    def __call__(self, w: np.ndarray) -> np.ndarray:
+        return (w @ self.Au)[:, self.pos]
 
 
 def _condense(Ke: np.ndarray) -> np.ndarray:
@@ -259,7 +278,7 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
         tris = part.triangles
         if part.is_watertight and abs(part.volume) > 0:
             inside = winding_fill(tris, lo, hfine / s, nfine * s)
-            frac = inside.reshape(nfine[0], s, nfine[1], s, nfine[2], s).mean(axis=(1, 3, 5), dtype=np.float32)
+            frac = block_mean(inside, s)
             occ = np.maximum(occ, frac)
         else:
             # An open surface becomes a slab of the wall thickness around it: the voxels
@@ -373,17 +392,17 @@ def discretize_hex(
         # children get a "stiff void": stiffness VOID_K and mass VOID_M of a full cell, which
         # removes the null space and puts the void's own modes far above any audible band.
         Lu = _child_interpolations_lagrange(r, q)
-        AK = _congruence(Lu, Kf).reshape(r**3, -1)
+        AK = _SymmetricSum(_congruence(Lu, Kf))
         stiff_weight = child + VOID_K * (1.0 - child)
         mass_weight = child + VOID_M * (1.0 - child)
 
         def cell_K(ch, w=None):
-            return ch @ AK
+            return AK(ch)
 
         child = stiff_weight
 
     # mass from the compatible field only, as for Wilson's element
-    AM = _congruence(Lu, Mf).reshape(r**3, -1)
+    AM = _SymmetricSum(_congruence(Lu, Mf))
 
     # cell (i, j, k) local node (a, b, c) -> lattice node ((q-1) i + a, ...)
     ci, cj, ck = np.unravel_index(active, tuple(n))
@@ -396,16 +415,28 @@ def discretize_hex(
     ndof = 3 * len(used)
     nd = 3 * q**3
     dof = (3 * node[:, :, None] + np.arange(3)[None, None, :]).reshape(len(active), nd)
-    K = sp.csr_matrix((ndof, ndof))
-    M = sp.csr_matrix((ndof, ndof))
-    # assemble in chunks: a 27-node cell has 81^2 entries, all cells at once would not fit
+    # Assemble by node pairs (3x3 blocks): each cell adds q^6 blocks; equal node pairs
+    # are summed after one sort of their keys, shared by K and M, in chunks (a 27-node
+    # cell has 81^2 entries: all cells at once need not fit).
+    nn = len(used)
+    m3 = q**3
     chunk = max(1, int(4e6 // nd**2))
+    keys, kb, mb = [], [], []
     for s0 in range(0, len(active), chunk):
-        d = dof[s0:s0 + chunk]
-        rows = np.repeat(d, nd, axis=1).ravel()
-        cols = np.tile(d, (1, nd)).ravel()
-        K = K + sp.csr_matrix((cell_K(child[s0:s0 + chunk]).ravel(), (rows, cols)), shape=(ndof, ndof))
-        M = M + sp.csr_matrix(((mass_weight[s0:s0 + chunk] @ AM).ravel(), (rows, cols)), shape=(ndof, ndof))
+        nd_c = node[s0:s0 + chunk]
+        key = (nd_c[:, :, None].astype(np.int64) * nn + nd_c[:, None, :]).ravel()
+        Kc = cell_K(child[s0:s0 + chunk]).reshape(-1, m3, 3, m3, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
+        Mc = AM(mass_weight[s0:s0 + chunk]).reshape(-1, m3, 3, m3, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
+        key, Kc, Mc = _sum_blocks(key, Kc, Mc)
+        keys.append(key)
+        kb.append(Kc)
+        mb.append(Mc)
+    key, Kb, Mb = _sum_blocks(np.concatenate(keys), np.concatenate(kb), np.concatenate(mb))
+    brow = key // nn
+    indptr = np.searchsorted(brow, np.arange(nn + 1))
+    bcol = (key - brow * nn).astype(np.int32)
+    K = sp.bsr_matrix((Kb.reshape(-1, 3, 3), bcol, indptr), shape=(ndof, ndof)).tocsr()
+    M = sp.bsr_matrix((Mb.reshape(-1, 3, 3), bcol, indptr), shape=(ndof, ndof)).tocsr()
 
     interp = _point_interpolation(points, lo, n, hc, active, node, q)
     info = {
@@ -419,6 +450,31 @@ def discretize_hex(
         "fill_fraction": float(fill[active].mean()),
     }
     return Discretization(K=K, M=M, interp=interp, n_rigid=6, info=info)
+
+
+def _sum_blocks(key, *data):
+    """Sort by ``key`` and sum the rows of each array in ``data`` over equal keys."""
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    first = np.r_[True, key[1:] != key[:-1]]
+    group = np.cumsum(first) - 1
+    ng = int(group[-1]) + 1 if len(group) else 0
+    return (key[first],) + tuple(_segment_sum(np.ascontiguousarray(d), order, group, ng) for d in data)
+
+
+@nb.njit(cache=True)
+def _segment_sum_kernel(d, order, group, out):
+    for p in range(order.shape[0]):
+        src = order[p]
+        g = group[p]
+        for c in range(d.shape[1]):
+            out[g, c] += d[src, c]
+
+
+def _segment_sum(d, order, group, ng):
+    out = np.zeros((ng, d.shape[1]))
+    _segment_sum_kernel(d, order, group, out)
+    return out
 
 
 def _point_interpolation(points, lo, n, hc, active, node, q=2):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["winding_fill", "surface_voxels"]
+__all__ = ["winding_fill", "surface_voxels", "block_mean"]
 
 
 @nb.njit(cache=True)
@@ -155,4 +155,29 @@ def surface_voxels(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
     tri = np.ascontiguousarray(triangles, dtype=np.float64)
     _mark_surface(tri, float(origin[0]), float(origin[1]), float(origin[2]),
                   float(spacing[0]), float(spacing[1]), float(spacing[2]), nx, ny, nz, out)
+    return out
+
+
+@nb.njit(cache=True)
+def _block_mean(a, s, out):
+    nx, ny, nz = out.shape
+    inv = np.float32(1.0 / (s * s * s))
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                acc = 0
+                for di in range(s):
+                    for dj in range(s):
+                        for dk in range(s):
+                            acc += a[i * s + di, j * s + dj, k * s + dk]
+                out[i, j, k] = acc * inv
+
+
+def block_mean(a: np.ndarray, s: int) -> np.ndarray:
+    """Mean over s x s x s blocks of a (nx s, ny s, nz s) uint8 array, as float32
+    (numpy's mean over a 6-d reshape took 0.6 s for a 20 cm bowl's 50M samples)."""
+    s = int(s)
+    shape = tuple(d // s for d in a.shape)
+    out = np.empty(shape, np.float32)
+    _block_mean(np.ascontiguousarray(a), s, out)
     return out
