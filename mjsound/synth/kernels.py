@@ -664,3 +664,26 @@ def place_rows(voice, re, im, v_rel, v_len, v_mic, width):
             out_re[i, o + j] = re[i, j]
             out_im[i, o + j] = im[i, j]
     return mic, out_re, out_im
+
+
+@njit(cache=True)
+def streams_gains(js, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all,
+                  lre_all, lim_all, pos_all, R_all, mics, c, fs, rmin, tol):
+    """:func:`stream_gains` of the streams ``js`` in one call. Object ``o``'s surface points are
+    rows ``pts_off[o]:pts_off[o+1]`` of ``pts_all``, its shapes the flat slice
+    ``shk_off[o]:shk_off[o+1]`` of ``shk_all`` (points, 3, modes), its per-mode values the
+    slice ``mode_off[o]:mode_off[o+1]`` of ``wd_all`` ...; its pose ``pos_all[o]``, ``R_all[o]``.
+    Streams of removed objects (not live, or no points) are skipped."""
+    for q in range(js.shape[0]):
+        j = js[q]
+        o = SI[j, SI_OBJ]
+        if not SI[j, SI_LIVE] or o + 1 >= pts_off.shape[0]:
+            continue
+        p0, p1 = pts_off[o], pts_off[o + 1]
+        m0, m1 = mode_off[o], mode_off[o + 1]
+        if p1 <= p0 or m1 <= m0:
+            continue
+        shk = shk_all[shk_off[o]:shk_off[o + 1]].reshape((p1 - p0, 3, m1 - m0))
+        stream_gains(pts_all[p0:p1], shk, pos_all[o], R_all[o], SF[j, SF_P:SF_P + 3], SF[j, SF_N:SF_N + 3],
+                     wd_all[m0:m1], w_all[m0:m1], lre_all[m0:m1], lim_all[m0:m1], mics, c, fs, rmin, tol,
+                     st_gr[j], st_gi[j], D[j])

@@ -754,21 +754,21 @@ class Synthesizer:
         SI, SF = st["SI"], st["SF"]
         due = SI[: self._st_n, kernels.SI_DUE]
         if due.any():
-            by_index = self._by_index
-            fs = float(self.sample_rate)
-            seen = set()
-            for j in np.flatnonzero(due).tolist():
-                SI[j, kernels.SI_DUE] = 0
-                ob = by_index.get(int(SI[j, kernels.SI_OBJ]))
+            js = np.flatnonzero(due)
+            SI[js, kernels.SI_DUE] = 0
+            g = self._gain_data
+            pos_all, R_all = g["pos"], g["R"]
+            for oi in np.unique(SI[js, kernels.SI_OBJ]).tolist():
+                ob = self._by_index.get(oi)
                 if ob is None:
                     continue
-                if self.on_regain is not None and ob.index not in seen:
-                    seen.add(ob.index)
+                if self.on_regain is not None:
                     self.on_regain(ob)
-                kernels.stream_gains(ob.pts, ob.shk, ob.pos, ob.R, SF[j, kernels.SF_P: kernels.SF_P + 3],
-                                     SF[j, kernels.SF_N: kernels.SF_N + 3], ob.wd, ob.weights, ob.lam_re,
-                                     ob.lam_im, self._mics, self.speed_of_sound, fs, R_MIN_M, _SAMPLE_TOL,
-                                     st["gr"][j], st["gi"][j], st["D"][j])
+                pos_all[oi] = ob.pos
+                R_all[oi] = ob.R
+            kernels.streams_gains(js, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
+                                  g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"], pos_all, R_all,
+                                  self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M, _SAMPLE_TOL)
             need = int(st["D"][: self._st_n].max()) + n + 1
             if need > st["ring"].shape[1]:
                 self._streams_grow_ring(need)
@@ -836,6 +836,26 @@ class Synthesizer:
         self._live = live  # per microphone bank
         self._vbase = {ob.index: ob.vbase for ob in obs}
         self._by_index = {ob.index: ob for ob in obs}
+        # every object's gain inputs in flat arrays indexed by object index (streams_gains)
+        nidx = self._next_index + 1
+        offs = {k: np.zeros(nidx + 1, np.int64) for k in ("pts_off", "shk_off", "mode_off")}
+        for i in range(nidx):
+            ob = self._by_index.get(i)
+            offs["pts_off"][i + 1] = offs["pts_off"][i] + (len(ob.pts) if ob is not None else 0)
+            offs["shk_off"][i + 1] = offs["shk_off"][i] + (ob.shk.size if ob is not None else 0)
+            offs["mode_off"][i + 1] = offs["mode_off"][i] + (len(ob.keep) if ob is not None else 0)
+
+        def cat(f, shape):
+            parts = [f(self._by_index[i]) for i in range(nidx) if i in self._by_index]
+            return np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(shape))
+
+        self._gain_data = {
+            **offs,
+            "pts": cat(lambda ob: ob.pts.reshape(-1, 3), (0, 3)), "shk": cat(lambda ob: ob.shk.ravel(), (0,)),
+            "wd": cat(lambda ob: ob.wd, (0,)), "w": cat(lambda ob: np.asarray(ob.weights, np.float64), (0,)),
+            "lre": cat(lambda ob: ob.lam_re, (0,)), "lim": cat(lambda ob: ob.lam_im, (0,)),
+            "pos": np.zeros((nidx, 3)), "R": np.tile(np.eye(3), (nidx, 1, 1)),
+        }
         vb_arr = np.zeros(self._next_index + 1, np.int64)
         for ob in obs:
             vb_arr[ob.index] = ob.vbase
