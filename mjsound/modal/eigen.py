@@ -273,22 +273,34 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     # Sylvester's law of inertia: the negative pivots of K - lam_max M (an LDL^T with a
     # symmetric permutation) count the eigenvalues below lam_max, so the first slice can ask
     # for exactly that many (+ a margin) and usually finds the whole band at once.
-    n_target = count_below(K, M, lam_max, backend)
-    # Start just below zero so the (semi-definite) K - sigma M is definite and the rigid
-    # modes come out of the first slice.
+    # Start below zero so the (semi-definite) K - sigma M is definite and the rigid modes
+    # come out of the first slice. The shift sits a thousandth of the band below zero:
+    # right below zero the rigid modes' mu = 1/|sigma| is ~1e7 x the band top's (cube to
+    # 60 kHz), and rounding of that size cost the block basis its orthogonality (5e-6) and
+    # mixed close clusters; at 1e-3 it stays orthonormal to 1e-13, and the basis size
+    # (bowl, beam, cube) did not change.
     scale = max(float(lam_min), 1e-6 * float(lam_max), 1.0)
-    sigma0 = -0.5 * scale
+    sigma0 = -max(0.5 * scale, 1e-3 * float(lam_max))
+    used = backend or (backend_name() if n >= PARDISO_MIN_DOFS else "superlu")
+    if used == "pardiso":
+        # the count (indefinite) and the first, definite factorization are independent:
+        # PARDISO releases the GIL, so they run side by side on two cores
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(1) as pool:
+            counting = pool.submit(count_below, K, M, lam_max, backend)
+            solve0 = factorize(K - sigma0 * M, backend, definite=True)
+            n_target = counting.result()
+    else:
+        n_target = count_below(K, M, lam_max, backend)
+        solve0 = None
     if n_target is not None and 0 < n_target <= BLOCK_MAX_MODES and n_target < n // 4 and (
             max_modes is None or n_target <= 2 * max_modes + 12):
         # The whole band from one definite factorization, by block Lanczos (its solves run
         # as BLAS-3 on blocks of vectors), complete by the Sylvester count.
-        # The shift sits a thousandth of the band below zero: right below zero the rigid
-        # modes' mu = 1/|sigma| is ~1e7 x the band top's (cube to 60 kHz), and rounding of
-        # that size cost the basis its orthogonality (5e-6) and mixed close clusters; at
-        # 1e-3 the basis stays orthonormal to 1e-13 and the basis size did not change.
-        sigma_b = -max(0.5 * scale, 1e-3 * float(lam_max))
-        solve = factorize(K - sigma_b * M, backend, definite=True)
-        res = _block_band(K, M, sigma_b, lam_max, n_target, solve)
+        if solve0 is None:
+            solve0 = factorize(K - sigma0 * M, backend, definite=True)
+        res = _block_band(K, M, sigma0, lam_max, n_target, solve0)
         if res is not None:
             w, V = res
             n_below = int(np.sum(w < lam_min))
@@ -298,7 +310,6 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
                 w, V = w[:max_modes], V[:, :max_modes]
             if progress:
                 progress(1.0)
-            used = backend or ("pardiso" if n >= PARDISO_MIN_DOFS and backend_name() == "pardiso" else "superlu")
             return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, 1,
                                 f"block-lanczos+{used}")
     k_max = 2 * int(slice_modes)
@@ -311,7 +322,10 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     total = 0
     while lo <= lam_max:
         n_slices += 1
-        solve = factorize(K - sigma * M, backend, definite=sigma < 0)
+        if n_slices == 1 and solve0 is not None and sigma == sigma0:
+            solve = solve0
+        else:
+            solve = factorize(K - sigma * M, backend, definite=sigma < 0)
         op = spla.LinearOperator((n, n), matvec=solve, dtype=np.float64)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -364,7 +378,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     w, V = w[order], V[:, order]
     if max_modes is not None:
         w, V = w[:max_modes], V[:, :max_modes]
-    used = backend or ("pardiso+superlu" if n >= PARDISO_MIN_DOFS and backend_name() == "pardiso" else "superlu")
+    used = "pardiso+superlu" if used == "pardiso" and backend is None else used
     return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, n_slices, used)
 
 

@@ -758,7 +758,7 @@ class Synthesizer:
             SI[js, kernels.SI_DUE] = 0
             g = self._gain_data
             pos_all, R_all = g["pos"], g["R"]
-            for oi in np.unique(SI[js, kernels.SI_OBJ]).tolist():
+            for oi in set(SI[js, kernels.SI_OBJ].tolist()):
                 ob = self._by_index.get(oi)
                 if ob is None:
                     continue
