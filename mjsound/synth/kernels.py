@@ -188,10 +188,13 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
     while pos < end:
         # ---- grid point: exact-pole correction, peak tracking, culling
         if pos % grid == 0:
-            no_cull = False
+            # a mode driven by a source acting now is never culled (one bank holds many
+            # objects: only the driven object's modes are exempt)
+            nact = 0
             for q in range(nsrc):
                 if src_a[q] <= pos and pos < src_b[q]:
-                    no_cull = True
+                    act[nact] = q
+                    nact += 1
             w = 0
             for k in range(na):
                 i = idx[k]
@@ -202,7 +205,12 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
                 m2 = nr * nr + ni * ni
                 if m2 > peak2[i]:
                     peak2[i] = m2
-                if (not no_cull) and (m2 < peak2[i] * cull2 or m2 < floor2):
+                driven = False
+                for qq in range(nact):
+                    if gwr[act[qq], k] != 0.0 or gwi[act[qq], k] != 0.0:
+                        driven = True
+                        break
+                if (not driven) and (m2 < peak2[i] * cull2 or m2 < floor2):
                     active[i] = False
                     zr[i] = 0.0
                     zi[i] = 0.0
