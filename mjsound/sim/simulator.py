@@ -15,6 +15,12 @@ jumps (the user reset it, or changed the timestep) the clock re-anchors at the n
 Events found in the step ``[t_k, t_{k+1})`` are timed at ``t_k`` (see
 :mod:`mjsound.sim.contacts`), which is never earlier than what was already rendered, so the
 block is rendered right after they are queued and nothing is delayed.
+
+Rendering can wait: ``step(render=False)`` queues a step's impacts and sustained-contact
+noise (generated at once, :mod:`.drive`) and :meth:`AudioSimulator.flush` renders every
+pending sample in one synthesizer call. Impacts sound exactly the same; a sliding contact's
+gains (where it excites the object, how far the microphones are) follow its point once per
+render instead of every ``sustained_block_s``.
 """
 
 from __future__ import annotations
