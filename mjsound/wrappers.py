@@ -22,6 +22,7 @@ Example
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import warnings
@@ -241,17 +242,25 @@ def _stft_setup(window: int, n_fft: int, hop: int | None):
     return n, hop, frames, win
 
 
+@functools.lru_cache(maxsize=16)
+def _frame_index(n: int, n_fft: int, hop: int) -> np.ndarray:
+    """Sample indices (frames, n_fft) of the STFT frames of an ``n``-sample window."""
+    frames = 1 + (n - n_fft) // hop
+    return np.arange(n_fft)[None, :] + hop * np.arange(frames)[:, None]
+
+
 def stft_log1p(x: np.ndarray, n_fft: int, hop: int, win: np.ndarray) -> np.ndarray:
     """``log1p(|STFT|)`` of ``x`` (channels, samples) -> (channels, n_fft // 2 + 1, frames) float32.
 
     Frames start at sample 0 and step by ``hop`` (no centring, no padding); each is multiplied
-    by ``win`` and transformed with ``numpy.fft.rfft`` (no normalisation).
+    by ``win`` and transformed with ``scipy.fft.rfft`` (no normalisation; float32 in, so
+    single precision).
     """
+    import scipy.fft
+
     x = np.ascontiguousarray(x, dtype=np.float32)
-    frames = 1 + (x.shape[1] - n_fft) // hop
-    idx = np.arange(n_fft)[None, :] + hop * np.arange(frames)[:, None]
-    seg = x[:, idx] * win  # (C, T, n_fft)
-    mag = np.abs(np.fft.rfft(seg, axis=-1))  # (C, T, F)
+    seg = x[:, _frame_index(x.shape[1], int(n_fft), int(hop))] * win  # (C, T, n_fft)
+    mag = np.abs(scipy.fft.rfft(seg, axis=-1))  # (C, T, F); single precision stays single
     return np.log1p(mag).transpose(0, 2, 1).astype(np.float32)
 
 
@@ -355,7 +364,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         ``log1p(|STFT|)`` of that waveform (as SoundSpaces / Sonicverse): periodic Hann window
         of ``n_fft`` samples, hop ``hop`` (default ``n_fft // 2``), frames start at sample 0
         with no centring or padding, ``frames = 1 + (window - n_fft) // hop``, unnormalised
-        ``numpy.fft.rfft``. If the window is shorter than ``n_fft``, ``n_fft`` becomes the
+        ``scipy.fft.rfft``. If the window is shorter than ``n_fft``, ``n_fft`` becomes the
         largest power of two that fits. Values lie in ``[0, log1p(sum(hann))]``.
     mics : list[str] | (m, 3) array | None
         Microphone sites (follow their bodies) or fixed world positions [m]; one channel each.
