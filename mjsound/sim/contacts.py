@@ -690,6 +690,7 @@ class ContactReader:
         self.n_impacts = 0
         self.n_clamped = 0
         self._prev_cvel = None
+        self.drive_result = None
         self._params = np.array([self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s,
                                  self.max_event_s, self.v_slide, self.v_roll, self.max_force])
 
@@ -826,7 +827,7 @@ class ContactReader:
             self._sync_open(step, t1)
         return impacts, contacts, cf
 
-    def events_fast(self, data, t0: float, t1: float):
+    def events_fast(self, data, t0: float, t1: float, drive=None):
         """:meth:`events` for the per-step driver: the same events and state in one numba call
         per step; sustained contact comes back as rows, not objects (a
         :class:`ContactFrame` is only built on a step with an impact onset).
@@ -837,6 +838,11 @@ class ContactReader:
             The step's impacting contacts (columns ``I_*``; all at ``t0``); None when none.
         rows : (pairs, R_COLS) float array | None
             The step's sounding pairs (kind slide or roll), columns ``R_*``; None when none.
+
+        ``drive``: optional ``(kernel, args)``: ``kernel(*reader_args, *args)`` replaces the
+        reader's kernel and returns its outputs plus extra ones, kept in
+        :attr:`drive_result` (:func:`mjsound.sim.drive.read_and_drive`: the sustained rows
+        drive the synthesizer's streams in the same call).
         """
         self._step += 1
         step = self._step
@@ -846,12 +852,16 @@ class ContactReader:
         if n:
             self._room(n)
             con = data.contact
-            rows, srows, hits, nbad, nhuge, n_onset, self._nslots = _fused_kernel(
-                con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
-                data.cvel, data.subtree_com, data.geom_xpos, self.geom_body, self.body_root, self._plane,
-                self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
-                self._params,
-            )
+            args = (con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
+                    data.cvel, data.subtree_com, data.geom_xpos, self.geom_body, self.body_root, self._plane,
+                    self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
+                    self._params)
+            if drive is None:
+                out = _fused_kernel(*args)
+            else:
+                out = drive[0](*args, *drive[1])
+                self.drive_result = out[7:]
+            rows, srows, hits, nbad, nhuge, n_onset, self._nslots = out[:7]
             if nbad or nhuge:
                 self.n_clamped += int(nbad + nhuge)
                 self._warn_once(

@@ -15,9 +15,9 @@ import numpy as np
 from numba import njit
 
 from ..synth import kernels
-from .contacts import R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED
+from .contacts import R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED, _fused_kernel
 
-__all__ = ["drive_rows"]
+__all__ = ["drive_rows", "read_and_drive"]
 
 
 @njit(cache=True)
@@ -95,3 +95,22 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
                 nrm[c] = sign * rows[r, R_NORMAL + c]
             kernels.stream_drive(s, k0, k1, amp, alpha, p, nrm, regain, rendered, slack, SF, SI, D, ring)
     return missing[:nm], 0
+
+
+@njit(cache=True)
+def read_and_drive(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
+                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm,
+                   sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring):
+    """The reader's per-step kernel (``contacts._fused_kernel``) followed by
+    :func:`drive_rows` on its sustained rows: one numba call per physics step for reading
+    every contact and driving every sliding / rolling stream. Returns the reader's outputs
+    then ``(missing, need)`` of :func:`drive_rows` (see :meth:`ContactReader.events_fast`)."""
+    rows, srows, hits, nbad, nhuge, n_onset, nslots = _fused_kernel(
+        geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
+        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm)
+    if srows.shape[0] and k1 > k0:
+        missing, need = drive_rows(srows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack,
+                                   SF, SI, D, ring)
+    else:
+        missing, need = np.empty((0, 2), np.int64), 0
+    return rows, srows, hits, nbad, nhuge, n_onset, nslots, missing, need

@@ -34,7 +34,7 @@ import numpy as np
 from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
                        R_POINT, R_SLOT, R_SPEED, ContactReader)
 from ..synth.kernels import SI_DUE as _SI_DUE
-from .drive import drive_rows
+from .drive import drive_rows, read_and_drive
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -255,8 +255,9 @@ class AudioSimulator:
         self.seconds_synth = 0.0
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
-        self._sidx = np.full((0, 2, 2), -1, np.int64)
+        self._sidx = np.full((16, 2, 2), -1, np.int64)
         self._sidx_epoch = None
+        self._regain = max(1, int(round(self.sustained_block_s * self.sample_rate)))
 
     # ------------------------------------------------------------------ stepping
     def _sync_clock(self) -> None:
@@ -368,7 +369,19 @@ class AudioSimulator:
             t0 = c.time_at(c.k - 1)
             t1 = c.time_at(c.k)
         tc = _time.perf_counter()
-        impacts, rows = reader.events_fast(self.data, t0, t1)
+        synth = self.synth
+        st = synth._st
+        drive = None
+        if st is not None and self.sustained and n1 > n0:
+            # read the contacts and drive the existing streams in one numba call
+            if self._sidx_epoch != synth._st_epoch:
+                self._reset_sidx()
+            fs = self.sample_rate
+            reader.drive_result = None
+            drive = (read_and_drive, (self._sidx, self._geom_obj, self._rough, self._length, float(fs),
+                                      n0 - self._origin, n1 - self._origin, self._regain, synth.samples_rendered,
+                                      synth._RING_SLACK, st["SF"], st["SI"], st["D"], st["ring"]))
+        impacts, rows = reader.events_fast(self.data, t0, t1, drive)
         t_read = _time.perf_counter()
         self.seconds_contacts += t_read - tc
         if impacts is not None:
@@ -382,7 +395,11 @@ class AudioSimulator:
                 if len(log) < self.keep_events:
                     log.append((t0, kind, int(r[R_G1]), int(r[R_G2]), r[R_SPEED]))
             if self.sustained and nblock:
-                self._drive(rows, n0, n1)
+                done = reader.drive_result if drive is not None else None
+                if done is None:
+                    self._drive(rows, n0, n1)
+                elif done[1] or len(done[0]):  # a ring too short, or pairs without a stream yet
+                    self._drive(rows, n0, n1, done)
         self.seconds_synth += _time.perf_counter() - t_read
 
     def _queue_impacts(self, imp, t0, n0) -> None:
@@ -431,28 +448,38 @@ class AudioSimulator:
             if np.isfinite(P).all() and np.isfinite(J).all():
                 synth._impacts_trusted(ob, P, J, np.full(k, t_ev), tau)
 
-    def _drive(self, rows, n0, n1) -> None:
+    def _reset_sidx(self) -> None:
+        """The synthesizer forgot its streams (reset, microphones changed): forget their indices."""
+        self._sidx = np.full((16, 2, 2), -1, np.int64)
+        self._sidx_epoch = self.synth._st_epoch
+
+    def _drive(self, rows, n0, n1, done=None) -> None:
         """One persistent noise stream per (pair, kind, side): its force and speed are updated
         every step (numba generates the noise), its gains follow the contact point every
-        ``sustained_block_s`` (see :mod:`.drive`)."""
+        ``sustained_block_s`` (see :mod:`.drive`). ``done``: ``(missing, need)`` of a
+        :func:`.drive.read_and_drive` call that already drove the rows that have streams."""
         synth = self.synth
         fs = self.sample_rate
         k0 = n0 - self._origin  # synth samples of this step
         k1 = n1 - self._origin
-        regain = max(1, int(round(self.sustained_block_s * fs)))
+        regain = self._regain
         if self._sidx_epoch != synth._st_epoch:  # the synthesizer forgot its streams
-            self._sidx = np.full((0, 2, 2), -1, np.int64)
-            self._sidx_epoch = synth._st_epoch
+            self._reset_sidx()
         slots = self.reader._nslots
         if slots > len(self._sidx):
             grown = np.full((max(2 * len(self._sidx), slots, 16), 2, 2), -1, np.int64)
             grown[: len(self._sidx)] = self._sidx
             self._sidx = grown
         st = synth._st
-        if st is None:  # no stream yet: every sounding side needs one
+        if done is not None and not done[1]:
+            missing = done[0].tolist()  # the others were driven already
+        elif st is None:  # no stream yet: every sounding side needs one
             missing = [(r, sd) for r in range(len(rows)) for sd in (0, 1)
                        if self._geom_obj[int(rows[r, R_G2 if sd == 0 else R_G1])] >= 0]
         else:
+            if done is not None:  # the ring was too short: nothing was driven
+                synth._streams_grow_ring(done[1])
+                st = synth._st
             missing, need = drive_rows(rows, self._sidx, self._geom_obj, self._rough, self._length, float(fs), k0,
                                        k1, regain, synth.samples_rendered, synth._RING_SLACK, st["SF"], st["SI"],
                                        st["D"], st["ring"])
