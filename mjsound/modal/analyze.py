@@ -329,7 +329,20 @@ def analyze(
     t0 = time.perf_counter()
     points, normals = surface_samples(tm, n_points)
     disc = _discretize(method, tm, material, h, points, quality, thickness, order, refine)
-    sol = _solve(disc, f_max, progress, max_modes)
+    # The error estimate's coarser discretization does not depend on the solve: it is built
+    # on the second core meanwhile (the Lanczos iteration runs on one).
+    pool = coarse = None
+    if error_estimate and method != "shell":
+        from concurrent.futures import ThreadPoolExecutor
+
+        pool = ThreadPoolExecutor(1)
+        coarse = pool.submit(_discretize, method, tm, material, 1.5 * h, points, quality, thickness, order, refine)
+    try:
+        sol = _solve(disc, f_max, progress, max_modes)
+    except BaseException:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        raise
     lam = np.maximum(sol.eigenvalues, 0.0)
     omega = np.sqrt(lam)
     shapes = (disc.interp @ sol.vectors).reshape(len(points), 3, -1)
@@ -354,7 +367,9 @@ def analyze(
     # the shell model has no resolution to vary (it lives on the given surface mesh)
     if error_estimate and under.sum() > 0 and method != "shell":
         err = _error_estimate(method, tm, material, h, points, quality, thickness, order, refine,
-                              omega[under] / (2 * np.pi))
+                              omega[under] / (2 * np.pi), coarse=coarse)
+    if pool is not None:
+        pool.shutdown(wait=True, cancel_futures=True)
     model = ModalModel(
         frequencies_hz=omega[under] / (2 * np.pi),
         decay_per_s=decay,
@@ -415,14 +430,19 @@ def radiation_damping(radiation, omega):
     return 2 * np.pi * np.asarray(radiation) ** 2 / (AIR_DENSITY * SPEED_OF_SOUND * np.asarray(omega) ** 2)
 
 
-def _error_estimate(method, tm, material, h, points, quality, thickness, order, refine, f_fine, n=10):
+def _error_estimate(method, tm, material, h, points, quality, thickness, order, refine, f_fine, n=10,
+                    coarse=None):
     """Richardson-style error [cents] of the first ``n`` modes from a solve at 1.5 h.
 
     With second-order convergence f(h) = f* + C h^2, the fine solve's error is
     ``(f(h) - f(1.5 h)) / (1.5^2 - 1)``; the RMS over the first modes is returned.
+    ``coarse``: a future of the 1.5 h discretization, when already under way.
     """
     try:
-        disc = _discretize(method, tm, material, 1.5 * h, points, quality, thickness, order, refine)
+        if coarse is not None:
+            disc = coarse.result()
+        else:
+            disc = _discretize(method, tm, material, 1.5 * h, points, quality, thickness, order, refine)
         f_hi = float(f_fine[min(n, len(f_fine)) - 1]) * 1.3
         sol = _solve(disc, max(f_hi, 2 * F_MIN_HZ), False)
     except Exception:  # an estimate must never break the analysis itself

@@ -462,7 +462,7 @@ def _sum_blocks(key, *data):
     return (key[first],) + tuple(_segment_sum(np.ascontiguousarray(d), order, group, ng) for d in data)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _segment_sum_kernel(d, order, group, out):
     for p in range(order.shape[0]):
         src = order[p]

@@ -23,7 +23,7 @@ import numpy as np
 __all__ = ["winding_fill", "surface_voxels", "block_mean"]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _column_crossings(tri, ox, oy, dx, dy, nx, ny):
     """Per-column (ix, iy) list of (z, sign) crossings of a vertical ray through the sample
     centre ``(ox + (ix + 0.5) dx, oy + (iy + 0.5) dy)``. Returns CSR-style arrays."""
@@ -74,7 +74,7 @@ def _column_crossings(tri, ox, oy, dx, dy, nx, ny):
     return start, zs, sg
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _fill_columns(start, zs, sg, oz, dz, nx, ny, nz, out):
     for c in range(nx * ny):
         a = start[c]
@@ -121,7 +121,7 @@ def winding_fill(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _mark_surface(tri, ox, oy, oz, dx, dy, dz, nx, ny, nz, out):
     step = 0.25 * min(dx, min(dy, dz))
     for t in range(tri.shape[0]):
@@ -158,7 +158,7 @@ def surface_voxels(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _block_mean(a, s, out):
     nx, ny, nz = out.shape
     inv = np.float32(1.0 / (s * s * s))
