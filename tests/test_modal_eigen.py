@@ -1,0 +1,108 @@
+"""The band eigensolver (mjsound.modal.eigen) against dense LAPACK on small hex models."""
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from mjsound.modal import analyze as A
+from mjsound.modal import eigen as E
+from mjsound.modal.hex import _sum_blocks
+
+
+def _model(spec="box:0.1,0.1,0.1", material="steel", resolution=3):
+    tm = A.load_mesh(spec)
+    mat = A.parse_material(material)
+    h = A.element_size(tm, mat, 20000.0, "default", resolution, order=2)
+    pts, _ = A.surface_samples(tm, 64)
+    return A._discretize("hex", tm, mat, h, pts, "default", None, 2, None)
+
+
+@pytest.fixture(scope="module")
+def cube():
+    d = _model()
+    w = sla.eigh(d.K.toarray(), d.M.toarray(), eigvals_only=True)
+    return d, w
+
+
+def _band(w, lo, hi):
+    return w[(w >= lo) & (w <= hi)]
+
+
+def _cut(w, i):
+    """A band top in the first clear gap of the spectrum at or after index i (the cube's
+    eigenvalues come in pairs and triples)."""
+    while w[i + 1] < w[i] * (1 + 1e-3):
+        i += 1
+    return 0.5 * (w[i] + w[i + 1])
+
+
+@pytest.mark.parametrize("backend", ["superlu", "pardiso"])
+def test_block_band_matches_dense(cube, backend):
+    if backend == "pardiso" and E.backend_name() != "pardiso":
+        pytest.skip("pypardiso not installed")
+    d, w = cube
+    lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 66)
+    sol = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend=backend)
+    ref = _band(w, lo, hi)
+    assert sol.backend.startswith("block-lanczos")
+    assert len(sol.eigenvalues) == len(ref) and sol.n_below == 6
+    assert np.allclose(sol.eigenvalues, ref, rtol=1e-9)
+    V = sol.vectors
+    assert np.allclose(V.T @ (d.M @ V), np.eye(V.shape[1]), atol=1e-9)
+    # eigenpairs: K v = lambda M v
+    R = d.K @ V - (d.M @ V) * sol.eigenvalues
+    assert np.max(np.abs(R)) < 1e-6 * np.max(np.abs(d.K @ V))
+
+
+def test_slicing_fallback_gives_the_same_band(cube, monkeypatch):
+    d, w = cube
+    lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 40)
+    block = E.solve_band(d.K, d.M, lo, hi, dense_max=10)
+    monkeypatch.setattr(E, "BLOCK_MAX_MODES", 4)  # too many for one block solve: ARPACK slices
+    sliced = E.solve_band(d.K, d.M, lo, hi, dense_max=10, slice_modes=20)
+    assert not sliced.backend.startswith("block") and sliced.n_slices > 1
+    assert np.allclose(block.eigenvalues, sliced.eigenvalues, rtol=1e-8)
+    assert np.allclose(block.eigenvalues, _band(w, lo, hi), rtol=1e-9)
+
+
+def test_inertia_count_pardiso_equals_superlu(cube):
+    d, w = cube
+    lam = _cut(w, 30)
+    expect = int(np.sum(w < lam))
+    assert E.count_below(d.K, d.M, lam, backend="superlu") == expect
+    if E.backend_name() == "pardiso":
+        assert E.count_below(d.K, d.M, lam, backend="pardiso") == expect
+
+
+def test_pardiso_block_solve_matches_vector_solves(cube):
+    if E.backend_name() != "pardiso":
+        pytest.skip("pypardiso not installed")
+    d, _ = cube
+    A_ = (d.K + 1e7 * d.M).tocsr()
+    solve = E.factorize(A_, "pardiso", definite=True)
+    B = np.random.default_rng(0).standard_normal((A_.shape[0], 5))
+    X = solve(B)
+    assert np.allclose(X[:, 2], solve(B[:, 2]), rtol=1e-12, atol=0)
+    assert np.linalg.norm(A_ @ X - B) < 1e-8 * np.linalg.norm(B)
+
+
+def test_sum_blocks_adds_equal_keys():
+    key = np.array([5, 1, 5, 3, 1, 5])
+    a = np.arange(12.0).reshape(6, 2)
+    k, s = _sum_blocks(key, a)
+    assert k.tolist() == [1, 3, 5]
+    assert s.tolist() == [[2 + 8, 3 + 9], [6, 7], [0 + 4 + 10, 1 + 5 + 11]]
+
+
+def test_hex_matrices_symmetric_with_rigid_null_space(cube):
+    d, _ = cube
+    K, M = d.K.tocsr(), d.M.tocsr()
+    assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
+    assert abs(M - M.T).max() <= 1e-12 * abs(M).max()
+    n = K.shape[0] // 3
+    t = np.zeros((3 * n, 3))
+    for c in range(3):
+        t[c::3, c] = 1.0  # rigid translations
+    assert np.abs(K @ t).max() < 1e-9 * abs(K).max()
+    assert float(t[:, 0] @ (M @ t[:, 0])) == pytest.approx(0.1**3 * A.parse_material("steel").rho, rel=1e-9)
