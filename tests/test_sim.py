@@ -396,3 +396,26 @@ def test_deferred_rendering_of_sliding_stays_close():
     a, b = run(0.0), run(0.01)
     assert np.abs(a).max() > 0
     assert np.sqrt(np.mean((a - b) ** 2)) < 0.15 * np.sqrt(np.mean(a**2))
+
+
+def test_reader_pair_table_grows_and_keeps_every_pair():
+    """The reader's pair -> slot table (open addressing, rehashed on growth) maps thousands
+    of pairs to distinct, stable slots."""
+    from mjsound.sim.contacts import _rehash, _slot_of
+
+    rng = np.random.default_rng(0)
+    keys = rng.choice(10**9, size=3000, replace=False).astype(np.int64)
+    hk, hv = _rehash(np.full(0, -1, np.int64), np.zeros(0, np.int64), 128)
+    slots = {}
+    n = 0
+    for key in keys.tolist():
+        if 2 * (n + 1) > len(hk):
+            hk, hv = _rehash(hk, hv, 2 * len(hk))
+        s, new = _slot_of(hk, hv, key, n)
+        assert new and s == n
+        slots[key] = s
+        n += 1
+    for key in keys[::7].tolist():
+        s, new = _slot_of(hk, hv, key, n)
+        assert not new and s == slots[key]
+    assert sorted(slots.values()) == list(range(len(keys)))

@@ -168,3 +168,26 @@ def test_dict_observation_keeps_its_keys():
 def test_rejects_non_mujoco_env():
     with pytest.raises(TypeError):
         AudioObservation(gym.make("CartPole-v1"))
+
+
+def test_audio_window_push_matches_numpy_reference():
+    """The numba push: shift, scale, clip to [-1, 1], NaN/Inf -> 0 and counted, peak before
+    clipping; blocks shorter, equal and longer than the window."""
+    from mjsound.wrappers import AudioWindow
+
+    rng = np.random.default_rng(3)
+    win = AudioWindow(2, 50, full_scale_pa=2.0)
+    ref = np.zeros((2, 50), np.float32)
+    for n in (7, 50, 64, 1, 30):
+        block = (rng.normal(size=(2, n)) * 2.5).astype(np.float32)
+        block[0, 0] = np.nan
+        block[1, -1] = np.inf
+        clipped, peak = win.push(block)
+        x = block / np.float32(2.0)
+        bad = ~np.isfinite(x)
+        x = np.where(bad, 0.0, x).astype(np.float32)
+        assert clipped == int(bad.sum() + (np.abs(x) > 1).sum())
+        assert peak == pytest.approx(float(np.abs(x).max()) * 2.0, rel=1e-6)
+        ref = np.concatenate([ref, np.clip(x, -1, 1)], axis=1)[:, -50:]
+        np.testing.assert_array_equal(win.observe(), ref)
+    assert win.push(np.zeros((2, 0), np.float32)) == (0, 0.0)
