@@ -826,6 +826,7 @@ class Synthesizer:
         self._flat = (Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic)
         self._mic_off = mic_off
         self._mic_len = np.diff(mic_off)
+        self._mic_start = mic_off[:-1].copy()
         self._mic_ids = np.arange(M, dtype=np.int64)
         self._mic_ptr = np.arange(M + 1)
         self._v_rel = v_off - mic_off[v_mic]  # offset of each voice inside its microphone's bank
@@ -901,7 +902,7 @@ class Synthesizer:
                 # rows into the microphone banks, sorted by (microphone, sample), ties in order
                 ev_m, ev_re, ev_im = kernels.place_rows(ev_v, ev_re, ev_im, self._v_rel, self._flat[9],
                                                         self._flat[10], self._mic_width)
-                order = np.lexsort((ev_n, ev_m))
+                order = np.lexsort((ev_n, ev_m)) if self.n_channels > 1 else np.argsort(ev_n, kind="stable")
                 ev_n, ev_kind, ev_re, ev_im = ev_n[order], ev_kind[order], ev_re[order], ev_im[order]
                 ev_ptr = np.searchsorted(ev_m[order], self._mic_ptr)
             else:
@@ -954,13 +955,15 @@ class Synthesizer:
             if len(sv):
                 sm, gr, gi = kernels.place_rows(sv, gr, gi, self._v_rel, self._flat[9], self._flat[10],
                                                 self._mic_width)
-                order = np.argsort(sm, kind="stable")
-                src_a, src_b, gr, gi, F = src_a[order], src_b[order], gr[order], gi[order], F[order]
-                src_ptr = np.searchsorted(sm[order], self._mic_ptr)
+                if self.n_channels > 1:  # rows by microphone (one microphone: already in order)
+                    order = np.argsort(sm, kind="stable")
+                    src_a, src_b, gr, gi, F = src_a[order], src_b[order], gr[order], gi[order], F[order]
+                    sm = sm[order]
+                src_ptr = np.searchsorted(sm, self._mic_ptr)
             else:
                 src_ptr = self._ev_ptr0
             Zr, Zi, P2, ACT, PR, PI, CR, CI = self._flat[:8]
-            kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, self._mic_off[:-1], self._mic_len, self._mic_ids,
+            kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, self._mic_start, self._mic_len, self._mic_ids,
                                self._live,
                                ev_ptr, ev_n, ev_kind, ev_re, ev_im,
                                src_ptr, src_a, src_b, gr, gi, F,
