@@ -681,7 +681,9 @@ def streams_gains(js, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_of
     rows ``pts_off[o]:pts_off[o+1]`` of ``pts_all``, its shapes the flat slice
     ``shk_off[o]:shk_off[o+1]`` of ``shk_all`` (points, 3, modes), its per-mode values the
     slice ``mode_off[o]:mode_off[o+1]`` of ``wd_all`` ...; its pose ``pos_all[o]``, ``R_all[o]``.
-    Streams of removed objects (not live, or no points) are skipped."""
+    Streams of removed objects (not live, or no points) are skipped. Returns the largest
+    delay ``D`` computed [samples]."""
+    dmax = 0
     for q in range(js.shape[0]):
         j = js[q]
         o = SI[j, SI_OBJ]
@@ -695,3 +697,7 @@ def streams_gains(js, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_of
         stream_gains(pts_all[p0:p1], shk, pos_all[o], R_all[o], SF[j, SF_P:SF_P + 3], SF[j, SF_N:SF_N + 3],
                      wd_all[m0:m1], w_all[m0:m1], lre_all[m0:m1], lim_all[m0:m1], mics, c, fs, rmin, tol,
                      st_gr[j], st_gi[j], D[j])
+        for m in range(D.shape[1]):
+            if D[j, m] > dmax:
+                dmax = D[j, m]
+    return dmax

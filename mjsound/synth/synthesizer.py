@@ -668,6 +668,7 @@ class Synthesizer:
         """Forget all sustained-contact streams (their ringing modes keep ringing)."""
         self._st_keys: dict = {}
         self._st_n = 0
+        self._st_dmax = 0  # largest stream delay seen [samples] (the ring must hold it)
         self._st = None
         self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
         #: optional ``on_regain(obj)`` called before a stream's gains are computed (a driver
@@ -766,10 +767,12 @@ class Synthesizer:
                     self.on_regain(ob)
                 pos_all[oi] = ob.pos
                 R_all[oi] = ob.R
-            kernels.streams_gains(js, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
-                                  g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"], pos_all, R_all,
-                                  self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M, _SAMPLE_TOL)
-            need = int(st["D"][: self._st_n].max()) + n + 1
+            dmax = kernels.streams_gains(js, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
+                                         g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"], pos_all,
+                                         R_all, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
+                                         _SAMPLE_TOL)
+            self._st_dmax = max(self._st_dmax, int(dmax))
+            need = self._st_dmax + n + 1
             if need > st["ring"].shape[1]:
                 self._streams_grow_ring(need)
 
@@ -980,7 +983,9 @@ class Synthesizer:
             obi, mic, na, kind, a = chunks[0]
             vid = vb[obi] + mic
             if a.shape[1] < nmax:
-                a = np.pad(a, ((0, 0), (0, nmax - a.shape[1])))
+                padded = np.zeros((a.shape[0], nmax), a.dtype)
+                padded[:, : a.shape[1]] = a
+                a = padded
         else:
             vid = np.concatenate([vb[c[0]] + c[1] for c in chunks])
             na = np.concatenate([c[2] for c in chunks])
