@@ -896,15 +896,6 @@ class ContactReader:
             self._sync_open(step, t1)
         return impacts, sustained
 
-    @staticmethod
-    def contact_events(rows, t0: float, t1: float) -> list[ContactEvent]:
-        """:class:`ContactEvent` objects from the sustained rows of :meth:`events_fast`."""
-        if rows is None:
-            return []
-        return [ContactEvent("slide" if r[R_KIND] == 1.0 else "roll", t0, t1, int(r[R_G1]), int(r[R_G2]),
-                             np.array(r[R_POINT:R_POINT + 3]), np.array(r[R_NORMAL:R_NORMAL + 3]), r[R_FORCE],
-                             r[R_SPEED]) for r in rows.tolist()]
-
     def _sync_open(self, step, t1):
         SF, SI = self._SF, self._SI
         s_open, s_rimp, s_rsteps, s_rtime = SI[SI_OPEN], SF[SF_RIMP], SI[SI_RSTEPS], SF[SF_RTIME]

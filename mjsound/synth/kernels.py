@@ -77,23 +77,6 @@ def bank_forced(wr, wi, pr, pi, na, out, o0, n, zero, gwr, gwi, F, act, nact):
         out[s] += acc
 
 
-@njit(cache=True, fastmath=True)
-def bank_forced1(wr, wi, pr, pi, na, out, o0, n, zero, gr1, gi1, F1):
-    """:func:`bank_forced` with exactly one active source (gains ``gr1``/``gi1`` (>=na,),
-    force ``F1`` (N,)): one fused pass over the modes per sample (the common case of one
-    sliding contact per object)."""
-    for s in range(o0, o0 + n):
-        acc = zero
-        fv = F1[s]
-        for k in range(na):
-            a = wr[k] + gr1[k] * fv
-            b = wi[k] + gi1[k] * fv
-            acc += b
-            wr[k] = a * pr[k] - b * pi[k]
-            wi[k] = a * pi[k] + b * pr[k]
-        out[s] += acc
-
-
 @njit(cache=True)
 def _gather(zr, zi, active, pr, pi, gr, gi, wr, wi, wpr, wpi, gwr, gwi, idx):
     k = 0
@@ -274,9 +257,6 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
         o0 = pos - start
         if nact == 0:
             bank_free(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero)
-        elif nact == 1:
-            j = act[0]
-            bank_forced1(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr[j], gwi[j], F[j])
         else:
             bank_forced(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact)
         pos = stop
