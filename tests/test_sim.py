@@ -419,3 +419,21 @@ def test_reader_pair_table_grows_and_keeps_every_pair():
         s, new = _slot_of(hk, hv, key, n)
         assert not new and s == slots[key]
     assert sorted(slots.values()) == list(range(len(keys)))
+
+
+def test_follow_moves_the_microphones_with_the_body_at_each_event():
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=0.3), models)
+    offset = np.array([[0.4, -0.2, 0.1]])
+    sim.follow(1, offset)
+    fixed = sim.synth.microphones
+    for _ in range(600):
+        mujoco.mj_step(model, data)
+        n = sim.events["impact"]
+        sim.step()
+        if sim.events["impact"] > n:
+            break
+    assert sim.events["impact"] == 1
+    # moved for the impact: where the ball is (plus the offset), not where the site was
+    np.testing.assert_allclose(sim.synth.microphones, data.xpos[1] + offset)
+    assert np.abs(sim.synth.microphones - fixed).max() > 0.05
