@@ -2,7 +2,7 @@
 
 ``mjsound report accuracy [--quick] [-o DIR]`` writes ``DIR/accuracy.md`` and PNG plots
 (:mod:`mjsound.report.accuracy`; matplotlib is needed for the plots only).
-``mjsound report stability [--quick] [-o FILE]`` prints a PASS/FAIL table with the measured
+``mjsound report stability [--quick] [-o FILE_OR_DIR]`` prints a PASS/FAIL table with the measured
 quantity of every case (:mod:`mjsound.report.stability`).
 
 Nothing heavy is imported here: the CLI imports this module to register the subcommands.
@@ -62,7 +62,8 @@ def register_cli(subparsers) -> None:
         ),
     )
     s.add_argument("--quick", action="store_true", help="the quick form (under 90 s; used by the test suite)")
-    s.add_argument("-o", "--output", default=None, help="also write the table as Markdown to this file")
+    s.add_argument("-o", "--output", default=None,
+                   help="also write the table as Markdown: a file, or a directory for DIR/stability.md")
     s.set_defaults(func=_run_stability)
 
     def _help(args, parser=p) -> int:

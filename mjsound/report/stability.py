@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 
@@ -532,7 +533,8 @@ def to_markdown(rows, header=""):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="mjsound report stability", description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("-o", "--output", default=None)
+    ap.add_argument("-o", "--output", default=None,
+                    help="also write the table as Markdown: a file, or a directory for DIR/stability.md")
     args = ap.parse_args(argv)
     from .accuracy import machine_info
 
@@ -549,8 +551,20 @@ def main(argv=None) -> int:
                 f"CPUs, Python {info['python']}, numpy {info['numpy']}; load average at the start "
                 f"{info['load_start']} (shared machine).\n\n" + __doc__.split("Pass criteria\n-------------\n")[1]
                 .split("A FAIL row")[0].strip())
-        with open(args.output, "w") as fh:
-            fh.write(to_markdown(rows, head))
+        path = args.output
+        if os.path.isdir(path) or path.endswith(os.sep):
+            path = os.path.join(path, "stability.md")
+        from ..io import commit_temp, temp_beside
+
+        fd, tmp = temp_beside(path, ".md")
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(to_markdown(rows, head))
+            commit_temp(tmp, path)
+        except BaseException:
+            os.unlink(tmp)
+            raise
+        print(f"wrote {path}")
     return 1 if n_fail else 0
 
 
