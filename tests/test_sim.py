@@ -437,3 +437,14 @@ def test_follow_moves_the_microphones_with_the_body_at_each_event():
     # moved for the impact: where the ball is (plus the offset), not where the site was
     np.testing.assert_allclose(sim.synth.microphones, data.xpos[1] + offset)
     assert np.abs(sim.synth.microphones - fixed).max() > 0.05
+
+
+def test_follow_rejects_bad_arguments():
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=0.3), models)
+    with pytest.raises(ValueError, match="one per microphone"):
+        sim.follow(1, np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="does not exist"):
+        sim.follow(99, np.zeros((1, 3)))
+    sim.follow(None, None)
+    assert sim._follow is None

@@ -275,7 +275,16 @@ class AudioSimulator:
         """Move the microphones with ``body`` (translation only): microphone m sits at
         ``data.xpos[body] + offsets[m]``, updated whenever an event needs the positions
         (an impact, or a sustained contact's gains). ``body=None`` stops following."""
-        self._follow = None if body is None else (int(body), np.asarray(offsets, np.float64).reshape(-1, 3))
+        if body is None:
+            self._follow = None
+            return
+        off = np.asarray(offsets, np.float64).reshape(-1, 3)
+        if not 0 <= int(body) < self.model.nbody:
+            raise ValueError(f"follow: body {body} does not exist (the model has {self.model.nbody} bodies)")
+        if len(off) != self.n_channels or not np.isfinite(off).all():
+            raise ValueError(f"follow: give {self.n_channels} finite (x, y, z) offsets [m], one per microphone; "
+                             f"got {len(off)}")
+        self._follow = (int(body), off)
 
     def step(self, render: bool = True) -> np.ndarray | None:
         """Process the step just taken by ``mj_step``; return its audio block.
