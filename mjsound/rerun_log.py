@@ -145,6 +145,7 @@ class RerunLogger:
                 self._geom_names[g] = "geom_" + self._geom_names[g]
         self._moving = [b for b in range(1, model.nbody) if model.body_weldid[b] != 0 or model.body_mocapid[b] >= 0]
         self._static_done = False
+        self._pose_buf = {"t": [], "xpos": [], "xquat": [], "cpos": [], "cforce": []}
         self._meshes = bool(meshes)
         self._groups = set(int(x) for x in geom_groups)
 
@@ -228,10 +229,12 @@ class RerunLogger:
         if t + 1e-12 < self._t_next_pose:
             return
         self._t_next_pose = t + self.pose_dt
-        rec.set_time("sim_time", duration=t)
-        for b in self._moving:
-            rec.log(f"world/{self._body_names[b]}",
-                    rr.Transform3D(translation=data.xpos[b], quaternion=_xyzw(data.xquat[b])))
+        # poses and contacts are buffered and sent as columns (one rerun call per entity per
+        # POSE_CHUNK samples instead of one per entity per sample)
+        buf = self._pose_buf
+        buf["t"].append(t)
+        buf["xpos"].append(np.array(data.xpos[self._moving]))
+        buf["xquat"].append(np.array(data.xquat[self._moving]))
         nc = int(data.ncon)
         if nc:
             pos = np.array(data.contact.pos[:nc])
@@ -241,12 +244,43 @@ class RerunLogger:
             for i in range(nc):
                 mj.mj_contactForce(m, data, i, f6)
                 forces[i] = frames[i].T @ f6[:3]
-            rec.log("world/contacts/points", rr.Points3D(pos, radii=0.004, colors=[255, 80, 40]))
-            rec.log("world/contacts/forces", rr.Arrows3D(origins=pos, vectors=forces * self.force_scale,
-                                                         colors=[255, 200, 0]))
+            buf["cpos"].append(pos)
+            buf["cforce"].append(forces * self.force_scale)
         else:
-            rec.log("world/contacts/points", rr.Points3D(np.zeros((0, 3))))
-            rec.log("world/contacts/forces", rr.Arrows3D(origins=np.zeros((0, 3)), vectors=np.zeros((0, 3))))
+            buf["cpos"].append(np.zeros((0, 3)))
+            buf["cforce"].append(np.zeros((0, 3)))
+        if len(buf["t"]) >= self.POSE_CHUNK:
+            self._send_poses()
+
+    #: Pose / contact samples buffered before they are sent (an interrupted run keeps all but
+    #: the last chunk; ``close`` sends the rest).
+    POSE_CHUNK = 100
+
+    def _send_poses(self) -> None:
+        buf = self._pose_buf
+        if not buf["t"]:
+            return
+        rr, rec = self._rr, self.rec
+        index = [rr.TimeColumn("sim_time", duration=np.asarray(buf["t"]))]
+        xpos = np.stack(buf["xpos"])  # (T, bodies, 3)
+        xquat = np.stack(buf["xquat"])[..., [1, 2, 3, 0]]  # MuJoCo wxyz -> rerun xyzw
+        for j, b in enumerate(self._moving):
+            rec.send_columns(f"world/{self._body_names[b]}", indexes=index,
+                             columns=rr.Transform3D.columns(translation=xpos[:, j], quaternion=xquat[:, j]))
+        lengths = np.array([len(p) for p in buf["cpos"]])
+        P = np.concatenate(buf["cpos"])
+        F = np.concatenate(buf["cforce"])
+        k = len(P)
+        rec.send_columns("world/contacts/points", indexes=index,
+                         columns=rr.Points3D.columns(positions=P, radii=np.full(k, 0.004),
+                                                     colors=np.tile(np.array([255, 80, 40], np.uint8), (k, 1)))
+                         .partition(lengths))
+        rec.send_columns("world/contacts/forces", indexes=index,
+                         columns=rr.Arrows3D.columns(origins=P, vectors=F,
+                                                     colors=np.tile(np.array([255, 200, 0], np.uint8), (k, 1)))
+                         .partition(lengths))
+        for v in buf.values():
+            v.clear()
 
     # ------------------------------------------------------------------ audio
     @property
@@ -291,6 +325,8 @@ class RerunLogger:
         self._closed = True
         rr = self._rr
         import rerun.blueprint as rrb
+
+        self._send_poses()
 
         rec = self.rec
         audio = self.audio
