@@ -7,6 +7,9 @@ stream of the synthesizer (:meth:`mjsound.synth.Synthesizer._stream_index`). The
 step's drives cost no Python per contact: :func:`drive_rows` computes each drive's force
 amplitude and low-pass from the row and generates its noise (``kernels.stream_drive``).
 Side 0 is ``geom2`` (pushed along the normal), side 1 ``geom1`` (pushed against it).
+:func:`read_and_drive` is the reader's kernel followed by :func:`drive_rows`: the whole
+per-step contact work in one numba call (:class:`mjsound.sim.AudioSimulator` uses it once
+every stream it needs exists).
 """
 
 from __future__ import annotations
