@@ -450,7 +450,6 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
         self._mj = mujoco
         uw = env.unwrapped
-        self._data = getattr(uw, "data", None)
         if not (hasattr(uw, "model") and hasattr(uw, "data")):
             raise TypeError("AudioObservation needs a MuJoCo env: env.unwrapped must have .model and .data")
         if mode not in ("waveform", "spectrogram"):
@@ -480,8 +479,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                                   **(sim_kwargs or {}))
         self.n_channels = self.sim.n_channels
 
-        # listener that follows a body (translation only)
-        self._follow = None
+        # listener that follows a body (translation only; AudioSimulator.follow)
         if mics is None and not scene.mic_site_ids and follow is not None and self.sim.synth is not None:
             if follow == "auto":
                 body = 1 if model.nbody > 1 and model.body_weldid[1] != 0 else None
@@ -492,8 +490,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             if body is not None:
                 d0 = mujoco.MjData(model)
                 mujoco.mj_forward(model, d0)
-                self._follow = (int(body), np.asarray(scene.mic_positions) - d0.xpos[body])
-                self.sim.follow(*self._follow)
+                self.sim.follow(int(body), np.asarray(scene.mic_positions) - d0.xpos[body])
 
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
         audio_space = self.audio.space
@@ -552,10 +549,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._rng = np.random.default_rng(seed)
         if self.sim.synth is not None:
             self.sim.synth.seed = int(self._rng.integers(2**31 - 1))
-        self.sim.reset()
-        if self._follow is not None:
-            body, offset = self._follow
-            self.sim.synth.set_microphones(self._data.xpos[body] + offset)
+        self.sim.reset()  # (moves a following listener to its body)
         self.audio.reset()
         info = dict(info)
         info.update(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)

@@ -709,6 +709,14 @@ class ContactReader:
         if self._nslots + n_new > self._SF.shape[1]:
             self._alloc_slots(2 * (self._nslots + n_new))
 
+    def _report_clamped(self, nbad, nhuge) -> None:
+        self.n_clamped += int(nbad + nhuge)
+        self._warn_once(
+            "force",
+            f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
+            "velocities clamped (exploding simulation?); reported once",
+        )
+
     def _warn_once(self, key, msg):
         if key not in self._warned:
             self._warned.add(key)
@@ -731,12 +739,7 @@ class ContactReader:
             data.geom_xpos, self.geom_body, self.body_root, self._plane, self.max_force,
         )
         if nbad or nhuge:
-            self.n_clamped += int(nbad + nhuge)
-            self._warn_once(
-                "force",
-                f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
-                "velocities clamped (exploding simulation?); reported once",
-            )
+            self._report_clamped(nbad, nhuge)
         return ContactFrame(
             geom=geom,
             pos=pos,
@@ -827,6 +830,14 @@ class ContactReader:
             self._sync_open(step, t1)
         return impacts, contacts, cf
 
+    def step_if_quiet(self, data) -> bool:
+        """Count the step and return True when nothing touches and no impact is open (what
+        :meth:`events_fast` would do, without its call); False: call it."""
+        if data.ncon or self._open:
+            return False
+        self._step += 1
+        return True
+
     def events_fast(self, data, t0: float, t1: float, drive=None):
         """:meth:`events` for the per-step driver: the same events and state in one numba call
         per step; sustained contact comes back as rows, not objects (a
@@ -848,6 +859,7 @@ class ContactReader:
         step = self._step
         impacts = None
         sustained = None
+        self.drive_result = None
         n = data.ncon
         if n:
             self._room(n)
@@ -863,12 +875,7 @@ class ContactReader:
                 self.drive_result = out[7:]
             rows, srows, hits, nbad, nhuge, n_onset, self._nslots = out[:7]
             if nbad or nhuge:
-                self.n_clamped += int(nbad + nhuge)
-                self._warn_once(
-                    "force",
-                    f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
-                    "velocities clamped (exploding simulation?); reported once",
-                )
+                self._report_clamped(nbad, nhuge)
             if n_onset:
                 hit_rows = hits[:, H_ROW].astype(np.int64)
                 parts = []

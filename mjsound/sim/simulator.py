@@ -31,9 +31,9 @@ from fractions import Fraction
 
 import numpy as np
 
+from ..synth.pulse import contact_time
 from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
                        R_POINT, R_SLOT, R_SPEED, ContactReader)
-from ..synth.kernels import SI_DUE as _SI_DUE
 from .drive import drive_rows, read_and_drive
 from .scene import SoundScene, geom_contact_radius
 
@@ -218,7 +218,7 @@ class AudioSimulator:
                     position=np.array(self.data.geom_xpos[s.geom_id]),
                     rotation=np.array(self.data.geom_xmat[s.geom_id]).reshape(3, 3),
                 )
-            self.synth.on_regain = self._pose_object
+            self.synth.on_regain = self._before_regain
         # synth object index of each geom (-1: silent, or no modes to drive)
         self._geom_obj = np.full(model.ngeom, -1, np.int64)
         self._obj_geom = {}
@@ -237,9 +237,12 @@ class AudioSimulator:
 
     # ------------------------------------------------------------------ state
     def reset(self, clear_reader: bool = True) -> None:
-        """Silence all ringing, forget contact state and re-anchor the clock at ``data.time``."""
+        """Silence all ringing, forget contact state and re-anchor the clock at ``data.time``
+        (a following listener moves to its body's current position)."""
         if self.synth is not None:
             self.synth.reset()
+            if self._follow is not None:
+                self._update_mics()
         if clear_reader:
             self.reader.reset()
         self.clock = SampleClock(self.sample_rate, float(self.model.opt.timestep), float(self.data.time))
@@ -328,10 +331,6 @@ class AudioSimulator:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:
             tc = _time.perf_counter()
-            if self._follow is not None or (self.scene.mic_site_ids and self.scene.mics_move):
-                SI = self.synth._st["SI"] if self.synth._st is not None else None
-                if SI is not None and SI[: self.synth._st_n, _SI_DUE].any():  # a stream's gains are due
-                    self._update_mics()
             block = self.synth.render(n)
             if not np.isfinite(block).all():  # never hand out NaN audio
                 block = np.nan_to_num(block, nan=0.0, posinf=0.0, neginf=0.0)
@@ -341,8 +340,11 @@ class AudioSimulator:
         return block
 
     def _update_mics(self) -> None:
-        """Microphones to where their sites / the followed body are now."""
+        """Microphones to where their sites / the followed body are now (nothing when they
+        cannot move)."""
         data = self.data
+        if self._follow is None and not (self.scene.mic_site_ids and self.scene.mics_move):
+            return
         if self._follow is not None:
             body, offsets = self._follow
             mics = data.xpos[body] + offsets
@@ -351,8 +353,14 @@ class AudioSimulator:
         if math.isfinite(float(mics.sum())) and mics.shape == self.synth._mics.shape:
             self.synth._mics = mics  # (Synthesizer.set_microphones without its checks: same channels, finite)
 
+    def _before_regain(self, objects) -> None:
+        """``Synthesizer.on_regain``: poses and microphones as they are now."""
+        self._update_mics()
+        for ob in objects:
+            self._pose_object(ob)
+
     def _pose_object(self, ob) -> None:
-        """Pose of synth object ``ob`` from its geom (``Synthesizer.on_regain``)."""
+        """Pose of synth object ``ob`` from its geom (moving geoms only)."""
         g = self._dyn_geom.get(ob.index)
         if g is None:
             return
@@ -370,26 +378,17 @@ class AudioSimulator:
         if self.synth is None:
             return  # nothing sounds: no contact work at all
         reader = self.reader
-        if self.data.ncon == 0 and not reader._open:
-            reader._step += 1  # (what events_fast does with no contacts and no open impact)
+        if reader.step_if_quiet(self.data):
             return
         if t0 is None:
             c = self.clock
             t0 = c.time_at(c.k - 1)
             t1 = c.time_at(c.k)
         tc = _time.perf_counter()
-        synth = self.synth
-        st = synth._st
         drive = None
-        if st is not None and self.sustained and n1 > n0:
+        if self.synth._st is not None and self.sustained and n1 > n0:
             # read the contacts and drive the existing streams in one numba call
-            if self._sidx_epoch != synth._st_epoch:
-                self._reset_sidx()
-            fs = self.sample_rate
-            reader.drive_result = None
-            drive = (read_and_drive, (self._sidx, self._geom_obj, self._rough, self._length, float(fs),
-                                      n0 - self._origin, n1 - self._origin, self._regain, synth.samples_rendered,
-                                      synth._RING_SLACK, st["SF"], st["SI"], st["D"], st["ring"]))
+            drive = (read_and_drive, self._drive_args(n0, n1))
         impacts, rows = reader.events_fast(self.data, t0, t1, drive)
         t_read = _time.perf_counter()
         self.seconds_contacts += t_read - tc
@@ -421,8 +420,7 @@ class AudioSimulator:
         t_ev = max(t0 - self._origin / fs, (n0 - self._origin) / fs)
         names = self._names
         objs = synth._objects
-        if self._follow is not None or (self.scene.mic_site_ids and self.scene.mics_move):
-            self._update_mics()
+        self._update_mics()
         rows = imp.tolist()
         self.events["impact"] += len(rows)
         log = self.event_log
@@ -453,7 +451,7 @@ class AudioSimulator:
                                              float(self._radius[other]),
                                              float(self._radius[g]) if np.isfinite(self._radius[g]) else None)[0]
                     self._tau_coef[(g, other)] = coef
-                tau[i] = synth._tau_of(coef, abs(r[I_SPEED]))
+                tau[i] = contact_time(coef, r[I_SPEED])
             if np.isfinite(P).all() and np.isfinite(J).all():
                 synth._impacts_trusted(ob, P, J, np.full(k, t_ev), tau)
 
@@ -462,42 +460,43 @@ class AudioSimulator:
         self._sidx = np.full((16, 2, 2), -1, np.int64)
         self._sidx_epoch = self.synth._st_epoch
 
+    def _drive_args(self, n0, n1) -> tuple:
+        """The arguments of :func:`.drive.drive_rows` after the rows, for the step's samples
+        ``[n0, n1)`` (the synthesizer's streams must exist)."""
+        synth = self.synth
+        if self._sidx_epoch != synth._st_epoch:  # the synthesizer forgot its streams
+            self._reset_sidx()
+        st = synth._st
+        return (self._sidx, self._geom_obj, self._rough, self._length, float(self.sample_rate),
+                n0 - self._origin, n1 - self._origin, self._regain, synth.samples_rendered, synth._RING_SLACK,
+                st["SF"], st["SI"], st["D"], st["ring"])
+
     def _drive(self, rows, n0, n1, done=None) -> None:
         """One persistent noise stream per (pair, kind, side): its force and speed are updated
         every step (numba generates the noise), its gains follow the contact point every
         ``sustained_block_s`` (see :mod:`.drive`). ``done``: ``(missing, need)`` of a
         :func:`.drive.read_and_drive` call that already drove the rows that have streams."""
         synth = self.synth
-        fs = self.sample_rate
         k0 = n0 - self._origin  # synth samples of this step
         k1 = n1 - self._origin
-        regain = self._regain
-        if self._sidx_epoch != synth._st_epoch:  # the synthesizer forgot its streams
-            self._reset_sidx()
         slots = self.reader._nslots
         if slots > len(self._sidx):
             grown = np.full((max(2 * len(self._sidx), slots, 16), 2, 2), -1, np.int64)
             grown[: len(self._sidx)] = self._sidx
             self._sidx = grown
-        st = synth._st
         if done is not None and not done[1]:
             missing = done[0].tolist()  # the others were driven already
-        elif st is None:  # no stream yet: every sounding side needs one
+        elif synth._st is None:  # no stream yet: every sounding side needs one
             missing = [(r, sd) for r in range(len(rows)) for sd in (0, 1)
                        if self._geom_obj[int(rows[r, R_G2 if sd == 0 else R_G1])] >= 0]
         else:
-            if done is not None:  # the ring was too short: nothing was driven
-                synth._streams_grow_ring(done[1])
-                st = synth._st
-            missing, need = drive_rows(rows, self._sidx, self._geom_obj, self._rough, self._length, float(fs), k0,
-                                       k1, regain, synth.samples_rendered, synth._RING_SLACK, st["SF"], st["SI"],
-                                       st["D"], st["ring"])
-            if need:
-                synth._streams_grow_ring(need)
-                st = synth._st
-                missing, need = drive_rows(rows, self._sidx, self._geom_obj, self._rough, self._length, float(fs),
-                                           k0, k1, regain, synth.samples_rendered, synth._RING_SLACK, st["SF"],
-                                           st["SI"], st["D"], st["ring"])
+            need = done[1] if done is not None else 0  # done[1]: the ring was too short, nothing driven
+            while True:
+                if need:
+                    synth._streams_grow_ring(need)
+                missing, need = drive_rows(rows, *self._drive_args(n0, n1))
+                if not need:
+                    break
             if not len(missing):
                 return
             missing = missing.tolist()
@@ -513,7 +512,8 @@ class AudioSimulator:
             self._sidx[int(row[R_SLOT]), kind - 1, side] = j
             sign = 1.0 if side == 0 else -1.0
             synth._stream_drive(j, row[R_POINT:R_POINT + 3], sign * row[R_NORMAL:R_NORMAL + 3], float(row[R_FORCE]),
-                                float(row[R_SPEED]), k0, k1, self._rough[kind - 1], self._length[kind - 1], regain)
+                                float(row[R_SPEED]), k0, k1, self._rough[kind - 1], self._length[kind - 1],
+                                self._regain)
 
     def _render_every(self) -> int:
         """Steps per render in :meth:`run` / :meth:`advance` (``render_block_s``)."""

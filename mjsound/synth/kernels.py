@@ -29,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .pulse import half_sine
+
 __all__ = ["bank_free", "bank_forced", "render_voice"]
 
 
@@ -302,25 +304,30 @@ def render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, v_live,
         v_live[v] = live
 
 
+@njit(cache=True, inline="always")
+def _nearest_one(points, x, y, z):
+    """Index of the row of ``points`` (p, 3) nearest to ``(x, y, z)`` (brute force; models
+    carry ~1000 surface samples, so this is a few microseconds and needs no tree)."""
+    best = np.inf
+    bi = 0
+    for i in range(points.shape[0]):
+        dx = points[i, 0] - x
+        dy = points[i, 1] - y
+        dz = points[i, 2] - z
+        d = dx * dx + dy * dy + dz * dz
+        if d < best:
+            best = d
+            bi = i
+    return bi
+
+
 @njit(cache=True)
 def nearest(points, q):
-    """Index of the nearest row of ``points`` (p, 3) for each row of ``q`` (k, 3) (brute force;
-    models carry ~1000 surface samples, so this is a few microseconds and needs no tree)."""
+    """Index of the nearest row of ``points`` (p, 3) for each row of ``q`` (k, 3)."""
     k = q.shape[0]
     out = np.empty(k, np.int64)
     for j in range(k):
-        best = np.inf
-        bi = 0
-        x, y, z = q[j, 0], q[j, 1], q[j, 2]
-        for i in range(points.shape[0]):
-            dx = points[i, 0] - x
-            dy = points[i, 1] - y
-            dz = points[i, 2] - z
-            d = dx * dx + dy * dy + dz * dz
-            if d < best:
-                best = d
-                bi = i
-        out[j] = bi
+        out[j] = _nearest_one(points, q[j, 0], q[j, 1], q[j, 2])
     return out
 
 
@@ -397,16 +404,7 @@ def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c,
         d0 += nrm[i] * R[i, 0]
         d1 += nrm[i] * R[i, 1]
         d2 += nrm[i] * R[i, 2]
-    best = np.inf
-    bi = 0
-    for i in range(pts.shape[0]):
-        dx = pts[i, 0] - pl0
-        dy = pts[i, 1] - pl1
-        dz = pts[i, 2] - pl2
-        dd = dx * dx + dy * dy + dz * dz
-        if dd < best:
-            best = dd
-            bi = i
+    bi = _nearest_one(pts, pl0, pl1, pl2)
     n = wd.shape[0]
     M = mics.shape[0]
     for m in range(M):
@@ -559,20 +557,6 @@ def streams_block(SF, SI, D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
 
 
 @njit(cache=True)
-def half_sine(x):
-    """:func:`mjsound.synth.pulse.half_sine_spectrum` at ``x = w tau`` (scalar, numba)."""
-    u = x - np.pi
-    if abs(u) >= 0.25:
-        return (1.0 + np.exp(-1j * x)) / (2.0 * (1.0 - (x / np.pi) ** 2))
-    if u == 0.0:
-        return -1j * np.pi / 4.0
-    # expm1(-j u) without cancellation: cos(u) - 1 = -2 sin^2(u / 2)
-    s = np.sin(0.5 * u)
-    em1 = -2.0 * s * s - 1j * np.sin(u)
-    return np.pi**2 * em1 / (2.0 * u * (2.0 * np.pi + u))
-
-
-@njit(cache=True)
 def impact_amplitudes(pts, shk, pos, R, P, J, t, tau, wd, weights, lam, logeps, mics, c, fs, rmin, tol,
                       rendered, grid):
     """Modal amplitudes of ``k`` impacts on one object at every microphone (the numerics of
@@ -594,16 +578,7 @@ def impact_amplitudes(pts, shk, pos, R, P, J, t, tau, wd, weights, lam, logeps, 
             for b in range(3):
                 pl[b] += (P[i, a] - pos[a]) * R[a, b]
                 jl[b] += J[i, a] * R[a, b]
-        best = np.inf
-        bi = 0
-        for q in range(pts.shape[0]):
-            dx = pts[q, 0] - pl[0]
-            dy = pts[q, 1] - pl[1]
-            dz = pts[q, 2] - pl[2]
-            dd = dx * dx + dy * dy + dz * dz
-            if dd < best:
-                best = dd
-                bi = q
+        bi = _nearest_one(pts, pl[0], pl[1], pl[2])
         for m in range(n):
             G = shk[bi, 0, m] * jl[0] + shk[bi, 1, m] * jl[1] + shk[bi, 2, m] * jl[2]
             c_mode[i, m] = G / wd[m] * half_sine(wd[m] * tau[i])

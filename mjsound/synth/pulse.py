@@ -26,8 +26,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-__all__ = ["hertz_contact_time", "half_sine_spectrum", "effective", "TAU_MIN_S", "TAU_MAX_S"]
+__all__ = ["hertz_contact_time", "hertz_coefficient", "contact_time", "half_sine_spectrum", "half_sine", "effective",
+           "TAU_MIN_S", "TAU_MAX_S"]
 
 #: Contact times are clamped to [TAU_MIN_S, TAU_MAX_S] seconds. The lower bound is far below
 #: any audible period (a 1 us pulse is flat to 100 kHz); the upper bound keeps a near-zero
@@ -91,16 +93,29 @@ def hertz_contact_time(m1, m2, R1, R2, mat1, mat2, v) -> float:
     v = abs(float(v))
     if math.isnan(v):
         raise ValueError("hertz_contact_time: speed v is NaN; give the normal approach speed in m/s")
-    m = effective(m1, m2)
-    R = effective(R1, R2)
+    return contact_time(hertz_coefficient(effective(m1, m2), effective(R1, R2), mat1, mat2), v)
+
+
+def hertz_coefficient(m, R, mat1, mat2) -> float:
+    """``coef`` [s (m/s)^(1/5)] of ``tau = coef v^(-1/5)`` for effective mass ``m`` [kg] and
+    radius ``R`` [m] (``inf``: immovable / flat) between ``mat1`` and ``mat2`` (``None``:
+    rigid); 0 when the contact is infinitely hard (see :func:`contact_time`)."""
     c = _compliance(mat1) + _compliance(mat2)  # 1/E*
     if math.isinf(m) or math.isinf(R) or c == 0.0:
-        return TAU_MIN_S
-    if v == 0.0:
-        return TAU_MAX_S
+        return 0.0
     E = 1.0 / c
-    tau = 2.87 * (m * m / (R * E * E * v)) ** 0.2
-    return float(min(max(tau, TAU_MIN_S), TAU_MAX_S))
+    return 2.87 * (m * m / (R * E * E)) ** 0.2
+
+
+def contact_time(coef, v) -> float:
+    """``coef |v|^(-1/5)`` clamped to [``TAU_MIN_S``, ``TAU_MAX_S``] [s]; ``coef == 0``
+    (infinitely hard) gives ``TAU_MIN_S``, ``v == 0`` ``TAU_MAX_S``."""
+    v = abs(v)
+    if coef == 0.0:
+        return TAU_MIN_S
+    if not v > 0:
+        return TAU_MAX_S
+    return float(min(max(coef * v**-0.2, TAU_MIN_S), TAU_MAX_S))
 
 
 def half_sine_spectrum(omega, tau) -> np.ndarray:
@@ -126,19 +141,27 @@ def half_sine_spectrum(omega, tau) -> np.ndarray:
     ``S = pi^2 expm1(-j u) / (2 u (2 pi + u))``, which is accurate for small ``u`` and tends
     to ``-j pi / 4``.
     """
-    x = np.asarray(omega, dtype=np.float64) * np.asarray(tau, dtype=np.float64)
-    x = np.asarray(x, dtype=np.float64)
+    x = np.asarray(np.asarray(omega, dtype=np.float64) * np.asarray(tau, dtype=np.float64))
+    return _half_sine_many(x.ravel()).reshape(x.shape)[()]
+
+
+@njit(cache=True)
+def half_sine(x):
+    """:func:`half_sine_spectrum` at one ``x = w tau`` (numba: the synthesizer's kernels call it)."""
     u = x - np.pi
-    near = np.abs(u) < 0.25
-    if not near.any():
+    if abs(u) >= 0.25:
         return (1.0 + np.exp(-1j * x)) / (2.0 * (1.0 - (x / np.pi) ** 2))
-    out = np.empty(x.shape, dtype=np.complex128)
-    far = ~near
-    xf = x[far]
-    out[far] = (1.0 + np.exp(-1j * xf)) / (2.0 * (1.0 - (xf / np.pi) ** 2))
-    un = u[near]
-    zero = un == 0.0
-    safe = np.where(zero, 1.0, un)
-    val = np.pi**2 * np.expm1(-1j * safe) / (2.0 * safe * (2.0 * np.pi + safe))
-    out[near] = np.where(zero, -1j * np.pi / 4.0, val)
+    if u == 0.0:
+        return -1j * np.pi / 4.0
+    # expm1(-j u) without cancellation: cos(u) - 1 = -2 sin^2(u / 2)
+    s = np.sin(0.5 * u)
+    em1 = -2.0 * s * s - 1j * np.sin(u)
+    return np.pi**2 * em1 / (2.0 * u * (2.0 * np.pi + u))
+
+
+@njit(cache=True)
+def _half_sine_many(x):
+    out = np.empty(x.shape[0], np.complex128)
+    for i in range(x.shape[0]):
+        out[i] = half_sine(x[i])
     return out

@@ -51,7 +51,7 @@ import numpy as np
 
 from ..modal.model import ModalModel
 from . import kernels
-from .pulse import TAU_MAX_S, TAU_MIN_S, effective, half_sine_spectrum
+from .pulse import contact_time, effective, hertz_coefficient
 
 __all__ = ["Synthesizer", "GRID", "D_MIN_PER_S", "R_MIN_M", "TIME_TOLERANCE_S"]
 
@@ -354,15 +354,10 @@ class Synthesizer:
         ob.rng = None  # noise generator, created on first use from (seed, index)
         ob.filter_state = {}  # kind -> (next source sample, last output)
         ob.voices = [_Voice(len(keep)) for _ in range(self.n_channels)]
-        ob.busy = False  # has ringing modes, pending events or sources
-        n = len(keep)
-        ob.empty = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, n)), np.zeros((0, n)),
-                    np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, n), dt), np.zeros((0, n), dt))
         ob.mass = float(model.mass_kg) if np.isfinite(model.mass_kg) and model.mass_kg > 0 else np.inf
         # hot-path caches: kept shapes (p, 3, n) float64, surface points for the nearest lookup
         ob.shk = np.ascontiguousarray(model.shapes[:, :, keep], dtype=np.float64)
         ob.pts = np.ascontiguousarray(model.points, dtype=np.float64)
-        ob.gain = ob.weights  # per-mode pressure at 1 m per unit modal coordinate
         self._objects[name] = ob
         self._dirty = True
 
@@ -405,14 +400,6 @@ class Synthesizer:
     def _distances(self, ob):
         r = np.linalg.norm(self._mics - ob.pos[None, :], axis=1)
         return np.maximum(r, R_MIN_M)
-
-    def _arrival(self, t, r):
-        """(sample index, sub-sample offset dt = n/fs - t_a >= ~0) for arrival times t + r/c."""
-        fs = self.sample_rate
-        ta = np.asarray(t, dtype=np.float64) + r / self.speed_of_sound
-        n = np.ceil(ta * fs - _SAMPLE_TOL).astype(np.int64)
-        n = np.maximum(n, self.samples_rendered)
-        return n, n / fs - ta
 
     # ------------------------------------------------------------------ excitation
     def impact(self, name, point, impulse, time, *, pulse_s=None, other_material=None, other_mass_kg=np.inf,
@@ -497,32 +484,16 @@ class Synthesizer:
         self._impacts_trusted(ob, P, J, t, tau)
 
     def _hertz_coef(self, ob, other_material, m2, R2, radius_m):
-        """``(coef, e)``: Hertz contact time ``tau = coef * v^(-1/5)`` [s] of ``ob`` against
-        the other body (``coef = 0``: rigid and infinite, i.e. ``TAU_MIN_S``) and the
-        restitution of the pair (see :mod:`.pulse`)."""
+        """``(coef, e)``: :func:`.pulse.hertz_coefficient` of ``ob`` against the other body
+        (mass ``m2``, radius ``R2``; ``radius_m`` None: half the object's size) and the
+        restitution of the pair."""
         mat1 = ob.model.material
-        mat2 = other_material
-        mstar = effective(ob.mass, m2)
         if radius_m is None:
             R1 = ob.model.size_m / 2 if ob.model.size_m > 0 else np.inf
         else:
             R1 = float(radius_m)
-        Rstar = effective(R1, R2)
-        e = mat1.restitution if mat2 is None else min(mat1.restitution, mat2.restitution)
-        if math.isinf(mstar) or math.isinf(Rstar):
-            return 0.0, e
-        comp = (1 - mat1.nu**2) / mat1.E + (0.0 if mat2 is None else (1 - mat2.nu**2) / mat2.E)
-        Estar = 1.0 / comp
-        return 2.87 * (mstar**2 / (Rstar * Estar**2)) ** 0.2, e
-
-    @staticmethod
-    def _tau_of(coef, v) -> float:
-        """Contact time [s] from :meth:`_hertz_coef`'s ``coef`` at approach speed ``v``."""
-        if coef == 0.0:
-            return TAU_MIN_S
-        if not v > 0:
-            return TAU_MAX_S
-        return min(max(coef * v**-0.2, TAU_MIN_S), TAU_MAX_S)
+        e = mat1.restitution if other_material is None else min(mat1.restitution, other_material.restitution)
+        return hertz_coefficient(effective(ob.mass, m2), effective(R1, R2), mat1, other_material), e
 
     def _hertz_tau(self, ob, J, other_material, m2, R2, v, radius_m):
         """Hertz contact time per impact (see :mod:`.pulse`); ``v`` None: from |J| / (m*(1+e))."""
@@ -530,7 +501,7 @@ class Synthesizer:
         if v is None:
             mstar = effective(ob.mass, m2)
             v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e)) if not math.isinf(mstar) else np.zeros(len(J))
-        return np.array([self._tau_of(coef, vi) for vi in np.asarray(v, np.float64).reshape(-1).tolist()])
+        return np.array([contact_time(coef, vi) for vi in np.asarray(v, np.float64).reshape(-1).tolist()])
 
     def _impacts_trusted(self, ob, P, J, t, tau):
         """Internal fast path of :meth:`impacts`: finite (k, 3) world ``P``, ``J``, (k,) times
@@ -671,8 +642,9 @@ class Synthesizer:
         self._st_dmax = 0  # largest stream delay seen [samples] (the ring must hold it)
         self._st = None
         self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
-        #: optional ``on_regain(obj)`` called before a stream's gains are computed (a driver
-        #: updates the object's pose there)
+        #: optional ``on_regain(objects)`` called once before stream gains are computed, with
+        #: the objects whose streams are due (a driver updates their poses and the
+        #: microphones there)
         self.on_regain = getattr(self, "on_regain", None)
 
     def _streams_alloc(self, cap, nmax, ring):
@@ -749,8 +721,8 @@ class Synthesizer:
             kernels.stream_drive(*args, st["SF"], st["SI"], st["D"], st["ring"])
 
     def _streams_regain(self, n) -> None:
-        """Gains of the streams marked due (from their last point and normal, the object's
-        pose after ``on_regain``), then make sure the ring holds a block plus the delays."""
+        """Gains of the streams marked due (from their last point and normal, the objects'
+        poses and the microphones after ``on_regain``), then make sure the ring holds a block plus the delays."""
         st = self._st
         SI, SF = st["SI"], st["SF"]
         due = SI[: self._st_n, kernels.SI_DUE]
@@ -759,14 +731,12 @@ class Synthesizer:
             SI[js, kernels.SI_DUE] = 0
             g = self._gain_data
             pos_all, R_all = g["pos"], g["R"]
-            for oi in set(SI[js, kernels.SI_OBJ].tolist()):
-                ob = self._by_index.get(oi)
-                if ob is None:
-                    continue
-                if self.on_regain is not None:
-                    self.on_regain(ob)
-                pos_all[oi] = ob.pos
-                R_all[oi] = ob.R
+            obs = [self._by_index[oi] for oi in set(SI[js, kernels.SI_OBJ].tolist()) if oi in self._by_index]
+            if self.on_regain is not None:
+                self.on_regain(obs)
+            for ob in obs:
+                pos_all[ob.index] = ob.pos
+                R_all[ob.index] = ob.R
             dmax = kernels.streams_gains(js, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
                                          g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"], pos_all,
                                          R_all, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
@@ -866,7 +836,6 @@ class Synthesizer:
         self._vb_arr = vb_arr
         self._ev_ptr0 = np.zeros(M + 1, np.int64)
         self._ev_none = np.zeros(0, np.int64)
-        self._voices = np.arange(nv + 1)
         self._nmax = max([len(ob.keep) for ob in obs], default=0)
         self._empty_ev = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, self._nmax)),
                           np.zeros((0, self._nmax)))
