@@ -41,6 +41,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .node_mass import mass_rows
+
 __all__ = ["solve_band", "factorize", "count_below", "BandSolution", "backend_name"]
 
 
@@ -493,7 +495,8 @@ def _block_size(n_target: int) -> int:
 _LAST = {}
 
 
-def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None):
+def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
+                lam_lo=None, n_lo=0):
     """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
 
     Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
@@ -508,10 +511,24 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
     Ritz values of the largest ``mu`` never exceed the true ones (Cauchy interlacing), so
     at most ``n_target`` Ritz values can lie below ``lam_max``; the solve stops when exactly
     ``n_target`` do and all have ``||T y - mu y||_M <= tol mu``: every eigenvalue below
-    ``lam_max`` is then found exactly once (Sylvester). ``solve`` takes blocks (n, b).
+    ``lam_max`` is then found exactly once (Sylvester). ``solve`` takes blocks (n, b);
+    ``apply_M(X) = (M X^T)^T`` for rows ``X`` (default :func:`.node_mass.mass_rows`).
     Returns ``(w, V)`` ascending, or None if the basis would outgrow ``max_dim``.
+
+    An interior shift (a window ``[lam_lo, lam_max)`` around ``sigma``): ``n_target``
+    eigenvalues in ``[sigma, lam_max)`` are the largest ``mu = 1/(lambda - sigma) >
+    1/(lam_max - sigma)`` and the ``n_lo`` in ``[lam_lo, sigma)`` the most negative,
+    ``mu <= -1/(sigma - lam_lo)``. Interlacing bounds the Ritz values at both ends of the
+    spectrum of ``T`` by the true ones, so the same stop rule holds on each side: exactly
+    ``n_target`` Ritz values above the upper cut and ``n_lo`` below the lower one, all
+    converged.
     """
     n = K.shape[0]
+    n_hi = n_target
+    n_target = n_hi + n_lo
+    mu_lo_cut = -1.0 / (sigma - lam_lo) if n_lo else -np.inf
+    if apply_M is None:
+        apply_M = mass_rows(M)
     if tol is None:
         tol = BLOCK_TOL
     b = _block_size(n_target)
@@ -533,7 +550,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         return X.T @ F, X.T @ MF, np.sqrt(g[keep])[:, None] * U[:, keep].T
 
     W = rng.standard_normal((b, n))
-    W, MW, _ = orthonormal(W, np.ascontiguousarray((M @ W.T).T))
+    W, MW, _ = orthonormal(W, apply_M(W))
     d = 0
     b_prev = 0
     while True:
@@ -561,7 +578,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         C2[dl:d] += C
         Hjj = C2[d0:d]
         H[d0:d, d0:d] = 0.5 * (Hjj + Hjj.T)
-        MF = np.ascontiguousarray((M @ F.T).T)
+        MF = apply_M(F)
         W, MW, R = orthonormal(F, MF)
         b_prev = bb
         # F is what is left of T W after removing Q: when that is a tiny part of T W
@@ -586,24 +603,31 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
                 Z -= (Z @ MQ[:d].T) @ Q[:d]
                 if W.shape[0]:
                     Z -= (Z @ MW.T) @ W
-            Z, MZ, _ = orthonormal(Z, np.ascontiguousarray((M @ Z.T).T))
+            Z, MZ, _ = orthonormal(Z, apply_M(Z))
             W, MW = np.vstack([W, Z]), np.vstack([MW, MZ])
         if d < 2 * n_target:  # no basis this small held all of them (bowl 3.1 n, beam 2.4 n)
             continue
-        mu, S = sla.eigh(H[:d, :d], subset_by_value=(mu_cut, np.inf), driver="evr")
-        if len(mu) == n_target:
+        if n_lo:
+            mu, S = sla.eigh(H[:d, :d], driver="evr")
+            hi, lo = mu > mu_cut, mu <= mu_lo_cut
+            ok = hi.sum() == n_hi and lo.sum() == n_lo
+            mu, S = mu[hi | lo], S[:, hi | lo]
+        else:
+            mu, S = sla.eigh(H[:d, :d], subset_by_value=(mu_cut, np.inf), driver="evr")
+            ok = len(mu) == n_target
+        if ok:
             est = np.linalg.norm(R @ S[d0:d], axis=0)
-            if np.all(est <= tol * mu):
+            if np.all(est <= tol * np.abs(mu)):
                 _LAST["dim"] = d
-                V = (S.T @ Q[:d]).T
+                Y = S.T @ Q[:d]  # Ritz vectors as rows
                 # Eigenvalues as Rayleigh quotients of the vectors (error ~ residual^2): the
                 # Ritz values sigma + 1/mu carry rounding of order eps * mu_max / mu, and
                 # mu_max (rigid modes, 1/|sigma|) is ~1e6 x the mu at the top of the band:
                 # 1e-6 relative errors there, where the quotients agree to 1e-10.
-                mass = np.einsum("ij,ij->j", V, M @ V)
-                lam = np.einsum("ij,ij->j", V, K @ V) / mass
+                mass = np.einsum("ij,ij->i", Y, apply_M(Y))
+                lam = np.einsum("ij,ji->i", Y, K @ Y.T) / mass
                 order = np.argsort(lam)
-                return lam[order], V[:, order] / np.sqrt(mass[order])  # mass-normalised
+                return lam[order], (Y[order] / np.sqrt(mass[order])[:, None]).T  # mass-normalised
         if d + W.shape[0] > max_dim:
             return None
 

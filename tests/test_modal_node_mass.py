@@ -1,0 +1,50 @@
+"""The eigensolver's fast mass product (mjsound.modal.node_mass)."""
+
+import numpy as np
+import scipy.sparse as sp
+
+from mjsound.modal import analyze as A
+from mjsound.modal.node_mass import mass_rows, node_mass
+
+
+def _hex(order=2):
+    tm = A.load_mesh("box:0.1,0.04,0.02")
+    mat = A.parse_material("aluminium")
+    h = A.element_size(tm, mat, 20000.0, "default", 4, order=order)
+    pts, _ = A.surface_samples(tm, 32)
+    return A._discretize("hex", tm, mat, h, pts, "default", None, order, None)
+
+
+def test_hex_mass_is_node_mass_times_identity():
+    for order in (1, 2):
+        d = _hex(order)
+        m = node_mass(d.M)
+        assert m is not None and m.shape[0] * 3 == d.dofs
+        assert abs(sp.kron(m, sp.identity(3)) - d.M).max() == 0.0
+
+
+def test_mass_rows_equals_sparse_product():
+    d = _hex()
+    rng = np.random.default_rng(0)
+    apply = mass_rows(d.M)
+    for b in (1, 5, 12):
+        X = rng.standard_normal((b, d.dofs))
+        ref = (d.M @ X.T).T
+        assert np.max(np.abs(apply(X) - ref)) <= 1e-12 * np.max(np.abs(ref))
+    x = rng.standard_normal(d.dofs)
+    assert np.allclose(apply(x), d.M @ x, rtol=0, atol=1e-12 * np.abs(d.M @ x).max())
+
+
+def test_general_mass_falls_back_to_the_sparse_product():
+    rng = np.random.default_rng(1)
+    n = 30
+    B = sp.random(n, n, density=0.2, random_state=2)
+    M = (B @ B.T + sp.identity(n)).tocsr()  # couples x and y dofs: no node structure
+    assert node_mass(M) is None
+    m = sp.diags(np.arange(1.0, 11.0)).tocsr()
+    M2 = sp.kron(m, sp.identity(3), format="csr").tolil()
+    M2[0, 4] = M2[4, 0] = 1e-3  # one off-axis coupling
+    assert node_mass(M2.tocsr()) is None
+    assert node_mass(sp.identity(7)) is None  # not 3 dofs per node
+    X = rng.standard_normal((4, n))
+    assert np.allclose(mass_rows(M)(X), (M @ X.T).T, rtol=1e-14, atol=0)
