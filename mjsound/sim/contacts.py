@@ -669,6 +669,7 @@ class ContactReader:
         self._plane = np.asarray(model.geom_type) == T.mjGEOM_PLANE
         self._pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
         self._jacp = np.zeros((3, model.nv))
+        self._views_of = None  # MjData whose fixed-size views (cvel, subtree_com, geom_xpos) are cached
         self._warned = set()
         self.impacts: list[ImpactRecord] = []
         self.reset()
@@ -864,8 +865,14 @@ class ContactReader:
         if n:
             self._room(n)
             con = data.contact
+            if data is not self._views_of:
+                # fixed-size MjData arrays: their numpy views stay valid (only contacts and
+                # constraints change size), so they are made once per MjData
+                self._views = (data.cvel, data.subtree_com, data.geom_xpos)
+                self._views_of = data
+            cvel, scom, gxpos = self._views
             args = (con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
-                    data.cvel, data.subtree_com, data.geom_xpos, self.geom_body, self.body_root, self._plane,
+                    cvel, scom, gxpos, self.geom_body, self.body_root, self._plane,
                     self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
                     self._params)
             if drive is None:

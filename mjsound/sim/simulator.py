@@ -170,6 +170,7 @@ class AudioSimulator:
                 model = mujoco.MjModel.from_xml_path(os.fspath(model))
         self.model = model
         self.data = data if data is not None else mujoco.MjData(model)
+        self._opt = model.opt  # (a view into the model: timestep changes show through it)
         if scene is None:
             scene = SoundScene.from_model(
                 model,
@@ -231,6 +232,8 @@ class AudioSimulator:
                     self._dyn_geom[ob.index] = g
                 if len(ob.keep):
                     self._geom_obj[g] = ob.index
+        self._dyn_idx = np.array(sorted(self._dyn_geom), np.int64)  # moving objects, and their geoms
+        self._dyn_geoms = np.array([self._dyn_geom[i] for i in self._dyn_idx.tolist()], np.int64)
         self._follow = None
         self._tau_coef = {}  # (struck geom, other geom) -> Hertz coefficient (Synthesizer._hertz_coef)
         self.reset(clear_reader=True)
@@ -306,9 +309,22 @@ class AudioSimulator:
             Sound pressure at each microphone [Pa] for the samples ``t_k <= n/fs < t_{k+1}``
             (with ``render=True``: the samples of earlier unrendered steps come first).
         """
-        self._sync_clock()
-        n0, n1 = self.clock.advance()
-        return self._process(n0, n1, render=render)
+        # (the per-physics-step path: kept flat, it runs ~10^4 times per simulated second)
+        c = self.clock
+        dt = c.timestep
+        if self._opt.timestep != dt or abs(self.data.time - (c.t_start + (c.k + 1) * dt)) > 0.25 * dt:
+            self._sync_clock()
+        n0 = c.n
+        c.k += 1
+        n1 = c.n = c.sample_at(c.k)
+        if self._pending == 0:
+            self._pending_n0 = n0
+        self._pending += n1 - n0
+        self.steps += 1
+        self.samples += n1 - n0
+        if self.synth is not None and not self.reader.step_if_quiet(self.data):
+            self._queue(n0, n1)
+        return self._render_pending() if render else None
 
     def flush(self) -> np.ndarray:
         """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
@@ -320,7 +336,10 @@ class AudioSimulator:
         if self._pending == 0:
             self._pending_n0 = n0
         self._pending += n1 - n0
-        self._queue(n0, n1, t0, t1)
+        self.steps += 1
+        self.samples += n1 - n0
+        if self.synth is not None and not self.reader.step_if_quiet(self.data):
+            self._queue(n0, n1, t0, t1)
         return self._render_pending() if render else None
 
     def _render_pending(self) -> np.ndarray:
@@ -353,33 +372,30 @@ class AudioSimulator:
         if math.isfinite(float(mics.sum())) and mics.shape == self.synth._mics.shape:
             self.synth._mics = mics  # (Synthesizer.set_microphones without its checks: same channels, finite)
 
-    def _before_regain(self, objects) -> None:
+    def _before_regain(self) -> None:
         """``Synthesizer.on_regain``: poses and microphones as they are now."""
         self._update_mics()
-        for ob in objects:
-            self._pose_object(ob)
+        self._pose_moving()
 
-    def _pose_object(self, ob) -> None:
-        """Pose of synth object ``ob`` from its geom (moving geoms only)."""
-        g = self._dyn_geom.get(ob.index)
-        if g is None:
+    def _pose_moving(self) -> None:
+        """Every moving sounding object to its geom's current pose, in one array operation
+        (an exploding simulation's non-finite poses are skipped: those objects keep the last)."""
+        if not len(self._dyn_idx):
             return
+        g = self._dyn_geoms
         p = self.data.geom_xpos[g]
         R = self.data.geom_xmat[g]
-        if math.isfinite(float(p.sum()) + float(R.sum())):  # an exploding simulation keeps the last pose
-            ob.pos = p.copy()
-            ob.R = R.reshape(3, 3).copy()
+        idx = self._dyn_idx
+        if not math.isfinite(float(p.sum()) + float(R.sum())):
+            ok = np.isfinite(p).all(axis=1) & np.isfinite(R).all(axis=1)
+            idx, p, R = idx[ok], p[ok], R[ok]
+        self.synth._set_poses_trusted(idx, p, R)
 
     def _queue(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> None:
-        """Read the step's contacts and queue its impacts and sustained drives."""
-        self.steps += 1
+        """Read the step's contacts (something touches, or an impact is open) and queue its
+        impacts and sustained drives (sounding scenes only)."""
         nblock = n1 - n0
-        self.samples += nblock
-        if self.synth is None:
-            return  # nothing sounds: no contact work at all
         reader = self.reader
-        if reader.step_if_quiet(self.data):
-            return
         if t0 is None:
             c = self.clock
             t0 = c.time_at(c.k - 1)
@@ -412,48 +428,47 @@ class AudioSimulator:
 
     def _queue_impacts(self, imp, t0, n0) -> None:
         """Queue the step's impacts (rows of :meth:`ContactReader.events_fast`, columns ``I_*``):
-        each struck sounding geom gets one synthesizer call with all its points, impulses and
-        Hertz pulse lengths (per struck/other pair, cached)."""
+        every sounding side of every row in one synthesizer call, with its Hertz pulse length
+        (coefficient cached per struck/other geom pair)."""
         synth = self.synth
         fs = self.sample_rate
         # synth time of the step start (never before what the synthesizer has rendered)
         t_ev = max(t0 - self._origin / fs, (n0 - self._origin) / fs)
-        names = self._names
-        objs = synth._objects
         self._update_mics()
+        self._pose_moving()
         rows = imp.tolist()
         self.events["impact"] += len(rows)
         log = self.event_log
-        groups = {}
+        geom_obj = self._geom_obj
+        obj, P, J, tau = [], [], [], []
         for r in rows:
             g1, g2 = int(r[I_G1]), int(r[I_G2])
             if len(log) < self.keep_events:
                 log.append((t0, "impact", g1, g2, r[I_IMPULSE]))
             for g, other, sign in ((g2, g1, 1.0), (g1, g2, -1.0)):
-                if self._geom_obj[g] >= 0:
-                    groups.setdefault(g, []).append((r, other, sign))
-        for g, items in groups.items():
-            ob = objs[names[g]]
-            self._pose_object(ob)
-            k = len(items)
-            P = np.empty((k, 3))
-            J = np.empty((k, 3))
-            tau = np.empty(k)
-            for i, (r, other, sign) in enumerate(items):
-                P[i] = r[I_POINT:I_POINT + 3]
-                a = sign * r[I_IMPULSE]
-                J[i, 0] = a * r[I_NORMAL]
-                J[i, 1] = a * r[I_NORMAL + 1]
-                J[i, 2] = a * r[I_NORMAL + 2]
+                oi = geom_obj[g]
+                if oi < 0:
+                    continue
                 coef = self._tau_coef.get((g, other))
                 if coef is None:
-                    coef = synth._hertz_coef(ob, self.scene.geom_material[other], float(self._other_mass[other]),
-                                             float(self._radius[other]),
-                                             float(self._radius[g]) if np.isfinite(self._radius[g]) else None)[0]
-                    self._tau_coef[(g, other)] = coef
-                tau[i] = contact_time(coef, r[I_SPEED])
-            if np.isfinite(P).all() and np.isfinite(J).all():
-                synth._impacts_trusted(ob, P, J, np.full(k, t_ev), tau)
+                    coef = self._hertz_coef(g, other)
+                a = sign * r[I_IMPULSE]
+                obj.append(oi)
+                P.append(r[I_POINT:I_POINT + 3])
+                J.append((a * r[I_NORMAL], a * r[I_NORMAL + 1], a * r[I_NORMAL + 2]))
+                tau.append(contact_time(coef, r[I_SPEED]))
+        if obj:
+            k = len(obj)
+            synth._impact_rows(np.array(obj, np.int64), np.array(P), np.array(J), np.full(k, t_ev), np.array(tau))
+
+    def _hertz_coef(self, g, other) -> float:
+        """Hertz coefficient of sounding geom ``g`` struck by geom ``other`` (cached)."""
+        synth = self.synth
+        ob = synth._objects[self._names[g]]
+        coef = synth._hertz_coef(ob, self.scene.geom_material[other], float(self._other_mass[other]),
+                                 float(self._radius[other]), float(self._radius[g]) if np.isfinite(self._radius[g]) else None)[0]
+        self._tau_coef[(g, other)] = coef
+        return coef
 
     def _reset_sidx(self) -> None:
         """The synthesizer forgot its streams (reset, microphones changed): forget their indices."""

@@ -557,57 +557,84 @@ def streams_block(SF, SI, D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
 
 
 @njit(cache=True)
-def impact_amplitudes(pts, shk, pos, R, P, J, t, tau, wd, weights, lam, logeps, mics, c, fs, rmin, tol,
-                      rendered, grid):
-    """Modal amplitudes of ``k`` impacts on one object at every microphone (the numerics of
-    ``Synthesizer._impacts_trusted``).
+def impacts_to_queue(obj, P, J, t, tau, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all, lam_all,
+                     leps_all, pos_all, R_all, mics, c, fs, rmin, tol, rendered, grid,
+                     QI, qkind, qre, qim, count, used):
+    """Modal amplitudes of ``k`` impacts at every microphone, appended to an
+    :class:`~mjsound.synth.queue.EventQueue`'s arrays (``QI``, ``qkind``, ``qre``, ``qim``
+    from row ``count`` and pool offset ``used``; the caller reserved room).
 
-    ``P``, ``J`` (k, 3) world points [m] and impulses [N s], ``t`` (k,) synth times [s],
-    ``tau`` (k,) pulse lengths [s]. Returns ``(na, a, amax)``: arrival samples (M k,) and
-    complex amplitudes (M k, n) in the row order mic-major (row ``m k + i``), and the largest
-    ``|a|``. ``a = phi(x).J / w_d * S(w_d tau) * w / r * e^{lam dt} * eps^{-(na % grid)}``.
+    Impact ``i`` strikes object ``obj[i]`` (flat per-object data as in :func:`streams_gains`;
+    complex poles ``lam_all`` and pole-rounding logs ``leps_all``) at world point ``P[i]``
+    with impulse ``J[i]`` [N s] at synth time ``t[i]`` [s], Hertz pulse length ``tau[i]`` [s].
+    For each microphone at distance ``r`` it queues, at the arrival sample
+    ``na = ceil((t + r / c) fs)``, the amplitudes
+    ``a = phi(x).J / w_d * S(w_d tau) * w / r * e^{lam dt} * eps^{-(na % grid)}``
+    (``phi(x)``: the shapes at the surface point nearest ``x``; ``dt = na / fs - t - r / c``).
+    Rows are microphone-major per impact. Impacts on objects without modes or points, or
+    with non-finite input, are skipped. Returns ``(count, used, next sample, max |a|)``.
     """
     k = P.shape[0]
-    n = wd.shape[0]
     M = mics.shape[0]
-    c_mode = np.empty((k, n), np.complex128)
+    amax = 0.0
+    nxt = np.int64(2**62)
+    pl = np.zeros(3)
+    jl = np.zeros(3)
     for i in range(k):
-        pl = np.zeros(3)
-        jl = np.zeros(3)
+        o = obj[i]
+        p0, p1 = pts_off[o], pts_off[o + 1]
+        m0, m1 = mode_off[o], mode_off[o + 1]
+        n = m1 - m0
+        if n <= 0 or p1 <= p0:
+            continue
+        if not (np.isfinite(P[i, 0] + P[i, 1] + P[i, 2] + J[i, 0] + J[i, 1] + J[i, 2]) and np.isfinite(tau[i])):
+            continue
+        shk = shk_all[shk_off[o]:shk_off[o + 1]].reshape((p1 - p0, 3, n))
+        pos = pos_all[o]
+        R = R_all[o]
+        for b in range(3):
+            pl[b] = 0.0
+            jl[b] = 0.0
         for a in range(3):
             for b in range(3):
                 pl[b] += (P[i, a] - pos[a]) * R[a, b]
                 jl[b] += J[i, a] * R[a, b]
-        bi = _nearest_one(pts, pl[0], pl[1], pl[2])
+        bi = _nearest_one(pts_all[p0:p1], pl[0], pl[1], pl[2])
+        cm = np.empty(n, np.complex128)
         for m in range(n):
             G = shk[bi, 0, m] * jl[0] + shk[bi, 1, m] * jl[1] + shk[bi, 2, m] * jl[2]
-            c_mode[i, m] = G / wd[m] * half_sine(wd[m] * tau[i])
-    na = np.empty(M * k, np.int64)
-    out = np.empty((M * k, n), np.complex128)
-    amax = 0.0
-    for mi in range(M):
-        dx = mics[mi, 0] - pos[0]
-        dy = mics[mi, 1] - pos[1]
-        dz = mics[mi, 2] - pos[2]
-        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-        if r < rmin:
-            r = rmin
-        for i in range(k):
+            cm[m] = G / wd_all[m0 + m] * half_sine(wd_all[m0 + m] * tau[i])
+        for mi in range(M):
+            dx = mics[mi, 0] - pos[0]
+            dy = mics[mi, 1] - pos[1]
+            dz = mics[mi, 2] - pos[2]
+            r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if r < rmin:
+                r = rmin
             ta = t[i] + r / c
             nn = np.int64(np.ceil(ta * fs - tol))
             if nn < rendered:
                 nn = rendered
-            row = mi * k + i
-            na[row] = nn
             dts = nn / fs - ta
             g = nn % grid
+            QI[0, count] = o
+            QI[1, count] = mi
+            QI[2, count] = nn
+            QI[3, count] = used
+            QI[4, count] = n
+            qkind[count] = 0
             for m in range(n):
-                v = c_mode[i, m] * (weights[m] / r) * np.exp(lam[m] * dts - g * logeps[m])
-                out[row, m] = v
+                v = cm[m] * (w_all[m0 + m] / r) * np.exp(lam_all[m0 + m] * dts - g * leps_all[m0 + m])
+                qre[used + m] = v.real
+                qim[used + m] = v.imag
                 av = abs(v)
                 if not (av <= amax):  # NaN propagates into amax
                     amax = av
-    return na, out, amax
+            if nn < nxt:
+                nxt = nn
+            used += n
+            count += 1
+    return count, used, nxt, amax
 
 
 @njit(cache=True)

@@ -52,6 +52,7 @@ import numpy as np
 from ..modal.model import ModalModel
 from . import kernels
 from .pulse import contact_time, effective, hertz_coefficient
+from .queue import EventQueue
 
 __all__ = ["Synthesizer", "GRID", "D_MIN_PER_S", "R_MIN_M", "TIME_TOLERANCE_S"]
 
@@ -104,8 +105,43 @@ class _Voice:
         self.active = np.zeros(n, dtype=np.bool_)
 
 
+class _PoseTable:
+    """World poses of all objects, row = object index: a driver sets every moving object's
+    pose in one array operation (:meth:`Synthesizer._set_poses_trusted`) and the numba
+    kernels read them from here."""
+
+    def __init__(self, cap: int = 8):
+        self.pos = np.zeros((cap, 3))
+        self.R = np.tile(np.eye(3), (cap, 1, 1))
+
+    def ensure(self, n: int) -> None:
+        cap = len(self.pos)
+        if n > cap:
+            k = max(n, 2 * cap)
+            pos, R = np.zeros((k, 3)), np.tile(np.eye(3), (k, 1, 1))
+            pos[:cap], R[:cap] = self.pos, self.R
+            self.pos, self.R = pos, R
+
+
 class _Object:
-    pass
+    """One object's modal data; its pose (``pos`` (3,) [m], ``R`` (3, 3) body-to-world) is
+    row ``index`` of the synthesizer's :class:`_PoseTable` (views: they change with it)."""
+
+    @property
+    def pos(self) -> np.ndarray:
+        return self.poses.pos[self.index]
+
+    @pos.setter
+    def pos(self, p) -> None:
+        self.poses.pos[self.index] = p
+
+    @property
+    def R(self) -> np.ndarray:
+        return self.poses.R[self.index]
+
+    @R.setter
+    def R(self, R) -> None:
+        self.poses.R[self.index] = R
 
 
 class Synthesizer:
@@ -192,10 +228,9 @@ class Synthesizer:
         self.f_max = f_max
         self._objects: dict[str, _Object] = {}
         self._next_index = 0
-        # pending events, one chunk per call: (object index, mic (k,), sample (k,), kind int8 (k,),
-        # amps complex (k, n_modes)); forcing sources: (object index, mic, a, b, g (n,), f (b - a,))
-        self._ev = []
-        self._ev_next = 2**62  # earliest pending event sample (nothing to split before it)
+        self._poses = _PoseTable()
+        # pending events (.queue); forcing sources: (object index, mic, a, b, g (n,), f (b - a,))
+        self._ev = EventQueue()
         self._src = []
         self._dirty = True  # voice layout must be rebuilt before rendering
         self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
@@ -253,12 +288,7 @@ class Synthesizer:
             ob.voices = ob.voices[: len(p)] + [_Voice(n) for _ in range(max(0, len(p) - old))]
         if len(p) != old:
             nch = len(p)
-            ev = []
-            for obi, mic, na, kd, amp in self._ev:
-                keep = mic < nch
-                if keep.any():
-                    ev.append((obi, mic[keep], na[keep], kd[keep], amp[keep]))
-            self._ev = ev
+            self._ev.drop_mics(nch)
             self._src = [s for s in self._src if s[1] < nch]
             self._streams_clear()
             self._dirty = True
@@ -309,6 +339,8 @@ class Synthesizer:
         ob.keep = keep
         ob.index = self._next_index
         self._next_index += 1
+        ob.poses = self._poses
+        self._poses.ensure(self._next_index)
         ob.pos, ob.R = pos, R
         d = d[keep]
         wd = np.sqrt(w0[keep] ** 2 - d**2)
@@ -365,7 +397,7 @@ class Synthesizer:
         """Remove an object (its ringing stops at once)."""
         ob = self._get(name)
         del self._objects[name]
-        self._ev = [c for c in self._ev if c[0] != ob.index]
+        self._ev.drop_object(ob.index)
         self._src = [c for c in self._src if c[0] != ob.index]
         if self._st_n:
             SI = self._st["SI"][: self._st_n]
@@ -506,23 +538,41 @@ class Synthesizer:
     def _impacts_trusted(self, ob, P, J, t, tau):
         """Internal fast path of :meth:`impacts`: finite (k, 3) world ``P``, ``J``, (k,) times
         already >= :attr:`time` and pulse lengths ``tau``. State is unchanged on error."""
-        k = len(P)
-        name = ob.name
+        self._impact_rows(np.full(len(P), ob.index, np.int64), P, J, t, tau)
+
+    def _impact_rows(self, obj, P, J, t, tau) -> None:
+        """Impacts on several objects in one numba call (the per-step driver's path): impact
+        ``i`` strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at
+        synth time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s] (rows with
+        non-finite values are skipped). State is unchanged on error."""
+        if self._dirty:
+            self._rebuild()
         M = self.n_channels
-        na, a, amax = kernels.impact_amplitudes(
-            ob.pts, ob.shk, ob.pos, ob.R, np.ascontiguousarray(P, np.float64), np.ascontiguousarray(J, np.float64),
-            np.ascontiguousarray(t, np.float64), np.ascontiguousarray(tau, np.float64), ob.wd, ob.weights, ob.lam,
-            ob.logeps, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M, _SAMPLE_TOL,
-            self.samples_rendered, GRID)
-        if a.size and not (amax <= MAX_AMPLITUDE):  # also catches NaN
+        q = self._ev
+        q.reserve(M * len(obj), M * int(self._n_modes_of[obj].sum()))
+        g = self._gain_data
+        f64 = np.float64
+        count, used, nxt, amax = kernels.impacts_to_queue(
+            obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64), np.ascontiguousarray(t, f64),
+            np.ascontiguousarray(tau, f64), g["pts"], g["pts_off"], g["shk"], g["shk_off"], g["mode_off"], g["wd"],
+            g["w"], g["lam"], g["leps"], self._poses.pos, self._poses.R, self._mics, self.speed_of_sound,
+            float(self.sample_rate), R_MIN_M, _SAMPLE_TOL, self.samples_rendered, GRID,
+            q.I, q.kind, q.re, q.im, q.count, q.pool_used)
+        if not (amax <= MAX_AMPLITUDE):  # also catches NaN; the rows written past q.count are dropped
+            names = sorted({self._by_index[int(o)].name for o in obj.tolist() if int(o) in self._by_index})
             raise ValueError(
-                f"impulse on {name!r} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
+                f"impulse on {', '.join(map(repr, names))} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
                 "check the impulse units (N s) and magnitude"
             )
-        # ---- commit (nothing above mutated state)
-        mic = np.repeat(np.arange(M, dtype=np.int64), k)
-        self._ev.append((ob.index, mic, na, np.zeros(M * k, np.int8), a))
-        self._ev_next = min(self._ev_next, int(na.min()))
+        # ---- commit (nothing above mutated the queue's state)
+        q.count, q.pool_used = count, used
+        q.next_sample = min(q.next_sample, int(nxt))
+
+    def _set_poses_trusted(self, idx, pos, R) -> None:
+        """World poses of objects ``idx`` (k,) at once: ``pos`` (k, 3) [m], ``R`` (k, 9) or
+        (k, 3, 3) body-to-world (finite; no checks)."""
+        self._poses.pos[idx] = pos
+        self._poses.R[idx] = R.reshape(-1, 3, 3)
 
     @staticmethod
     def _nearest(ob, pl):
@@ -625,9 +675,8 @@ class Synthesizer:
         for m in range(M):
             a = int(na[m])
             self._src.append((ob.index, m, a, a + L, g[m], f))
-        self._ev.append((ob.index, np.arange(M, dtype=np.int64), na, np.ones(M, np.int8),
-                         (g != 0).astype(np.complex128)))
-        self._ev_next = min(self._ev_next, int(na.min()))
+        self._ev.push(ob.index, np.arange(M, dtype=np.int64), na, np.ones(M, np.int8),
+                      (g != 0).astype(np.complex128))
 
     # ------------------------------------------------------------------ persistent streams
     #: Ring buffer length of a stream [samples] (power of two; grows for long blocks/delays).
@@ -642,9 +691,8 @@ class Synthesizer:
         self._st_dmax = 0  # largest stream delay seen [samples] (the ring must hold it)
         self._st = None
         self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
-        #: optional ``on_regain(objects)`` called once before stream gains are computed, with
-        #: the objects whose streams are due (a driver updates their poses and the
-        #: microphones there)
+        #: optional ``on_regain()`` called once before the gains of due streams are computed
+        #: (a driver updates the poses and the microphones there)
         self.on_regain = getattr(self, "on_regain", None)
 
     def _streams_alloc(self, cap, nmax, ring):
@@ -729,18 +777,13 @@ class Synthesizer:
         if due.any():
             js = np.flatnonzero(due)
             SI[js, kernels.SI_DUE] = 0
-            g = self._gain_data
-            pos_all, R_all = g["pos"], g["R"]
-            obs = [self._by_index[oi] for oi in set(SI[js, kernels.SI_OBJ].tolist()) if oi in self._by_index]
             if self.on_regain is not None:
-                self.on_regain(obs)
-            for ob in obs:
-                pos_all[ob.index] = ob.pos
-                R_all[ob.index] = ob.R
+                self.on_regain()
+            g = self._gain_data
             dmax = kernels.streams_gains(js, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
-                                         g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"], pos_all,
-                                         R_all, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
-                                         _SAMPLE_TOL)
+                                         g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"],
+                                         self._poses.pos, self._poses.R, self._mics, self.speed_of_sound,
+                                         float(self.sample_rate), R_MIN_M, _SAMPLE_TOL)
             self._st_dmax = max(self._st_dmax, int(dmax))
             need = self._st_dmax + n + 1
             if need > st["ring"].shape[1]:
@@ -828,9 +871,11 @@ class Synthesizer:
             "pts": cat(lambda ob: ob.pts.reshape(-1, 3), (0, 3)), "shk": cat(lambda ob: ob.shk.ravel(), (0,)),
             "wd": cat(lambda ob: ob.wd, (0,)), "w": cat(lambda ob: np.asarray(ob.weights, np.float64), (0,)),
             "lre": cat(lambda ob: ob.lam_re, (0,)), "lim": cat(lambda ob: ob.lam_im, (0,)),
-            "pos": np.zeros((nidx, 3)), "R": np.tile(np.eye(3), (nidx, 1, 1)),
+            "lam": cat(lambda ob: ob.lam, (0,)).astype(np.complex128),
+            "leps": cat(lambda ob: ob.logeps, (0,)).astype(np.complex128),
         }
-        vb_arr = np.zeros(self._next_index + 1, np.int64)
+        self._n_modes_of = np.diff(offs["mode_off"])  # kept modes per object index
+        vb_arr = np.full(self._next_index + 1, -1, np.int64)  # -1: removed (its queued events are dropped)
         for ob in obs:
             vb_arr[ob.index] = ob.vbase
         self._vb_arr = vb_arr
@@ -866,17 +911,13 @@ class Synthesizer:
         start = self.samples_rendered
         end = start + n
         streams = self._st_n > 0
-        if self._ev or self._src or streams or self._live.any():
+        if self._ev.count or self._src or streams or self._live.any():
             nmax = self._nmax
             # ---- events due in this block, sorted by (voice, sample), insertion order kept
-            if self._ev and self._ev_next < end:
-                ev_v, ev_n, ev_kind, ev_re, ev_im = self._due_events(end, nmax)
-                # rows into the microphone banks, sorted by (microphone, sample), ties in order
-                ev_m, ev_re, ev_im = kernels.place_rows(ev_v, ev_re, ev_im, self._v_rel, self._flat[9],
-                                                        self._flat[10], self._mic_width)
-                order = np.lexsort((ev_n, ev_m)) if self.n_channels > 1 else np.argsort(ev_n, kind="stable")
-                ev_n, ev_kind, ev_re, ev_im = ev_n[order], ev_kind[order], ev_re[order], ev_im[order]
-                ev_ptr = np.searchsorted(ev_m[order], self._mic_ptr)
+            if self._ev.count and self._ev.next_sample < end:
+                # rows placed in the microphone banks, sorted by (microphone, sample), ties in order
+                ev_ptr, ev_n, ev_kind, ev_re, ev_im = self._ev.take(end, self._vb_arr, self._v_rel, self._flat[9],
+                                                                    self.n_channels, self._mic_width)
             else:
                 ev_n, ev_kind, ev_re, ev_im = self._empty_ev
                 ev_ptr = self._ev_ptr0
@@ -943,60 +984,11 @@ class Synthesizer:
         self.samples_rendered = end
         return out.astype(np.float32, copy=False)
 
-    def _due_events(self, end, nmax):
-        """Split the pending events into those before ``end`` (returned, as flat arrays sorted
-        by voice then sample, ties in insertion order) and the rest (kept)."""
-        vb = self._vbase
-        chunks = self._ev
-        if len(chunks) == 1:
-            obi, mic, na, kind, a = chunks[0]
-            vid = vb[obi] + mic
-            if a.shape[1] < nmax:
-                padded = np.zeros((a.shape[0], nmax), a.dtype)
-                padded[:, : a.shape[1]] = a
-                a = padded
-        else:
-            vid = np.concatenate([vb[c[0]] + c[1] for c in chunks])
-            na = np.concatenate([c[2] for c in chunks])
-            kind = np.concatenate([c[3] for c in chunks])
-            a = np.zeros((len(na), nmax), np.complex128)
-            r = 0
-            for c in chunks:
-                k, w = c[4].shape
-                a[r: r + k, :w] = c[4]
-                r += k
-        due = na < end
-        if due.all():
-            self._ev = []
-            self._ev_next = 2**62
-        else:
-            keep = ~due
-            # kept events are stored against voice ids of this layout: re-key by object
-            self._ev = self._rekey(vid[keep], na[keep], kind[keep], a[keep])
-            self._ev_next = int(na[keep].min())
-            vid, na, kind, a = vid[due], na[due], kind[due], a[due]
-        order = np.lexsort((na, vid))
-        vid, na, kind, a = vid[order], na[order], kind[order], a[order]
-        return vid, np.ascontiguousarray(na), np.ascontiguousarray(kind), np.ascontiguousarray(a.real), \
-            np.ascontiguousarray(a.imag)
-
-    def _rekey(self, vid, na, kind, a):
-        if len(vid) == 0:
-            return []
-        M = self.n_channels
-        out = []
-        for ob in self._objects.values():
-            sel = (vid >= ob.vbase) & (vid < ob.vbase + M)
-            if sel.any():
-                out.append((ob.index, vid[sel] - ob.vbase, na[sel], kind[sel], a[sel][:, : len(ob.keep)]))
-        return out
-
     def reset(self) -> None:
         """Silence everything and restart time at 0 (objects, poses and microphones stay;
         the noise generators restart from the seed)."""
         self.samples_rendered = 0
-        self._ev = []
-        self._ev_next = 2**62
+        self._ev.clear()
         self._src = []
         if not self._dirty:
             Zr, Zi, P2, ACT = self._flat[:4]
