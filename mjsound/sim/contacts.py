@@ -259,8 +259,11 @@ def _rehash(keys, vals, size):
 
 
 #: Rows of the packed per-slot state: float rows ``SF`` and integer rows ``SI``.
-SF_VPREV, SF_TOUCH, SF_HIT, SF_RTIME, SF_RSPEED, SF_RIMP = range(6)
-SI_LAST, SI_CALM, SI_OPEN, SI_RSTEPS = range(4)
+SF_VPREV, SF_TOUCH, SF_HIT, SF_RTIME, SF_RSPEED, SF_RIMP, SF_REND, SF_PRIMP, SF_PREND = range(9)
+SI_LAST, SI_CALM, SI_OPEN, SI_RSTEPS, SI_PRSTEPS = range(5)
+SF_ROWS, SI_ROWS = 9, 5
+# (R: the open impact record's sum F dt, end time and steps; P..: the same of the slot's
+# previous record, banked at an onset so that Python can close that record afterwards)
 #: Thresholds passed to the kernels as one array (``ContactReader._params``).
 P_V_IMPACT, P_V_HARD, P_MIN_APART, P_REFRACTORY, P_MAX_EVENT, P_V_SLIDE, P_V_ROLL, P_FMAX = range(8)
 
@@ -300,6 +303,9 @@ def _state_kernel(pkey, vmax, ftot, slip, roll, hkeys, hvals, SF, SI, nslots, t0
                 onset = vm > 2.0 * vp and vm - vp > 2.0 * v_impact
             if onset and t0 - SF[SF_HIT, j] >= refractory - 1e-12:
                 onset_out[p] = True
+                SF[SF_PRIMP, j] = SF[SF_RIMP, j]
+                SF[SF_PREND, j] = SF[SF_REND, j]
+                SI[SI_PRSTEPS, j] = SI[SI_RSTEPS, j]
                 SI[SI_OPEN, j] = 1
                 SF[SF_RTIME, j] = t0
                 SF[SF_RSPEED, j] = vm
@@ -310,6 +316,7 @@ def _state_kernel(pkey, vmax, ftot, slip, roll, hkeys, hvals, SF, SI, nslots, t0
         if SI[SI_OPEN, j]:
             SF[SF_RIMP, j] += ftot[p] * dt
             SI[SI_RSTEPS, j] += 1
+            SF[SF_REND, j] = t1
             tol = max(0.02 * SF[SF_RSPEED, j], 1e-3)
             SI[SI_CALM, j] = SI[SI_CALM, j] + 1 if abs(vm) < tol else 0
             if SI[SI_CALM, j] >= 2 or t1 - SF[SF_RTIME, j] >= max_event:
@@ -340,9 +347,10 @@ H_COLS = 10
 
 @_njit(cache=True, nogil=True)
 def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm):
+                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm, counts):
     """:func:`_contact_kernel`, :func:`_pair_kernel` and :func:`_state_kernel` in one call (the
-    per-step hot path). Returns ``(rows, sustained, hits, nbad, nhuge, n_onset, nslots)``;
+    per-step hot path); ``counts`` (2,) adds the step's sliding and rolling pairs.
+    Returns ``(rows, sustained, hits, nbad, nhuge, n_onset, nslots)``;
     ``hits`` (contacts, ``H_COLS``) the impacting contacts of onset pairs; ``rows`` (pairs,
     ``R_COLS``), ``sustained`` the rows of kind > 0:
     geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed, point (3),
@@ -374,6 +382,7 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
             n_onset += 1
         if kind[p] > 0:
             n_sust += 1
+            counts[kind[p] - 1] += 1
     sustained = np.empty((n_sust, R_COLS))
     q = 0
     for p in range(P):
@@ -671,7 +680,7 @@ class ContactReader:
         self._jacp = np.zeros((3, model.nv))
         self._views_of = None  # MjData whose fixed-size views (cvel, subtree_com, geom_xpos) are cached
         self._warned = set()
-        self.impacts: list[ImpactRecord] = []
+        self._records: list[ImpactRecord] = []
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -680,26 +689,32 @@ class ContactReader:
         # per contact pair (slot): its state in two packed arrays for the numba state machine,
         # and an open-addressing table pair key -> slot
         self._nslots = 0
-        self._SF = np.zeros((6, 0))
-        self._SI = np.zeros((4, 0), np.int64)
+        self._SF = np.zeros((SF_ROWS, 0))
+        self._SI = np.zeros((SI_ROWS, 0), np.int64)
         self._hkeys = np.full(0, -1, np.int64)
         self._hvals = np.zeros(0, np.int64)
         self._alloc_slots(64)
-        self._open: dict[int, ImpactRecord] = {}  # slot -> its open ImpactRecord
+        # slot -> its ImpactRecord, open when last synced; records read their sum F dt, steps
+        # and duration from the slot state only when read (:attr:`impacts`) or closed by the
+        # slot's next onset (its values banked in SF_P* / SI_P* by the state kernel)
+        self._open: dict[int, ImpactRecord] = {}
+        self._any_open = False  # an impact may be open: quiet steps must close it
         self._step = 0
-        self.impacts = []
+        self._records = []
         self.n_impacts = 0
         self.n_clamped = 0
         self._prev_cvel = None
         self.drive_result = None
+        #: sliding and rolling pair-steps seen by :meth:`events_fast` (counted in numba)
+        self.sustained_steps = np.zeros(2, np.int64)
         self._params = np.array([self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s,
                                  self.max_event_s, self.v_slide, self.v_roll, self.max_force])
 
     def _alloc_slots(self, cap):
         """Room for ``cap`` pair slots (state kept; the table stays at most half full)."""
         n = self._SF.shape[1]
-        SF = np.zeros((6, cap))
-        SI = np.zeros((4, cap), np.int64)
+        SF = np.zeros((SF_ROWS, cap))
+        SI = np.zeros((SI_ROWS, cap), np.int64)
         SF[:, :n] = self._SF
         SI[:, :n] = self._SI
         self._SF, self._SI = SF, SI
@@ -802,9 +817,7 @@ class ContactReader:
             if onset.any():
                 for p in np.flatnonzero(onset).tolist():
                     j = int(slot[p])
-                    old = self._open.pop(j, None)
-                    if old is not None:
-                        old.open = False
+                    self._close_banked(j)
                     idx = order[starts[p]: starts[p + 1]]
                     hit = idx[cf.v_approach[idx] > self.v_impact]
                     lam, self._open[j] = self._impact(data, cf.geom[hit], cf.pos[hit], cf.normal[hit],
@@ -824,17 +837,16 @@ class ContactReader:
                     contacts.append(ContactEvent(
                         "slide" if kind[p] == 1 else "roll", t0, t1, int(geom[i0, 0]), int(geom[i0, 1]),
                         point[p], normal[p], float(ftot[p]), float(speed[p])))
-        elif self._open:
+        elif self._any_open:
             # nothing touches: every open record closes
             self._SI[SI_OPEN, : self._nslots] = 0
-        if self._open:
-            self._sync_open(step, t1)
+            self._any_open = False
         return impacts, contacts, cf
 
     def step_if_quiet(self, data) -> bool:
         """Count the step and return True when nothing touches and no impact is open (what
         :meth:`events_fast` would do, without its call); False: call it."""
-        if data.ncon or self._open:
+        if data.ncon or self._any_open:
             return False
         self._step += 1
         return True
@@ -874,7 +886,7 @@ class ContactReader:
             args = (con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                     cvel, scom, gxpos, self.geom_body, self.body_root, self._plane,
                     self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
-                    self._params)
+                    self._params, self.sustained_steps)
             if drive is None:
                 out = _fused_kernel(*args)
             else:
@@ -888,9 +900,7 @@ class ContactReader:
                 parts = []
                 for p in np.flatnonzero(rows[:, R_ONSET]).tolist():
                     j = int(rows[p, R_SLOT])
-                    old = self._open.pop(j, None)
-                    if old is not None:
-                        old.open = False
+                    self._close_banked(j)
                     hp = hits[hit_rows == p]
                     lam, self._open[j] = self._impact(data, hp[:, H_G1:H_G2 + 1].astype(np.int64),
                                                       hp[:, H_POINT:H_POINT + 3], hp[:, H_NORMAL:H_NORMAL + 3],
@@ -904,23 +914,35 @@ class ContactReader:
                 impacts = parts[0] if len(parts) == 1 else np.concatenate(parts)
             if len(srows):
                 sustained = srows
-        elif self._open:
+        elif self._any_open:
             self._SI[SI_OPEN, : self._nslots] = 0
-        if self._open:
-            self._sync_open(step, t1)
+            self._any_open = False
         return impacts, sustained
 
-    def _sync_open(self, step, t1):
+    @property
+    def impacts(self) -> list[ImpactRecord]:
+        """The last ``keep_records`` impact events' :class:`ImpactRecord`, oldest first (the
+        open ones brought up to date)."""
         SF, SI = self._SF, self._SI
-        s_open, s_rimp, s_rsteps, s_rtime = SI[SI_OPEN], SF[SF_RIMP], SI[SI_RSTEPS], SF[SF_RTIME]
         for j, rec in list(self._open.items()):
-            rec.impulse_sim = float(s_rimp[j])
-            rec.steps = int(s_rsteps[j])
-            if SI[SI_LAST, j] == step:
-                rec.duration = t1 - float(s_rtime[j])
-            if not s_open[j]:
+            rec.impulse_sim = float(SF[SF_RIMP, j])
+            rec.steps = int(SI[SI_RSTEPS, j])
+            rec.duration = float(SF[SF_REND, j] - SF[SF_RTIME, j])
+            if not SI[SI_OPEN, j]:
                 rec.open = False
                 del self._open[j]
+        return self._records
+
+    def _close_banked(self, j) -> None:
+        """A new impact starts on slot ``j``: its previous record (if still listed as open)
+        takes its final values from the bank the state kernel filled at the onset."""
+        self._any_open = True
+        old = self._open.pop(j, None)
+        if old is not None:
+            old.impulse_sim = float(self._SF[SF_PRIMP, j])
+            old.steps = int(self._SI[SI_PRSTEPS, j])
+            old.duration = float(self._SF[SF_PREND, j]) - old.time
+            old.open = False
 
     def _restitution(self, g1, g2) -> float:
         e1, e2 = self._e_list[g1], self._e_list[g2]
@@ -973,7 +995,7 @@ class ContactReader:
             restitution=e, effective_mass=mstar,
         )
         self.n_impacts += 1
-        self.impacts.append(rec)
-        if len(self.impacts) > self.keep_records:
-            del self.impacts[: len(self.impacts) - self.keep_records]
+        self._records.append(rec)
+        if len(self._records) > self.keep_records:
+            del self._records[: len(self._records) - self.keep_records]
         return lam, rec

@@ -102,7 +102,7 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
 
 @njit(cache=True)
 def read_and_drive(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm,
+                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts,
                    sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring):
     """The reader's per-step kernel (``contacts._fused_kernel``) followed by
     :func:`drive_rows` on its sustained rows: one numba call per physics step for reading
@@ -110,10 +110,32 @@ def read_and_drive(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos
     then ``(missing, need)`` of :func:`drive_rows` (see :meth:`ContactReader.events_fast`)."""
     rows, srows, hits, nbad, nhuge, n_onset, nslots = _fused_kernel(
         geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm)
+        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts)
     if srows.shape[0] and k1 > k0:
         missing, need = drive_rows(srows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack,
                                    SF, SI, D, ring)
     else:
         missing, need = np.empty((0, 2), np.int64), 0
     return rows, srows, hits, nbad, nhuge, n_onset, nslots, missing, need
+
+
+@njit(cache=True)
+def pose_rows(gxpos, gxmat, geoms, idx, pos_out, R_out):
+    """Object ``idx[q]``'s pose from geom ``geoms[q]``: ``pos_out[idx[q]] = gxpos[g]``,
+    ``R_out[idx[q]] = gxmat[g]`` as 3x3 (rows with a non-finite pose are left as they were:
+    an exploding simulation keeps the last good pose)."""
+    for q in range(geoms.shape[0]):
+        g = geoms[q]
+        s = 0.0
+        for c in range(3):
+            s += gxpos[g, c]
+        for c in range(9):
+            s += gxmat[g, c]
+        if not np.isfinite(s):
+            continue
+        o = idx[q]
+        for c in range(3):
+            pos_out[o, c] = gxpos[g, c]
+        for a in range(3):
+            for b in range(3):
+                R_out[o, a, b] = gxmat[g, 3 * a + b]

@@ -34,7 +34,7 @@ import numpy as np
 from ..synth.pulse import contact_time
 from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
                        R_POINT, R_SLOT, R_SPEED, ContactReader)
-from .drive import drive_rows, read_and_drive
+from .drive import drive_rows, pose_rows, read_and_drive
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -118,6 +118,8 @@ class AudioSimulator:
         Extra keyword arguments for :class:`ContactReader` (thresholds).
     sustained : bool
         Drive sliding and rolling sound (default True).
+    keep_events : int
+        :attr:`event_log` keeps the first this many events.
     sustained_block_s : float
         A sliding / rolling contact's gains follow its point at most this often [s].
     render_block_s : float
@@ -171,6 +173,9 @@ class AudioSimulator:
         self.model = model
         self.data = data if data is not None else mujoco.MjData(model)
         self._opt = model.opt  # (a view into the model: timestep changes show through it)
+        # fixed-size MjData arrays read every step: their numpy views stay valid
+        self._geom_xpos, self._geom_xmat = self.data.geom_xpos, self.data.geom_xmat
+        self._xpos, self._site_xpos = self.data.xpos, self.data.site_xpos
         if scene is None:
             scene = SoundScene.from_model(
                 model,
@@ -250,8 +255,12 @@ class AudioSimulator:
             self.reader.reset()
         self.clock = SampleClock(self.sample_rate, float(self.model.opt.timestep), float(self.data.time))
         self._origin = self.clock.n  # synth sample 0 is absolute sample n = origin
-        self.events = {"impact": 0, "slide": 0, "roll": 0}
-        self.event_log = []  # (time [s], kind, geom1, geom2, impulse [N s] or speed [m/s])
+        self._n_impacts = 0
+        self._sustained_base = self.reader.sustained_steps.copy()
+        # event log: entries and per-step arrays of sustained rows, expanded when read (event_log)
+        self._log = []
+        self._log_pending = []
+        self._n_logged = 0
         self.samples = 0
         self.steps = 0
         #: optional observer ``on_block(sim, block, n0)`` called with every step's audio block
@@ -361,14 +370,13 @@ class AudioSimulator:
     def _update_mics(self) -> None:
         """Microphones to where their sites / the followed body are now (nothing when they
         cannot move)."""
-        data = self.data
         if self._follow is None and not (self.scene.mic_site_ids and self.scene.mics_move):
             return
         if self._follow is not None:
             body, offsets = self._follow
-            mics = data.xpos[body] + offsets
+            mics = self._xpos[body] + offsets
         else:
-            mics = np.array(data.site_xpos[self.scene.mic_site_ids])
+            mics = self._site_xpos[self.scene.mic_site_ids]
         if math.isfinite(float(mics.sum())) and mics.shape == self.synth._mics.shape:
             self.synth._mics = mics  # (Synthesizer.set_microphones without its checks: same channels, finite)
 
@@ -380,16 +388,9 @@ class AudioSimulator:
     def _pose_moving(self) -> None:
         """Every moving sounding object to its geom's current pose, in one array operation
         (an exploding simulation's non-finite poses are skipped: those objects keep the last)."""
-        if not len(self._dyn_idx):
-            return
-        g = self._dyn_geoms
-        p = self.data.geom_xpos[g]
-        R = self.data.geom_xmat[g]
-        idx = self._dyn_idx
-        if not math.isfinite(float(p.sum()) + float(R.sum())):
-            ok = np.isfinite(p).all(axis=1) & np.isfinite(R).all(axis=1)
-            idx, p, R = idx[ok], p[ok], R[ok]
-        self.synth._set_poses_trusted(idx, p, R)
+        if len(self._dyn_idx):
+            poses = self.synth._poses
+            pose_rows(self._geom_xpos, self._geom_xmat, self._dyn_geoms, self._dyn_idx, poses.pos, poses.R)
 
     def _queue(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> None:
         """Read the step's contacts (something touches, or an impact is open) and queue its
@@ -410,20 +411,15 @@ class AudioSimulator:
         self.seconds_contacts += t_read - tc
         if impacts is not None:
             self._queue_impacts(impacts, t0, n0)
-        if rows is not None:
-            log = self.event_log
-            events = self.events
-            for r in rows.tolist():
-                kind = "slide" if r[R_KIND] == 1.0 else "roll"
-                events[kind] += 1
-                if len(log) < self.keep_events:
-                    log.append((t0, kind, int(r[R_G1]), int(r[R_G2]), r[R_SPEED]))
-            if self.sustained and nblock:
-                done = reader.drive_result if drive is not None else None
-                if done is None:
-                    self._drive(rows, n0, n1)
-                elif done[1] or len(done[0]):  # a ring too short, or pairs without a stream yet
-                    self._drive(rows, n0, n1, done)
+        if rows is not None and self._n_logged < self.keep_events:
+            self._log_pending.append((t0, rows))
+            self._n_logged += len(rows)
+        if rows is not None and self.sustained and nblock:
+            done = reader.drive_result if drive is not None else None
+            if done is None:
+                self._drive(rows, n0, n1)
+            elif done[1] or len(done[0]):  # a ring too short, or pairs without a stream yet
+                self._drive(rows, n0, n1, done)
         self.seconds_synth += _time.perf_counter() - t_read
 
     def _queue_impacts(self, imp, t0, n0) -> None:
@@ -437,14 +433,15 @@ class AudioSimulator:
         self._update_mics()
         self._pose_moving()
         rows = imp.tolist()
-        self.events["impact"] += len(rows)
-        log = self.event_log
+        self._n_impacts += len(rows)
+        log = self._log_pending
         geom_obj = self._geom_obj
         obj, P, J, tau = [], [], [], []
         for r in rows:
             g1, g2 = int(r[I_G1]), int(r[I_G2])
-            if len(log) < self.keep_events:
-                log.append((t0, "impact", g1, g2, r[I_IMPULSE]))
+            if self._n_logged < self.keep_events:
+                log.append((t0, (t0, "impact", g1, g2, r[I_IMPULSE])))
+                self._n_logged += 1
             for g, other, sign in ((g2, g1, 1.0), (g1, g2, -1.0)):
                 oi = geom_obj[g]
                 if oi < 0:
@@ -572,6 +569,30 @@ class AudioSimulator:
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
 
     # ------------------------------------------------------------------ reporting
+    @property
+    def event_log(self) -> list:
+        """The first ``keep_events`` events since the last reset, in order:
+        ``(time [s], kind, geom1, geom2, value)``, kind ``"impact"`` (value: impulse [N s]) or
+        ``"slide"`` / ``"roll"`` (one per pair and physics step; value: speed [m/s])."""
+        if self._log_pending:
+            log = self._log
+            for t0, item in self._log_pending:
+                if isinstance(item, tuple):
+                    log.append(item)
+                    continue
+                for r in item.tolist():
+                    log.append((t0, "slide" if r[R_KIND] == 1.0 else "roll", int(r[R_G1]), int(r[R_G2]), r[R_SPEED]))
+            del log[self.keep_events:]
+            self._log_pending = []
+        return self._log
+
+    @property
+    def events(self) -> dict:
+        """Counts since the last reset: ``impact`` events, and ``slide`` / ``roll`` pair-steps
+        (a pair sliding or rolling for one physics step counts once)."""
+        s = self.reader.sustained_steps - self._sustained_base
+        return {"impact": self._n_impacts, "slide": int(s[0]), "roll": int(s[1])}
+
     @property
     def impacts(self):
         """:class:`ImpactRecord` list (predicted vs MuJoCo impulse) of the reader."""

@@ -106,9 +106,9 @@ class _Voice:
 
 
 class _PoseTable:
-    """World poses of all objects, row = object index: a driver sets every moving object's
-    pose in one array operation (:meth:`Synthesizer._set_poses_trusted`) and the numba
-    kernels read them from here."""
+    """World poses of all objects, row = object index: ``pos`` (n, 3) [m], ``R`` (n, 3, 3)
+    body-to-world. A driver sets every moving object's pose in one call
+    (:func:`mjsound.sim.drive.pose_rows`) and the numba kernels read them from here."""
 
     def __init__(self, cap: int = 8):
         self.pos = np.zeros((cap, 3))
@@ -567,12 +567,6 @@ class Synthesizer:
         # ---- commit (nothing above mutated the queue's state)
         q.count, q.pool_used = count, used
         q.next_sample = min(q.next_sample, int(nxt))
-
-    def _set_poses_trusted(self, idx, pos, R) -> None:
-        """World poses of objects ``idx`` (k,) at once: ``pos`` (k, 3) [m], ``R`` (k, 9) or
-        (k, 3, 3) body-to-world (finite; no checks)."""
-        self._poses.pos[idx] = pos
-        self._poses.R[idx] = R.reshape(-1, 3, 3)
 
     @staticmethod
     def _nearest(ob, pl):
