@@ -448,3 +448,52 @@ def test_follow_rejects_bad_arguments():
         sim.follow(99, np.zeros((1, 3)))
     sim.follow(None, None)
     assert sim._follow is None
+
+
+def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
+    """A pair struck again while its impact record is still open: the state kernel banks the
+    old record's sum F dt, steps and end so the reader can close it with its own values."""
+    from mjsound.sim import contacts as C
+
+    model = mujoco.MjModel.from_xml_string(drop_xml())
+    reader = ContactReader(model)
+    reader._room(1)
+    key = np.array([1], np.int64)
+    zeros = np.zeros(1)
+
+    def step(k, vmax, f):
+        t0, t1 = 0.01 * (k - 1), 0.01 * k
+        out = C._state_kernel(key, np.array([vmax]), np.array([f]), zeros, zeros, reader._hkeys, reader._hvals,
+                              reader._SF, reader._SI, reader._nslots, t0, t1, 0.01, k, reader._params)
+        reader._nslots = out[4]
+        return bool(out[1][0]), int(out[0][0])
+
+    onset, j = step(1, 1.0, 100.0)  # impact
+    assert onset
+    assert not step(2, 0.5, 50.0)[0]  # still moving: the record stays open
+    onset, _ = step(3, 5.0, 300.0)  # sharp rise after the refractory time: a new impact
+    assert onset and reader._SI[C.SI_OPEN, j] == 1
+    assert reader._SF[C.SF_PRIMP, j] == pytest.approx((100.0 + 50.0) * 0.01)
+    assert reader._SI[C.SI_PRSTEPS, j] == 2
+    assert reader._SF[C.SF_PREND, j] == pytest.approx(0.02)
+    assert reader._SF[C.SF_RIMP, j] == pytest.approx(300.0 * 0.01)  # the new record's own sum
+    old = C.ImpactRecord(time=0.0, geom1=0, geom2=1, speed=1.0, impulse_pred=1.5, impulse_sim=0.0,
+                         restitution=0.5, effective_mass=1.0)
+    reader._open[j] = old
+    reader._close_banked(j)
+    assert not old.open and old.steps == 2
+    assert old.impulse_sim == pytest.approx(1.5) and old.duration == pytest.approx(0.02)
+
+
+def test_impact_records_read_lazily_equal_records_read_every_step():
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    recs = []
+    for every_step in (True, False):
+        model, data, sim = make_sim(drop_xml(h=0.3), models)
+        for _ in range(900):
+            mujoco.mj_step(model, data)
+            sim.step(render=False)
+            if every_step:
+                sim.impacts  # noqa: B018 (brings the open records up to date)
+        recs.append([(r.time, r.impulse_sim, r.steps, r.duration, r.open) for r in sim.impacts])
+    assert len(recs[0]) >= 2 and recs[0] == recs[1]
