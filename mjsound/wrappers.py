@@ -556,13 +556,13 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self._observe(obs), info
 
     def step(self, action):
-        n_imp = self.sim.events["impact"]
+        n_imp = self.sim.n_impacts
         obs, reward, terminated, truncated, info = self.env.step(action)
         block = self.sim.flush()
         clipped, peak = self.audio.push(block)
         info = dict(info)
         info.update(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
-                    audio_impacts=int(self.sim.events["impact"] - n_imp))
+                    audio_impacts=self.sim.n_impacts - n_imp)
         return self._observe(obs), reward, terminated, truncated, info
 
     def close(self):

@@ -587,6 +587,11 @@ class AudioSimulator:
         return self._log
 
     @property
+    def n_impacts(self) -> int:
+        """Impact events since the last reset (``events["impact"]``, without building the dict)."""
+        return self._n_impacts
+
+    @property
     def events(self) -> dict:
         """Counts since the last reset: ``impact`` events, and ``slide`` / ``roll`` pair-steps
         (a pair sliding or rolling for one physics step counts once)."""
