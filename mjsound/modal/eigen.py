@@ -479,8 +479,11 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
 
 #: most eigenvalues :func:`_block_band` is asked for in one go (else: ARPACK slices)
 BLOCK_MAX_MODES = 400
-#: Ritz residual ||T y - mu y||_M / mu at which a pair is accepted
-BLOCK_TOL = 1e-9
+#: Ritz residual ||T y - mu y||_M / mu at which a pair is accepted. The eigenvalues are
+#: Rayleigh quotients, whose error goes as the residual squared: on a 20 cm bowl (120
+#: eigenvalues) 1e-7 gave them to 3e-12 of the 1e-9 ones (1e-6: 8e-11, 1e-5: 5e-9) in a
+#: basis of 336 vectors instead of 372; mode shapes agreed to 1e-7.
+BLOCK_TOL = 1e-7
 #: block Krylov basis memory cap [bytes] (basis and its M-image, float64)
 BLOCK_MAX_BYTES = 1.5e9
 
