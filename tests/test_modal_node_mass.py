@@ -48,3 +48,15 @@ def test_general_mass_falls_back_to_the_sparse_product():
     assert node_mass(sp.identity(7)) is None  # not 3 dofs per node
     X = rng.standard_normal((4, n))
     assert np.allclose(mass_rows(M)(X), (M @ X.T).T, rtol=1e-14, atol=0)
+
+
+def test_quadratic_forms_equal_the_dense_products():
+    from mjsound.modal.quadratic_forms import quadratic_forms
+
+    d = _hex()
+    Y = np.random.default_rng(3).standard_normal((7, d.dofs))
+    ref = np.einsum("ij,ji->i", Y, d.K @ Y.T)
+    assert np.allclose(quadratic_forms(d.K, Y), ref, rtol=1e-12, atol=0)
+    B = sp.random(9, 9, density=0.4, random_state=4, format="csr")  # not symmetric
+    Z = np.random.default_rng(5).standard_normal((3, 9))
+    assert np.allclose(quadratic_forms(B, Z), np.einsum("ij,ji->i", Z, B @ Z.T), rtol=1e-12, atol=1e-14)

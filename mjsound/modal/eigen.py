@@ -42,6 +42,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .node_mass import mass_rows
+from .quadratic_forms import quadratic_forms
 
 __all__ = ["solve_band", "factorize", "count_below", "BandSolution", "backend_name"]
 
@@ -625,7 +626,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
                 # mu_max (rigid modes, 1/|sigma|) is ~1e6 x the mu at the top of the band:
                 # 1e-6 relative errors there, where the quotients agree to 1e-10.
                 mass = np.einsum("ij,ij->i", Y, apply_M(Y))
-                lam = np.einsum("ij,ji->i", Y, K @ Y.T) / mass
+                lam = quadratic_forms(K, Y) / mass
                 order = np.argsort(lam)
                 return lam[order], (Y[order] / np.sqrt(mass[order])[:, None]).T  # mass-normalised
         if d + W.shape[0] > max_dim:

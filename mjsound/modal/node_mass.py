@@ -65,7 +65,8 @@ def _node_mass_rows(indptr, indices, data, X, out, S):
 
 
 def mass_rows(M: sp.spmatrix, m: sp.csr_matrix | None = None):
-    """``apply(X) = (M X^T)^T`` for vectors stored as rows ``X`` (b, n), C-contiguous result.
+    """``apply(X) = (M X^T)^T`` for vectors stored as rows ``X`` (b, n), C-contiguous result
+    (one ``apply`` per thread: it keeps its scratch memory).
 
     Uses the node mass ``m`` (given, or found by :func:`node_mass`) when ``M = m (x) I3``;
     otherwise scipy's sparse product.
@@ -82,13 +83,17 @@ def mass_rows(M: sp.spmatrix, m: sp.csr_matrix | None = None):
     indptr = m.indptr.astype(np.int64)
     indices = m.indices.astype(np.int64)
     data = np.ascontiguousarray(m.data, dtype=np.float64)
+    scratch = [np.empty(0)]
 
     def apply(X):
         X = np.ascontiguousarray(X, dtype=np.float64)
         one = X.ndim == 1
         X2 = X.reshape(1, -1) if one else X
         out = np.empty_like(X2)
-        _node_mass_rows(indptr, indices, data, X2, out, np.empty((X2.shape[1] // 3, 3 * X2.shape[0])))
+        size = X2.size
+        if scratch[0].size < size:  # kept between calls (fresh pages cost a fault each)
+            scratch[0] = np.empty(size)
+        _node_mass_rows(indptr, indices, data, X2, out, scratch[0][:size].reshape(X2.shape[1] // 3, -1))
         return out.ravel() if one else out
 
     return apply
