@@ -325,15 +325,8 @@ class AudioSimulator:
             self._sync_clock()
         n0 = c.n
         c.k += 1
-        n1 = c.n = c.sample_at(c.k)
-        if self._pending == 0:
-            self._pending_n0 = n0
-        self._pending += n1 - n0
-        self.steps += 1
-        self.samples += n1 - n0
-        if self.synth is not None and not self.reader.step_if_quiet(self.data):
-            self._queue(n0, n1)
-        return self._render_pending() if render else None
+        c.n = c.sample_at(c.k)
+        return self._process(n0, c.n, render=render)
 
     def flush(self) -> np.ndarray:
         """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
@@ -342,6 +335,8 @@ class AudioSimulator:
 
     def _process(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None,
                  render: bool = True) -> np.ndarray | None:
+        """Count the step of samples ``[n0, n1)`` (times ``t0, t1``: default from the clock),
+        queue its sound, and render what is pending if ``render``."""
         if self._pending == 0:
             self._pending_n0 = n0
         self._pending += n1 - n0

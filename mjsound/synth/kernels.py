@@ -305,6 +305,16 @@ def render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, v_live,
 
 
 @njit(cache=True, inline="always")
+def _mic_distance(mics, m, pos, rmin):
+    """Distance [m] from ``pos`` to microphone ``m``, at least ``rmin``."""
+    dx = mics[m, 0] - pos[0]
+    dy = mics[m, 1] - pos[1]
+    dz = mics[m, 2] - pos[2]
+    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return r if r >= rmin else rmin
+
+
+@njit(cache=True, inline="always")
 def _nearest_one(points, x, y, z):
     """Index of the row of ``points`` (p, 3) nearest to ``(x, y, z)`` (brute force; models
     carry ~1000 surface samples, so this is a few microseconds and needs no tree)."""
@@ -408,12 +418,7 @@ def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c,
     n = wd.shape[0]
     M = mics.shape[0]
     for m in range(M):
-        dx = mics[m, 0] - pos[0]
-        dy = mics[m, 1] - pos[1]
-        dz = mics[m, 2] - pos[2]
-        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-        if r < rmin:
-            r = rmin
+        r = _mic_distance(mics, m, pos, rmin)
         ta = r / c
         Dm = np.int64(np.ceil(ta * fs - tol))
         if Dm < 0:
@@ -605,12 +610,7 @@ def impacts_to_queue(obj, P, J, t, tau, pts_all, pts_off, shk_all, shk_off, mode
             G = shk[bi, 0, m] * jl[0] + shk[bi, 1, m] * jl[1] + shk[bi, 2, m] * jl[2]
             cm[m] = G / wd_all[m0 + m] * half_sine(wd_all[m0 + m] * tau[i])
         for mi in range(M):
-            dx = mics[mi, 0] - pos[0]
-            dy = mics[mi, 1] - pos[1]
-            dz = mics[mi, 2] - pos[2]
-            r = np.sqrt(dx * dx + dy * dy + dz * dz)
-            if r < rmin:
-                r = rmin
+            r = _mic_distance(mics, mi, pos, rmin)
             ta = t[i] + r / c
             nn = np.int64(np.ceil(ta * fs - tol))
             if nn < rendered:
