@@ -106,3 +106,23 @@ def test_hex_matrices_symmetric_with_rigid_null_space(cube):
         t[c::3, c] = 1.0  # rigid translations
     assert np.abs(K @ t).max() < 1e-9 * abs(K).max()
     assert float(t[:, 0] @ (M @ t[:, 0])) == pytest.approx(0.1**3 * A.parse_material("steel").rho, rel=1e-9)
+
+
+def test_block_band_with_a_mass_not_of_node_form(cube):
+    """The block solve's general mass product (scipy) when M is not m (x) I3."""
+    from mjsound.modal.node_mass import node_mass
+
+    d, _ = cube
+    assert node_mass(d.M) is not None  # the hex mass is of node form ...
+    scale = np.ones(d.dofs)
+    scale[0::3] = 1.01  # ... x dofs 1 % heavier: no longer
+    S = sp.diags(np.sqrt(scale))
+    M2 = (S @ d.M @ S).tocsr()
+    assert node_mass(M2) is None
+    w = sla.eigh(d.K.toarray(), M2.toarray(), eigvals_only=True)
+    lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 50)
+    sol = E.solve_band(d.K, M2, lo, hi, dense_max=10)
+    assert sol.backend.startswith("block-lanczos")
+    assert np.allclose(sol.eigenvalues, _band(w, lo, hi), rtol=1e-9)
+    V = sol.vectors
+    assert np.allclose(V.T @ (M2 @ V), np.eye(V.shape[1]), atol=1e-9)
