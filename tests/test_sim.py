@@ -497,3 +497,49 @@ def test_impact_records_read_lazily_equal_records_read_every_step():
                 sim.impacts  # noqa: B018 (brings the open records up to date)
         recs.append([(r.time, r.impulse_sim, r.steps, r.duration, r.open) for r in sim.impacts])
     assert len(recs[0]) >= 2 and recs[0] == recs[1]
+
+
+def test_normal_jacobians_equal_mujoco_mj_jac():
+    """The numba contact Jacobians (_normal_jacobians) against mj_jac on a tree with free, ball,
+    hinge and slide joints and a welded (dof-less) child body."""
+    from mjsound.sim.contacts import _normal_jacobians
+
+    xml = """
+<mujoco><worldbody>
+  <geom type="plane" size="1 1 .1"/>
+  <body pos="0 0 1"><freejoint/><geom size=".1"/>
+    <body pos=".2 0 0"><joint type="ball"/><geom type="capsule" fromto="0 0 0 .2 0 0" size=".03"/>
+      <body pos=".2 0 0"><joint type="hinge" axis="0 1 0"/><geom type="box" size=".05 .02 .02"/>
+        <body pos=".1 0 0"><geom type="sphere" size=".02"/>
+          <body pos=".05 0 0"><joint type="slide" axis="1 0 0"/><geom type="sphere" size=".01"/></body>
+        </body>
+      </body>
+    </body>
+  </body>
+</worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(3)
+    d.qpos[:] = rng.normal(size=m.nq)
+    d.qpos[3:7] /= np.linalg.norm(d.qpos[3:7])
+    d.qpos[7:11] /= np.linalg.norm(d.qpos[7:11])
+    d.qvel[:] = rng.normal(size=m.nv)
+    mujoco.mj_forward(m, d)
+    k = 40
+    geom = rng.integers(0, m.ngeom, (k, 2))
+    pos = rng.normal(size=(k, 3))
+    nrm = rng.normal(size=(k, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    kin = tuple(np.asarray(a, np.int64) for a in (m.body_dofnum, m.body_dofadr, m.body_parentid, m.body_rootid,
+                                                  m.dof_parentid))
+    Jn = _normal_jacobians(geom, pos, nrm, d.cdof, d.subtree_com, np.asarray(m.geom_bodyid, np.int64), *kin, m.nv)
+    ref = np.zeros((k, m.nv))
+    J = np.zeros((3, m.nv))
+    for r in range(k):
+        for side, sign in ((0, -1.0), (1, 1.0)):
+            b = int(m.geom_bodyid[geom[r, side]])
+            if b:
+                mujoco.mj_jac(m, d, J, None, pos[r], b)
+                ref[r] += sign * nrm[r] @ J
+    assert np.abs(ref).max() > 0.1
+    np.testing.assert_allclose(Jn, ref, rtol=0, atol=1e-12)

@@ -425,19 +425,75 @@ I_COLS = 10
 
 
 @_njit(cache=True, nogil=True)
-def _normal_jacobian(jps, nrm):
-    """``Jn[r] = n_r . (J_geom2 - J_geom1)`` from the point Jacobians ``jps`` (k, 2, 3, nv)
-    (side 0: geom1's body, side 1: geom2's; zero for the world)."""
-    k = jps.shape[0]
-    nv = jps.shape[3]
+def _normal_jacobians(geom, pos, nrm, cdof, scom, gbody, body_dofnum, body_dofadr, body_parentid, body_rootid,
+                      dof_parentid, nv):
+    """``Jn[r] = n_r . (J_geom2(p_r) - J_geom1(p_r))`` (k, nv) for contacts ``r`` between
+    ``geom[r]`` at world points ``pos`` with normals ``nrm`` (the world body adds nothing).
+
+    The point Jacobian of body ``b`` is MuJoCo's ``mj_jac`` (its C code, here in numba so
+    that no Python call per contact side is needed): from the first body with dofs up the
+    tree, each dof ``i`` on the ancestor chain (``dof_parentid``) contributes the column
+    ``J[:, i] = cdof_lin_i + cdof_ang_i x (p - subtree_com[root(b)])`` (``cdof`` rows are
+    (angular, linear) motion axes).
+    """
+    k = geom.shape[0]
     Jn = np.zeros((k, nv))
     for r in range(k):
-        for j in range(nv):
-            acc = 0.0
-            for c in range(3):
-                acc += nrm[r, c] * (jps[r, 1, c, j] - jps[r, 0, c, j])
-            Jn[r, j] = acc
+        for side in range(2):
+            b0 = gbody[geom[r, side]]
+            b = b0
+            while b > 0 and body_dofnum[b] == 0:
+                b = body_parentid[b]
+            if b == 0:
+                continue
+            root = body_rootid[b0]
+            ox = pos[r, 0] - scom[root, 0]
+            oy = pos[r, 1] - scom[root, 1]
+            oz = pos[r, 2] - scom[root, 2]
+            sign = 1.0 if side == 1 else -1.0
+            i = body_dofadr[b] + body_dofnum[b] - 1
+            while i >= 0:
+                jx = cdof[i, 3] + (cdof[i, 1] * oz - cdof[i, 2] * oy)
+                jy = cdof[i, 4] + (cdof[i, 2] * ox - cdof[i, 0] * oz)
+                jz = cdof[i, 5] + (cdof[i, 0] * oy - cdof[i, 1] * ox)
+                Jn[r, i] += sign * (nrm[r, 0] * jx + nrm[r, 1] * jy + nrm[r, 2] * jz)
+                i = dof_parentid[i]
     return Jn
+
+
+@_njit(cache=True, nogil=True)
+def _restitution_of(e_geom, g1, g2):
+    """Acoustic restitution of a geom pair: ``sqrt(e1 e2)``, the one known (NaN: unknown), or 0.5."""
+    e1, e2 = e_geom[g1], e_geom[g2]
+    if e1 == e1 and e2 == e2:
+        return np.sqrt(e1 * e2)
+    if e1 == e1:
+        return e1
+    if e2 == e2:
+        return e2
+    return 0.5
+
+
+@_njit(cache=True, nogil=True)
+def _impulses_grouped(geom, v, Jn, MinvJt, starts, e_geom, tree_mass, root_mass, gbody, jmax):
+    """:func:`_impulse_kernel` for every impact event at once: contacts
+    ``starts[q] : starts[q + 1]`` are event ``q`` (one geom pair). Returns ``(lambda (k,),
+    restitution (events,), clamped (events,))``."""
+    Q = starts.shape[0] - 1
+    lam = np.zeros(geom.shape[0])
+    e_out = np.zeros(Q)
+    clamped = np.zeros(Q, np.bool_)
+    for q in range(Q):
+        a, b = starts[q], starts[q + 1]
+        g1, g2 = geom[a, 0], geom[a, 1]
+        b1, b2 = gbody[g1], gbody[g2]
+        e = _restitution_of(e_geom, g1, g2)
+        lq, cl = _impulse_kernel(Jn[a:b], MinvJt[a:b], v[a:b], e, tree_mass[b1], tree_mass[b2],
+                                 min(root_mass[b1], root_mass[b2]), jmax)
+        lam[a:b] = lq
+        e_out[q] = e
+        clamped[q] = cl
+    return lam, e_out, clamped
 
 
 @_njit(cache=True, nogil=True)
@@ -677,7 +733,7 @@ class ContactReader:
         T = mujoco.mjtGeom
         self._plane = np.asarray(model.geom_type) == T.mjGEOM_PLANE
         self._pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
-        self._jacp = np.zeros((3, model.nv))
+        self._kin = None  # kinematic tree arrays for _normal_jacobians (made at the first impact)
         self._views_of = None  # MjData whose fixed-size views (cvel, subtree_com, geom_xpos) are cached
         self._warned = set()
         self._records: list[ImpactRecord] = []
@@ -815,21 +871,23 @@ class ContactReader:
                 t0, t1, step_dt, step, self._params,
             )
             if onset.any():
-                for p in np.flatnonzero(onset).tolist():
-                    j = int(slot[p])
-                    self._close_banked(j)
-                    idx = order[starts[p]: starts[p + 1]]
-                    hit = idx[cf.v_approach[idx] > self.v_impact]
-                    lam, self._open[j] = self._impact(data, cf.geom[hit], cf.pos[hit], cf.normal[hit],
-                                                      cf.v_approach[hit], t0)
-                    for r, i in enumerate(hit.tolist()):
+                pairs = np.flatnonzero(onset)
+                hits = [order[starts[p]: starts[p + 1]] for p in pairs.tolist()]
+                hits = [idx[cf.v_approach[idx] > self.v_impact] for idx in hits]
+                hit_starts = np.concatenate([[0], np.cumsum([len(h) for h in hits])]).astype(np.int64)
+                hit = np.concatenate(hits)
+                lam, e_pair = self._impacts(data, cf.geom[hit], cf.pos[hit], cf.normal[hit], cf.v_approach[hit],
+                                            hit_starts, slot[pairs], t0)
+                for q in range(len(pairs)):
+                    e = float(e_pair[q])
+                    for r in range(hit_starts[q], hit_starts[q + 1]):
+                        i = int(hit[r])
                         if lam[r] > 0:
+                            vi = cf.v_approach[i]
                             impacts.append(ImpactEvent(
                                 time=t0, geom1=int(cf.geom[i, 0]), geom2=int(cf.geom[i, 1]), point=cf.pos[i].copy(),
-                                normal=cf.normal[i].copy(), impulse=float(lam[r]), speed=float(cf.v_approach[i]),
-                                effective_mass=float(lam[r] / ((1.0 + self._restitution(int(cf.geom[i, 0]),
-                                                                                        int(cf.geom[i, 1])))
-                                                               * cf.v_approach[i])) if cf.v_approach[i] > 0 else 0.0))
+                                normal=cf.normal[i].copy(), impulse=float(lam[r]), speed=float(vi),
+                                effective_mass=float(lam[r] / ((1.0 + e) * vi)) if vi > 0 else 0.0))
             if kind.any():
                 geom = cf.geom
                 for p in np.flatnonzero(kind).tolist():
@@ -896,22 +954,18 @@ class ContactReader:
             if nbad or nhuge:
                 self._report_clamped(nbad, nhuge)
             if n_onset:
-                hit_rows = hits[:, H_ROW].astype(np.int64)
-                parts = []
-                for p in np.flatnonzero(rows[:, R_ONSET]).tolist():
-                    j = int(rows[p, R_SLOT])
-                    self._close_banked(j)
-                    hp = hits[hit_rows == p]
-                    lam, self._open[j] = self._impact(data, hp[:, H_G1:H_G2 + 1].astype(np.int64),
-                                                      hp[:, H_POINT:H_POINT + 3], hp[:, H_NORMAL:H_NORMAL + 3],
-                                                      hp[:, H_SPEED], t0)
-                    imp = np.empty((len(hp), I_COLS))
-                    imp[:, I_G1:I_G2 + 1] = hp[:, H_G1:H_G2 + 1]
-                    imp[:, I_POINT:I_NORMAL + 3] = hp[:, H_POINT:H_NORMAL + 3]
-                    imp[:, I_IMPULSE] = lam
-                    imp[:, I_SPEED] = hp[:, H_SPEED]
-                    parts.append(imp[lam > 0])
-                impacts = parts[0] if len(parts) == 1 else np.concatenate(parts)
+                # hits are grouped by their pair's row, in row order
+                pairs = np.flatnonzero(rows[:, R_ONSET])
+                hit_starts = np.searchsorted(hits[:, H_ROW], np.append(pairs, len(rows)))
+                lam, _ = self._impacts(data, hits[:, H_G1:H_G2 + 1].astype(np.int64), hits[:, H_POINT:H_POINT + 3],
+                                    hits[:, H_NORMAL:H_NORMAL + 3], hits[:, H_SPEED], hit_starts,
+                                    rows[pairs, R_SLOT].astype(np.int64), t0)
+                keep = lam > 0
+                impacts = np.empty((int(keep.sum()), I_COLS))
+                impacts[:, I_G1:I_G2 + 1] = hits[keep, H_G1:H_G2 + 1]
+                impacts[:, I_POINT:I_NORMAL + 3] = hits[keep, H_POINT:H_NORMAL + 3]
+                impacts[:, I_IMPULSE] = lam[keep]
+                impacts[:, I_SPEED] = hits[keep, H_SPEED]
             if len(srows):
                 sustained = srows
         elif self._any_open:
@@ -944,58 +998,50 @@ class ContactReader:
             old.duration = float(self._SF[SF_PREND, j]) - old.time
             old.open = False
 
-    def _restitution(self, g1, g2) -> float:
-        e1, e2 = self._e_list[g1], self._e_list[g2]
-        if e1 == e1 and e2 == e2:  # (NaN: unknown)
-            return math.sqrt(e1 * e2)
-        if e1 == e1:
-            return e1
-        if e2 == e2:
-            return e2
-        return 0.5
+    def _impacts(self, data, geom, pos, nrm, v, starts, slots, t0):
+        """Impact events of several pairs at once: contacts ``starts[q] : starts[q + 1]``
+        (``geom`` (k, 2), world points ``pos`` and normals ``nrm`` (k, 3), approach speeds
+        ``v`` (k,)) are the event of pair slot ``slots[q]``. Each gets its
+        :class:`ImpactRecord` (listed open under its slot). Returns the impulses (k,) and each
+        event's restitution (events,).
 
-    def _impact(self, data, geom, pos, nrm, v, t0):
-        """One impact event of a pair: ``geom`` (k, 2), world points ``pos`` and normals ``nrm``
-        (k, 3) and approach speeds ``v`` (k,) of its impacting contacts. Returns
-        ``(impulses (k,), record)``: the :class:`ImpactRecord` of the event."""
-        mj = self._mj
+        ``lambda = A^+ (1 + e) v`` with the contact-space inverse inertia ``A = Jn M^-1 Jn^T``
+        of each event: all normal Jacobians by :func:`_normal_jacobians`, one ``mj_solveM`` for
+        all of them, the impulses by :func:`_impulses_grouped`.
+        """
         m = self.model
-        k = len(v)
         nv = m.nv
-        gb = self.geom_body
-        g1, g2 = int(geom[0, 0]), int(geom[0, 1])
-        b1, b2 = int(gb[g1]), int(gb[g2])
-        e = self._restitution(g1, g2)
+        k = len(v)
+        v = np.ascontiguousarray(v, np.float64)
         if nv > 0:
-            jps = np.zeros((k, 2, 3, nv))
-            for row in range(k):
-                for side in (0, 1):
-                    body = int(gb[geom[row, side]])
-                    if body != 0:
-                        mj.mj_jac(m, data, jps[row, side], None, pos[row], body)
-            Jn = _normal_jacobian(jps, nrm)
-            MinvJt = np.zeros((k, nv))
-            mj.mj_solveM(m, data, MinvJt, Jn)
+            if self._kin is None:
+                self._kin = tuple(np.asarray(a, np.int64) for a in (m.body_dofnum, m.body_dofadr, m.body_parentid,
+                                                                    m.body_rootid, m.dof_parentid))
+            Jn = _normal_jacobians(geom, pos, nrm, data.cdof, data.subtree_com, self.geom_body, *self._kin, nv)
+            MinvJt = np.empty((k, nv))
+            self._mj.mj_solveM(m, data, MinvJt, Jn)
         else:
             Jn = MinvJt = np.zeros((k, 0))
-        m1 = float(self._tree_mass[b1])
-        m2 = float(self._tree_mass[b2])
-        cap = min(float(self._root_mass[b1]), float(self._root_mass[b2]))
-        lam, clamped = _impulse_kernel(Jn, MinvJt, np.ascontiguousarray(v, np.float64), e, m1, m2, cap,
-                                       self.max_force * 0.01)
-        if clamped:
-            self.n_clamped += 1
+        lam, e, clamped = _impulses_grouped(geom, v, Jn, MinvJt, starts, self.restitution, self._tree_mass,
+                                            self._root_mass, self.geom_body, self.max_force * 0.01)
+        if clamped.any():
+            self.n_clamped += int(clamped.sum())
             self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
                             "reported once")
-        vmax = float(v.max())
-        total = float(lam.sum())
-        mstar = total / ((1.0 + e) * vmax) if vmax > 0 else 0.0
-        rec = ImpactRecord(
-            time=t0, geom1=g1, geom2=g2, speed=vmax, impulse_pred=total, impulse_sim=0.0,
-            restitution=e, effective_mass=mstar,
-        )
-        self.n_impacts += 1
-        self._records.append(rec)
-        if len(self._records) > self.keep_records:
-            del self._records[: len(self._records) - self.keep_records]
-        return lam, rec
+        records = self._records
+        for q, (a, b) in enumerate(zip(starts[:-1].tolist(), starts[1:].tolist())):
+            vmax = float(v[a:b].max())
+            total = float(lam[a:b].sum())
+            eq = float(e[q])
+            rec = ImpactRecord(
+                time=t0, geom1=int(geom[a, 0]), geom2=int(geom[a, 1]), speed=vmax, impulse_pred=total,
+                impulse_sim=0.0, restitution=eq, effective_mass=total / ((1.0 + eq) * vmax) if vmax > 0 else 0.0,
+            )
+            j = int(slots[q])
+            self._close_banked(j)
+            self._open[j] = rec
+            records.append(rec)
+        self.n_impacts += len(slots)
+        if len(records) > self.keep_records:
+            del records[: len(records) - self.keep_records]
+        return lam, e
