@@ -543,3 +543,30 @@ def test_normal_jacobians_equal_mujoco_mj_jac():
                 ref[r] += sign * nrm[r] @ J
     assert np.abs(ref).max() > 0.1
     np.testing.assert_allclose(Jn, ref, rtol=0, atol=1e-12)
+
+
+def test_reader_events_objects_match_the_fast_rows():
+    """ContactReader.events (objects) and events_fast (rows) give the same impacts and
+    sustained contacts on a bouncing, then rolling ball."""
+    from mjsound.sim.contacts import I_G1, I_G2, I_IMPULSE, I_SPEED, R_KIND, R_SPEED
+
+    model = mujoco.MjModel.from_xml_string(drop_xml(h=0.2))
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.3  # rolls after the bounces
+    slow, fast = ContactReader(model), ContactReader(model)
+    n_imp = n_sus = 0
+    for _ in range(1200):
+        mujoco.mj_step(model, data)
+        imps, cons, _ = slow.events(data)
+        rows_i, rows_s = fast.events_fast(data, data.time - model.opt.timestep, data.time)
+        got = [] if rows_i is None else rows_i.tolist()
+        assert [(e.geom1, e.geom2) for e in imps] == [(int(r[I_G1]), int(r[I_G2])) for r in got]
+        np.testing.assert_allclose([e.impulse for e in imps], [r[I_IMPULSE] for r in got], rtol=1e-12)
+        np.testing.assert_allclose([e.speed for e in imps], [r[I_SPEED] for r in got], rtol=1e-12)
+        sus = [] if rows_s is None else rows_s.tolist()
+        assert [c.kind for c in cons] == ["slide" if r[R_KIND] == 1 else "roll" for r in sus]
+        np.testing.assert_allclose([c.speed for c in cons], [r[R_SPEED] for r in sus], rtol=1e-12)
+        n_imp += len(imps)
+        n_sus += len(cons)
+    assert n_imp >= 2 and n_sus > 100
+    assert [(r.time, r.impulse_sim) for r in slow.impacts] == [(r.time, r.impulse_sim) for r in fast.impacts]
