@@ -570,3 +570,14 @@ def test_reader_events_objects_match_the_fast_rows():
         n_sus += len(cons)
     assert n_imp >= 2 and n_sus > 100
     assert [(r.time, r.impulse_sim) for r in slow.impacts] == [(r.time, r.impulse_sim) for r in fast.impacts]
+
+
+def test_a_contact_that_slides_then_rolls_keeps_one_stream():
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=0.05), models)
+    data.qvel[0] = 0.5  # lands sliding, friction makes it roll
+    audio = sim.run(1.5)
+    ev = sim.events
+    assert ev["slide"] > 0 and ev["roll"] > 0, ev
+    assert list(sim.synth._st_keys) == [(0, 1, 1)]  # (floor, ball, struck geom): one stream
+    assert np.isfinite(audio).all() and np.abs(audio).max() > 0

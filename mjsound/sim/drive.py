@@ -1,11 +1,13 @@
 """Sustained contact -> synthesizer streams, one numba call per physics step.
 
 :meth:`ContactReader.events_fast` returns the step's sliding / rolling pairs as rows (columns
-``R_*`` of :mod:`.contacts`); each pair, kind and side that sounds owns a persistent noise
-stream of the synthesizer (:meth:`mjsound.synth.Synthesizer._stream_index`). The table
-``sidx[slot, kind - 1, side]`` maps the reader's pair slot to that stream (-1: none yet), so a
-step's drives cost no Python per contact: :func:`drive_rows` computes each drive's force
-amplitude and low-pass from the row and generates its noise (``kernels.stream_drive``).
+``R_*`` of :mod:`.contacts`); each pair and side that sounds owns a persistent noise stream of
+the synthesizer (:meth:`mjsound.synth.Synthesizer._stream_index`). Whether the pair slides or
+rolls this step only sets the drive (roughness and low-pass), so a contact that switches
+between them keeps one continuous noise and one set of gains. The table ``sidx[slot, side]``
+maps the reader's pair slot to that stream (-1: none yet), so a step's drives cost no Python
+per contact: :func:`drive_rows` computes each drive's force amplitude and low-pass from the
+row and generates its noise (``kernels.stream_drive``).
 Side 0 is ``geom2`` (pushed along the normal), side 1 ``geom1`` (pushed against it).
 :func:`read_and_drive` is the reader's kernel followed by :func:`drive_rows`: the whole
 per-step contact work in one numba call (:class:`mjsound.sim.AudioSimulator` uses it once
@@ -31,8 +33,8 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
     ----------
     rows : (pairs, R_COLS) float
         Sustained rows of the step (kind 1 slide, 2 roll).
-    sidx : (slots, 2, 2) int64
-        Stream of (pair slot, kind - 1, side); -1 where none exists yet.
+    sidx : (slots, 2) int64
+        Stream of (pair slot, side); -1 where none exists yet.
     geom_obj : (ngeom,) int64
         Synth object index of each geom (-1: silent or no modes).
     rough, length : (2,) float
@@ -62,7 +64,7 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
         if kind == 0 or slot >= sidx.shape[0]:
             continue
         for side in range(2):
-            s = sidx[slot, kind - 1, side]
+            s = sidx[slot, side]
             if s >= 0:
                 for m in range(D.shape[1]):
                     need = D[s, m] + (k1 - rendered) + slack
@@ -86,7 +88,7 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
             g = int(rows[r, R_G2]) if side == 0 else int(rows[r, R_G1])
             if geom_obj[g] < 0:
                 continue
-            s = sidx[slot, kind - 1, side] if slot < sidx.shape[0] else -1
+            s = sidx[slot, side] if slot < sidx.shape[0] else -1
             if s < 0:
                 missing[nm, 0] = r
                 missing[nm, 1] = side

@@ -270,7 +270,7 @@ class AudioSimulator:
         self.seconds_synth = 0.0
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
-        self._sidx = np.full((16, 2, 2), -1, np.int64)
+        self._sidx = np.full((16, 2), -1, np.int64)
         self._sidx_epoch = None
         self._regain = max(1, int(round(self.sustained_block_s * self.sample_rate)))
 
@@ -464,7 +464,7 @@ class AudioSimulator:
 
     def _reset_sidx(self) -> None:
         """The synthesizer forgot its streams (reset, microphones changed): forget their indices."""
-        self._sidx = np.full((16, 2, 2), -1, np.int64)
+        self._sidx = np.full((16, 2), -1, np.int64)
         self._sidx_epoch = self.synth._st_epoch
 
     def _drive_args(self, n0, n1) -> tuple:
@@ -479,8 +479,9 @@ class AudioSimulator:
                 st["SF"], st["SI"], st["D"], st["ring"])
 
     def _drive(self, rows, n0, n1, done=None) -> None:
-        """One persistent noise stream per (pair, kind, side): its force and speed are updated
-        every step (numba generates the noise), its gains follow the contact point every
+        """One persistent noise stream per (pair, side), whether it slides or rolls: its force,
+        speed and kind are updated every step (numba generates the noise), its gains follow the
+        contact point every
         ``sustained_block_s`` (see :mod:`.drive`). ``done``: ``(missing, need)`` of a
         :func:`.drive.read_and_drive` call that already drove the rows that have streams."""
         synth = self.synth
@@ -488,7 +489,7 @@ class AudioSimulator:
         k1 = n1 - self._origin
         slots = self.reader._nslots
         if slots > len(self._sidx):
-            grown = np.full((max(2 * len(self._sidx), slots, 16), 2, 2), -1, np.int64)
+            grown = np.full((max(2 * len(self._sidx), slots, 16), 2), -1, np.int64)
             grown[: len(self._sidx)] = self._sidx
             self._sidx = grown
         if done is not None and not done[1]:
@@ -514,9 +515,9 @@ class AudioSimulator:
             g1, g2, kind = int(row[R_G1]), int(row[R_G2]), int(row[R_KIND])
             g = g2 if side == 0 else g1
             ob = synth._objects[self._names[g]]
-            key = (g1, g2, "slide" if kind == 1 else "roll", g)
+            key = (g1, g2, g)
             j = synth._stream_index(key, ob)
-            self._sidx[int(row[R_SLOT]), kind - 1, side] = j
+            self._sidx[int(row[R_SLOT]), side] = j
             sign = 1.0 if side == 0 else -1.0
             synth._stream_drive(j, row[R_POINT:R_POINT + 3], sign * row[R_NORMAL:R_NORMAL + 3], float(row[R_FORCE]),
                                 float(row[R_SPEED]), k0, k1, self._rough[kind - 1], self._length[kind - 1],
