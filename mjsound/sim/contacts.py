@@ -55,7 +55,6 @@ NaN/Inf or huge (> ``max_force`` N) contact forces and NaN velocities are clampe
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 

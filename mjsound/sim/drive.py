@@ -20,9 +20,11 @@ import numpy as np
 from numba import njit
 
 from ..synth import kernels
-from .contacts import R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED, _fused_kernel
+from ..synth.pulse import contact_time
+from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
+                       R_POINT, R_SLOT, R_SPEED, _fused_kernel)
 
-__all__ = ["drive_rows", "read_and_drive"]
+__all__ = ["drive_rows", "read_and_drive", "impact_sides", "pose_rows"]
 
 
 @njit(cache=True)
@@ -141,3 +143,46 @@ def pose_rows(gxpos, gxmat, geoms, idx, pos_out, R_out):
         for a in range(3):
             for b in range(3):
                 R_out[o, a, b] = gxmat[g, 3 * a + b]
+
+
+@njit(cache=True)
+def impact_sides(imp, geom_obj, coef_row, coef):
+    """Every sounding side of a step's impacts (rows of ``ContactReader.events_fast``, columns
+    ``I_*``; side 0 is geom2, pushed along the normal, side 1 geom1, pushed against it).
+
+    Returns ``(obj, P, J, tau, missing)``: per side the synth object index, the world point
+    [m], the impulse on that side [N s] and the Hertz pulse length [s] from the struck/other
+    coefficient ``coef[coef_row[g], other]`` (``pulse.contact_time``); ``missing`` (m, 2) the
+    (struck, other) geom pairs whose coefficient is not known yet (NaN: their sides are left
+    out; the caller computes them and calls again).
+    """
+    K = imp.shape[0]
+    obj = np.empty(2 * K, np.int64)
+    P = np.empty((2 * K, 3))
+    J = np.empty((2 * K, 3))
+    tau = np.empty(2 * K)
+    missing = np.empty((2 * K, 2), np.int64)
+    n = 0
+    nm = 0
+    for r in range(K):
+        g1 = int(imp[r, I_G1])
+        g2 = int(imp[r, I_G2])
+        for side in range(2):
+            g = g2 if side == 0 else g1
+            other = g1 if side == 0 else g2
+            if geom_obj[g] < 0:
+                continue
+            c = coef[coef_row[g], other]
+            if not (c == c):
+                missing[nm, 0] = g
+                missing[nm, 1] = other
+                nm += 1
+                continue
+            a = (1.0 if side == 0 else -1.0) * imp[r, I_IMPULSE]
+            obj[n] = geom_obj[g]
+            for k in range(3):
+                P[n, k] = imp[r, I_POINT + k]
+                J[n, k] = a * imp[r, I_NORMAL + k]
+            tau[n] = contact_time(c, imp[r, I_SPEED])
+            n += 1
+    return obj[:n], P[:n], J[:n], tau[:n], missing[:nm]

@@ -31,10 +31,9 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..synth.pulse import contact_time
-from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
-                       R_POINT, R_SLOT, R_SPEED, ContactReader)
-from .drive import drive_rows, pose_rows, read_and_drive
+from .contacts import (I_G1, I_G2, I_IMPULSE, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
+                       ContactReader)
+from .drive import drive_rows, impact_sides, pose_rows, read_and_drive
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -240,7 +239,9 @@ class AudioSimulator:
         self._dyn_idx = np.array(sorted(self._dyn_geom), np.int64)  # moving objects, and their geoms
         self._dyn_geoms = np.array([self._dyn_geom[i] for i in self._dyn_idx.tolist()], np.int64)
         self._follow = None
-        self._tau_coef = {}  # (struck geom, other geom) -> Hertz coefficient (Synthesizer._hertz_coef)
+        # Hertz coefficient of (struck sounding geom, other geom), NaN until first needed
+        self._coef_row = np.cumsum(self._geom_obj >= 0) - 1
+        self._coef = np.full((int((self._geom_obj >= 0).sum()), model.ngeom), np.nan)
         self.reset(clear_reader=True)
 
     # ------------------------------------------------------------------ state
@@ -407,7 +408,7 @@ class AudioSimulator:
         if impacts is not None:
             self._queue_impacts(impacts, t0, n0)
         if rows is not None and self._n_logged < self.keep_events:
-            self._log_pending.append((t0, rows))
+            self._log_pending.append((t0, "sustained", rows))
             self._n_logged += len(rows)
         if rows is not None and self.sustained and nblock:
             done = reader.drive_result if drive is not None else None
@@ -427,40 +428,25 @@ class AudioSimulator:
         t_ev = max(t0 - self._origin / fs, (n0 - self._origin) / fs)
         self._update_mics()
         self._pose_moving()
-        rows = imp.tolist()
-        self._n_impacts += len(rows)
-        log = self._log_pending
-        geom_obj = self._geom_obj
-        obj, P, J, tau = [], [], [], []
-        for r in rows:
-            g1, g2 = int(r[I_G1]), int(r[I_G2])
-            if self._n_logged < self.keep_events:
-                log.append((t0, (t0, "impact", g1, g2, r[I_IMPULSE])))
-                self._n_logged += 1
-            for g, other, sign in ((g2, g1, 1.0), (g1, g2, -1.0)):
-                oi = geom_obj[g]
-                if oi < 0:
-                    continue
-                coef = self._tau_coef.get((g, other))
-                if coef is None:
-                    coef = self._hertz_coef(g, other)
-                a = sign * r[I_IMPULSE]
-                obj.append(oi)
-                P.append(r[I_POINT:I_POINT + 3])
-                J.append((a * r[I_NORMAL], a * r[I_NORMAL + 1], a * r[I_NORMAL + 2]))
-                tau.append(contact_time(coef, r[I_SPEED]))
-        if obj:
-            k = len(obj)
-            synth._impact_rows(np.array(obj, np.int64), np.array(P), np.array(J), np.full(k, t_ev), np.array(tau))
+        self._n_impacts += len(imp)
+        if self._n_logged < self.keep_events:
+            self._log_pending.append((t0, "impact", imp))
+            self._n_logged += len(imp)
+        while True:
+            obj, P, J, tau, missing = impact_sides(imp, self._geom_obj, self._coef_row, self._coef)
+            if not len(missing):
+                break
+            for g, other in missing.tolist():
+                self._coef[self._coef_row[g], other] = self._hertz_coef(g, other)
+        if len(obj):
+            synth._impact_rows(obj, P, J, np.full(len(obj), t_ev), tau)
 
     def _hertz_coef(self, g, other) -> float:
-        """Hertz coefficient of sounding geom ``g`` struck by geom ``other`` (cached)."""
+        """Hertz coefficient of sounding geom ``g`` struck by geom ``other``."""
         synth = self.synth
         ob = synth._objects[self._names[g]]
-        coef = synth._hertz_coef(ob, self.scene.geom_material[other], float(self._other_mass[other]),
+        return synth._hertz_coef(ob, self.scene.geom_material[other], float(self._other_mass[other]),
                                  float(self._radius[other]), float(self._radius[g]) if np.isfinite(self._radius[g]) else None)[0]
-        self._tau_coef[(g, other)] = coef
-        return coef
 
     def _reset_sidx(self) -> None:
         """The synthesizer forgot its streams (reset, microphones changed): forget their indices."""
@@ -572,12 +558,12 @@ class AudioSimulator:
         ``"slide"`` / ``"roll"`` (one per pair and physics step; value: speed [m/s])."""
         if self._log_pending:
             log = self._log
-            for t0, item in self._log_pending:
-                if isinstance(item, tuple):
-                    log.append(item)
-                    continue
-                for r in item.tolist():
-                    log.append((t0, "slide" if r[R_KIND] == 1.0 else "roll", int(r[R_G1]), int(r[R_G2]), r[R_SPEED]))
+            for t0, what, rows in self._log_pending:
+                if what == "impact":
+                    log.extend((t0, "impact", int(r[I_G1]), int(r[I_G2]), r[I_IMPULSE]) for r in rows.tolist())
+                else:
+                    log.extend((t0, "slide" if r[R_KIND] == 1.0 else "roll", int(r[R_G1]), int(r[R_G2]), r[R_SPEED])
+                               for r in rows.tolist())
             del log[self.keep_events:]
             self._log_pending = []
         return self._log

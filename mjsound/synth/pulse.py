@@ -107,15 +107,17 @@ def hertz_coefficient(m, R, mat1, mat2) -> float:
     return 2.87 * (m * m / (R * E * E)) ** 0.2
 
 
-def contact_time(coef, v) -> float:
+@njit(cache=True)
+def contact_time(coef, v):
     """``coef |v|^(-1/5)`` clamped to [``TAU_MIN_S``, ``TAU_MAX_S``] [s]; ``coef == 0``
-    (infinitely hard) gives ``TAU_MIN_S``, ``v == 0`` ``TAU_MAX_S``."""
+    (infinitely hard) gives ``TAU_MIN_S``, ``v == 0`` ``TAU_MAX_S``. (numba: also called
+    from the per-step kernels.)"""
     v = abs(v)
     if coef == 0.0:
         return TAU_MIN_S
     if not v > 0:
         return TAU_MAX_S
-    return float(min(max(coef * v**-0.2, TAU_MIN_S), TAU_MAX_S))
+    return min(max(coef * v**-0.2, TAU_MIN_S), TAU_MAX_S)
 
 
 def half_sine_spectrum(omega, tau) -> np.ndarray:
