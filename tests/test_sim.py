@@ -502,7 +502,7 @@ def test_impact_records_read_lazily_equal_records_read_every_step():
 def test_normal_jacobians_equal_mujoco_mj_jac():
     """The numba contact Jacobians (_normal_jacobians) against mj_jac on a tree with free, ball,
     hinge and slide joints and a welded (dof-less) child body."""
-    from mjsound.sim.contacts import _normal_jacobians
+    from mjsound.sim.contacts import H_COLS, H_G1, H_G2, H_NORMAL, H_POINT, _normal_jacobians
 
     xml = """
 <mujoco><worldbody>
@@ -532,7 +532,11 @@ def test_normal_jacobians_equal_mujoco_mj_jac():
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     kin = tuple(np.asarray(a, np.int64) for a in (m.body_dofnum, m.body_dofadr, m.body_parentid, m.body_rootid,
                                                   m.dof_parentid))
-    Jn = _normal_jacobians(geom, pos, nrm, d.cdof, d.subtree_com, np.asarray(m.geom_bodyid, np.int64), *kin, m.nv)
+    hits = np.zeros((k, H_COLS))
+    hits[:, H_G1:H_G2 + 1] = geom
+    hits[:, H_POINT:H_POINT + 3] = pos
+    hits[:, H_NORMAL:H_NORMAL + 3] = nrm
+    Jn = _normal_jacobians(hits, d.cdof, d.subtree_com, np.asarray(m.geom_bodyid, np.int64), *kin, m.nv)
     ref = np.zeros((k, m.nv))
     J = np.zeros((3, m.nv))
     for r in range(k):

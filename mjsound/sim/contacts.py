@@ -424,10 +424,11 @@ I_COLS = 10
 
 
 @_njit(cache=True, nogil=True)
-def _normal_jacobians(geom, pos, nrm, cdof, scom, gbody, body_dofnum, body_dofadr, body_parentid, body_rootid,
+def _normal_jacobians(hits, cdof, scom, gbody, body_dofnum, body_dofadr, body_parentid, body_rootid,
                       dof_parentid, nv):
-    """``Jn[r] = n_r . (J_geom2(p_r) - J_geom1(p_r))`` (k, nv) for contacts ``r`` between
-    ``geom[r]`` at world points ``pos`` with normals ``nrm`` (the world body adds nothing).
+    """``Jn[r] = n_r . (J_geom2(p_r) - J_geom1(p_r))`` (k, nv) for the impacting contacts
+    ``hits`` (columns ``H_*``: geoms, world point ``p_r`` and normal ``n_r``; the world body
+    adds nothing).
 
     The point Jacobian of body ``b`` is MuJoCo's ``mj_jac`` (its C code, here in numba so
     that no Python call per contact side is needed): from the first body with dofs up the
@@ -435,27 +436,28 @@ def _normal_jacobians(geom, pos, nrm, cdof, scom, gbody, body_dofnum, body_dofad
     ``J[:, i] = cdof_lin_i + cdof_ang_i x (p - subtree_com[root(b)])`` (``cdof`` rows are
     (angular, linear) motion axes).
     """
-    k = geom.shape[0]
+    k = hits.shape[0]
     Jn = np.zeros((k, nv))
     for r in range(k):
+        nx, ny, nz = hits[r, H_NORMAL], hits[r, H_NORMAL + 1], hits[r, H_NORMAL + 2]
         for side in range(2):
-            b0 = gbody[geom[r, side]]
+            b0 = gbody[int(hits[r, H_G1 + side])]
             b = b0
             while b > 0 and body_dofnum[b] == 0:
                 b = body_parentid[b]
             if b == 0:
                 continue
             root = body_rootid[b0]
-            ox = pos[r, 0] - scom[root, 0]
-            oy = pos[r, 1] - scom[root, 1]
-            oz = pos[r, 2] - scom[root, 2]
+            ox = hits[r, H_POINT] - scom[root, 0]
+            oy = hits[r, H_POINT + 1] - scom[root, 1]
+            oz = hits[r, H_POINT + 2] - scom[root, 2]
             sign = 1.0 if side == 1 else -1.0
             i = body_dofadr[b] + body_dofnum[b] - 1
             while i >= 0:
                 jx = cdof[i, 3] + (cdof[i, 1] * oz - cdof[i, 2] * oy)
                 jy = cdof[i, 4] + (cdof[i, 2] * ox - cdof[i, 0] * oz)
                 jz = cdof[i, 5] + (cdof[i, 0] * oy - cdof[i, 1] * ox)
-                Jn[r, i] += sign * (nrm[r, 0] * jx + nrm[r, 1] * jy + nrm[r, 2] * jz)
+                Jn[r, i] += sign * (nx * jx + ny * jy + nz * jz)
                 i = dof_parentid[i]
     return Jn
 
@@ -474,25 +476,48 @@ def _restitution_of(e_geom, g1, g2):
 
 
 @_njit(cache=True, nogil=True)
-def _impulses_grouped(geom, v, Jn, MinvJt, starts, e_geom, tree_mass, root_mass, gbody, jmax):
-    """:func:`_impulse_kernel` for every impact event at once: contacts
-    ``starts[q] : starts[q + 1]`` are event ``q`` (one geom pair). Returns ``(lambda (k,),
-    restitution (events,), clamped (events,))``."""
+def _impulses_grouped(hits, Jn, MinvJt, starts, e_geom, tree_mass, root_mass, gbody, jmax):
+    """:func:`_impulse_kernel` for every impact event of a step at once: contacts (rows of
+    ``hits``) ``starts[q] : starts[q + 1]`` are event ``q`` (one geom pair).
+
+    Returns ``lambda (k,)``, per event its restitution, largest approach speed, total impulse
+    and whether an impulse was clamped (``stats`` (events, 4)), and the impacts with
+    ``lambda > 0`` as rows of columns ``I_*``.
+    """
     Q = starts.shape[0] - 1
-    lam = np.zeros(geom.shape[0])
-    e_out = np.zeros(Q)
-    clamped = np.zeros(Q, np.bool_)
+    k = hits.shape[0]
+    lam = np.zeros(k)
+    stats = np.zeros((Q, 4))
     for q in range(Q):
         a, b = starts[q], starts[q + 1]
-        g1, g2 = geom[a, 0], geom[a, 1]
+        g1, g2 = int(hits[a, H_G1]), int(hits[a, H_G2])
         b1, b2 = gbody[g1], gbody[g2]
         e = _restitution_of(e_geom, g1, g2)
-        lq, cl = _impulse_kernel(Jn[a:b], MinvJt[a:b], v[a:b], e, tree_mass[b1], tree_mass[b2],
+        v = hits[a:b, H_SPEED].copy()
+        lq, cl = _impulse_kernel(Jn[a:b], MinvJt[a:b], v, e, tree_mass[b1], tree_mass[b2],
                                  min(root_mass[b1], root_mass[b2]), jmax)
         lam[a:b] = lq
-        e_out[q] = e
-        clamped[q] = cl
-    return lam, e_out, clamped
+        stats[q, 0] = e
+        stats[q, 1] = v.max()
+        stats[q, 2] = lq.sum()
+        stats[q, 3] = 1.0 if cl else 0.0
+    n = 0
+    for r in range(k):
+        if lam[r] > 0:
+            n += 1
+    imp = np.empty((n, I_COLS))
+    n = 0
+    for r in range(k):
+        if lam[r] > 0:
+            imp[n, I_G1] = hits[r, H_G1]
+            imp[n, I_G2] = hits[r, H_G2]
+            for c in range(3):
+                imp[n, I_POINT + c] = hits[r, H_POINT + c]
+                imp[n, I_NORMAL + c] = hits[r, H_NORMAL + c]
+            imp[n, I_IMPULSE] = lam[r]
+            imp[n, I_SPEED] = hits[r, H_SPEED]
+            n += 1
+    return lam, stats, imp
 
 
 @_njit(cache=True, nogil=True)
@@ -875,8 +900,12 @@ class ContactReader:
                 hits = [idx[cf.v_approach[idx] > self.v_impact] for idx in hits]
                 hit_starts = np.concatenate([[0], np.cumsum([len(h) for h in hits])]).astype(np.int64)
                 hit = np.concatenate(hits)
-                lam, e_pair = self._impacts(data, cf.geom[hit], cf.pos[hit], cf.normal[hit], cf.v_approach[hit],
-                                            hit_starts, slot[pairs], t0)
+                H = np.zeros((len(hit), H_COLS))
+                H[:, H_G1:H_G2 + 1] = cf.geom[hit]
+                H[:, H_POINT:H_POINT + 3] = cf.pos[hit]
+                H[:, H_NORMAL:H_NORMAL + 3] = cf.normal[hit]
+                H[:, H_SPEED] = cf.v_approach[hit]
+                lam, e_pair, _ = self._impacts(data, H, hit_starts, slot[pairs], t0)
                 for q in range(len(pairs)):
                     e = float(e_pair[q])
                     for r in range(hit_starts[q], hit_starts[q + 1]):
@@ -934,12 +963,7 @@ class ContactReader:
         if n:
             self._room(n)
             con = data.contact
-            if data is not self._views_of:
-                # fixed-size MjData arrays: their numpy views stay valid (only contacts and
-                # constraints change size), so they are made once per MjData
-                self._views = (data.cvel, data.subtree_com, data.geom_xpos)
-                self._views_of = data
-            cvel, scom, gxpos = self._views
+            cvel, scom, gxpos, _ = self._data_views(data)
             args = (con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                     cvel, scom, gxpos, self.geom_body, self.body_root, self._plane,
                     self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
@@ -956,21 +980,21 @@ class ContactReader:
                 # hits are grouped by their pair's row, in row order
                 pairs = np.flatnonzero(rows[:, R_ONSET])
                 hit_starts = np.searchsorted(hits[:, H_ROW], np.append(pairs, len(rows)))
-                lam, _ = self._impacts(data, hits[:, H_G1:H_G2 + 1].astype(np.int64), hits[:, H_POINT:H_POINT + 3],
-                                    hits[:, H_NORMAL:H_NORMAL + 3], hits[:, H_SPEED], hit_starts,
-                                    rows[pairs, R_SLOT].astype(np.int64), t0)
-                keep = lam > 0
-                impacts = np.empty((int(keep.sum()), I_COLS))
-                impacts[:, I_G1:I_G2 + 1] = hits[keep, H_G1:H_G2 + 1]
-                impacts[:, I_POINT:I_NORMAL + 3] = hits[keep, H_POINT:H_NORMAL + 3]
-                impacts[:, I_IMPULSE] = lam[keep]
-                impacts[:, I_SPEED] = hits[keep, H_SPEED]
+                _, _, impacts = self._impacts(data, hits, hit_starts, rows[pairs, R_SLOT].astype(np.int64), t0)
             if len(srows):
                 sustained = srows
         elif self._any_open:
             self._SI[SI_OPEN, : self._nslots] = 0
             self._any_open = False
         return impacts, sustained
+
+    def _data_views(self, data):
+        """``(cvel, subtree_com, geom_xpos, cdof)`` of ``data``: fixed-size MjData arrays, whose
+        numpy views stay valid (only contacts and constraints change size), made once."""
+        if data is not self._views_of:
+            self._views = (data.cvel, data.subtree_com, data.geom_xpos, data.cdof)
+            self._views_of = data
+        return self._views
 
     @property
     def impacts(self) -> list[ImpactRecord]:
@@ -997,12 +1021,11 @@ class ContactReader:
             old.duration = float(self._SF[SF_PREND, j]) - old.time
             old.open = False
 
-    def _impacts(self, data, geom, pos, nrm, v, starts, slots, t0):
-        """Impact events of several pairs at once: contacts ``starts[q] : starts[q + 1]``
-        (``geom`` (k, 2), world points ``pos`` and normals ``nrm`` (k, 3), approach speeds
-        ``v`` (k,)) are the event of pair slot ``slots[q]``. Each gets its
-        :class:`ImpactRecord` (listed open under its slot). Returns the impulses (k,) and each
-        event's restitution (events,).
+    def _impacts(self, data, hits, starts, slots, t0):
+        """Impact events of several pairs at once: contacts ``starts[q] : starts[q + 1]`` of
+        ``hits`` (k, ``H_COLS``) are the event of pair slot ``slots[q]``. Each gets its
+        :class:`ImpactRecord` (listed open under its slot). Returns the impulses (k,), each
+        event's restitution (events,) and the impacts with a positive impulse (columns ``I_*``).
 
         ``lambda = A^+ (1 + e) v`` with the contact-space inverse inertia ``A = Jn M^-1 Jn^T``
         of each event: all normal Jacobians by :func:`_normal_jacobians`, one ``mj_solveM`` for
@@ -1010,37 +1033,34 @@ class ContactReader:
         """
         m = self.model
         nv = m.nv
-        k = len(v)
-        v = np.ascontiguousarray(v, np.float64)
+        k = len(hits)
         if nv > 0:
             if self._kin is None:
                 self._kin = tuple(np.asarray(a, np.int64) for a in (m.body_dofnum, m.body_dofadr, m.body_parentid,
                                                                     m.body_rootid, m.dof_parentid))
-            Jn = _normal_jacobians(geom, pos, nrm, data.cdof, data.subtree_com, self.geom_body, *self._kin, nv)
+            _, scom, _, cdof = self._data_views(data)
+            Jn = _normal_jacobians(hits, cdof, scom, self.geom_body, *self._kin, nv)
             MinvJt = np.empty((k, nv))
             self._mj.mj_solveM(m, data, MinvJt, Jn)
         else:
             Jn = MinvJt = np.zeros((k, 0))
-        lam, e, clamped = _impulses_grouped(geom, v, Jn, MinvJt, starts, self.restitution, self._tree_mass,
+        lam, stats, imp = _impulses_grouped(hits, Jn, MinvJt, starts, self.restitution, self._tree_mass,
                                             self._root_mass, self.geom_body, self.max_force * 0.01)
-        if clamped.any():
-            self.n_clamped += int(clamped.sum())
-            self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
-                            "reported once")
         records = self._records
-        for q, (a, b) in enumerate(zip(starts[:-1].tolist(), starts[1:].tolist())):
-            vmax = float(v[a:b].max())
-            total = float(lam[a:b].sum())
-            eq = float(e[q])
+        g12 = hits[starts[:-1], H_G1:H_G2 + 1].tolist()
+        for (g1, g2), j, (eq, vmax, total, clamped) in zip(g12, slots.tolist(), stats.tolist()):
             rec = ImpactRecord(
-                time=t0, geom1=int(geom[a, 0]), geom2=int(geom[a, 1]), speed=vmax, impulse_pred=total,
-                impulse_sim=0.0, restitution=eq, effective_mass=total / ((1.0 + eq) * vmax) if vmax > 0 else 0.0,
+                time=t0, geom1=int(g1), geom2=int(g2), speed=vmax, impulse_pred=total, impulse_sim=0.0, restitution=eq,
+                effective_mass=total / ((1.0 + eq) * vmax) if vmax > 0 else 0.0,
             )
-            j = int(slots[q])
             self._close_banked(j)
             self._open[j] = rec
             records.append(rec)
-        self.n_impacts += len(slots)
+            if clamped:
+                self.n_clamped += 1
+                self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
+                                "reported once")
+        self.n_impacts += len(g12)
         if len(records) > self.keep_records:
             del records[: len(records) - self.keep_records]
-        return lam, e
+        return lam, stats[:, 0], imp
