@@ -346,14 +346,17 @@ H_COLS = 10
 
 @_njit(cache=True, nogil=True)
 def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm, counts):
+                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm, counts, rows, sustained, hits):
     """:func:`_contact_kernel`, :func:`_pair_kernel` and :func:`_state_kernel` in one call (the
     per-step hot path); ``counts`` (2,) adds the step's sliding and rolling pairs.
-    Returns ``(rows, sustained, hits, nbad, nhuge, n_onset, nslots)``;
-    ``hits`` (contacts, ``H_COLS``) the impacting contacts of onset pairs; ``rows`` (pairs,
-    ``R_COLS``), ``sustained`` the rows of kind > 0:
-    geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed, point (3),
-    normal (3), onset (1: an impact starts), slot (the pair's state slot)."""
+
+    Writes into the caller's buffers (at least as many rows as contacts; reused every step, so
+    that no array is allocated for Python): ``rows`` (pairs, ``R_COLS``) and ``sustained`` (the
+    rows of kind > 0): geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed,
+    point (3), normal (3), onset (1: an impact starts), slot (the pair's state slot); ``hits``
+    (``H_COLS``) the impacting contacts of onset pairs, grouped by row. Returns
+    ``(pairs, n_sustained, n_hits, nbad, nhuge, n_onset, nslots)``. ``pos`` is not modified."""
+    pos = pos.copy()  # (the contact kernel sanitises non-finite points in place)
     fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge = _contact_kernel(
         geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, prm[P_FMAX])
     order, starts, pkey, vmax, ftot, slip, roll, point, normal = _pair_kernel(
@@ -361,7 +364,6 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
     slot, onset, kind, speed, nslots = _state_kernel(
         pkey, vmax, ftot, slip, roll, hkeys, hvals, SF, SI, nslots, t0, t1, t1 - t0, step, prm)
     P = pkey.shape[0]
-    rows = np.empty((P, R_COLS))
     for p in range(P):
         i0 = order[starts[p]]
         rows[p, R_G1] = geom[i0, 0]
@@ -382,7 +384,6 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
         if kind[p] > 0:
             n_sust += 1
             counts[kind[p] - 1] += 1
-    sustained = np.empty((n_sust, R_COLS))
     q = 0
     for p in range(P):
         if kind[p] > 0:
@@ -397,7 +398,6 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
                 for j in range(starts[p], starts[p + 1]):
                     if vapp[order[j]] > prm[P_V_IMPACT]:
                         nh += 1
-    hits = np.empty((nh, H_COLS))
     h = 0
     if nh:
         for p in range(P):
@@ -413,7 +413,7 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
                             hits[h, H_NORMAL + c] = nrm[i, c]
                         hits[h, H_SPEED] = vapp[i]
                         h += 1
-    return rows, sustained, hits, nbad, nhuge, n_onset, nslots
+    return P, n_sust, nh, nbad, nhuge, n_onset, nslots
 
 
 #: Columns of the impact array :meth:`ContactReader.events_fast` returns, one row per
@@ -787,6 +787,11 @@ class ContactReader:
         self.drive_result = None
         #: sliding and rolling pair-steps seen by :meth:`events_fast` (counted in numba)
         self.sustained_steps = np.zeros(2, np.int64)
+        # output buffers of the per-step kernel (grown to the largest contact count seen)
+        self._rows_buf = np.empty((0, R_COLS))
+        self._srows_buf = np.empty((0, R_COLS))
+        self._hits_buf = np.empty((0, H_COLS))
+        self._missing_buf = np.empty((0, 2), np.int64)
         self._params = np.array([self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s,
                                  self.max_event_s, self.v_slide, self.v_roll, self.max_force])
 
@@ -948,11 +953,13 @@ class ContactReader:
             The step's impacting contacts (columns ``I_*``; all at ``t0``); None when none.
         rows : (pairs, R_COLS) float array | None
             The step's sounding pairs (kind slide or roll), columns ``R_*``; None when none.
+            A view of a buffer that the next call overwrites: copy it to keep it.
 
-        ``drive``: optional ``(kernel, args)``: ``kernel(*reader_args, *args)`` replaces the
-        reader's kernel and returns its outputs plus extra ones, kept in
-        :attr:`drive_result` (:func:`mjsound.sim.drive.read_and_drive`: the sustained rows
-        drive the synthesizer's streams in the same call).
+        ``drive``: optional ``(kernel, args)``: ``kernel(*reader_args, *args, missing)``
+        replaces the reader's kernel and returns its outputs plus ``(n_missing, need)``;
+        :attr:`drive_result` is then ``(missing[:n_missing], need)``
+        (:func:`mjsound.sim.drive.read_and_drive`: the sustained rows drive the synthesizer's
+        streams in the same call).
         """
         self._step += 1
         step = self._step
@@ -964,25 +971,32 @@ class ContactReader:
             self._room(n)
             con = data.contact
             cvel, scom, gxpos, _ = self._data_views(data)
-            args = (con.geom, con.pos.copy(), con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
+            if n > len(self._rows_buf):
+                self._rows_buf = np.empty((2 * n, R_COLS))
+                self._srows_buf = np.empty((2 * n, R_COLS))
+                self._hits_buf = np.empty((2 * n, H_COLS))
+                self._missing_buf = np.empty((4 * n, 2), np.int64)
+            args = (con.geom, con.pos, con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                     cvel, scom, gxpos, self.geom_body, self.body_root, self._plane,
                     self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
-                    self._params, self.sustained_steps)
+                    self._params, self.sustained_steps, self._rows_buf, self._srows_buf, self._hits_buf)
             if drive is None:
                 out = _fused_kernel(*args)
             else:
-                out = drive[0](*args, *drive[1])
-                self.drive_result = out[7:]
-            rows, srows, hits, nbad, nhuge, n_onset, self._nslots = out[:7]
+                out = drive[0](*args, *drive[1], self._missing_buf)
+                self.drive_result = (self._missing_buf[: out[7]], out[8])
+            n_pairs, n_sust, n_hits, nbad, nhuge, n_onset, self._nslots = out[:7]
             if nbad or nhuge:
                 self._report_clamped(nbad, nhuge)
             if n_onset:
                 # hits are grouped by their pair's row, in row order
+                rows = self._rows_buf[:n_pairs]
+                hits = self._hits_buf[:n_hits]
                 pairs = np.flatnonzero(rows[:, R_ONSET])
                 hit_starts = np.searchsorted(hits[:, H_ROW], np.append(pairs, len(rows)))
                 _, _, impacts = self._impacts(data, hits, hit_starts, rows[pairs, R_SLOT].astype(np.int64), t0)
-            if len(srows):
-                sustained = srows
+            if n_sust:
+                sustained = self._srows_buf[:n_sust]
         elif self._any_open:
             self._SI[SI_OPEN, : self._nslots] = 0
             self._any_open = False

@@ -28,7 +28,7 @@ __all__ = ["drive_rows", "read_and_drive", "impact_sides", "pose_rows"]
 
 
 @njit(cache=True)
-def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring):
+def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring, missing):
     """Drive the streams of every sounding side of every row on synth samples ``[k0, k1)``.
 
     Parameters
@@ -47,16 +47,17 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
         Block samples, gain refresh interval, samples rendered so far, ring slack.
     SF, SI, D, ring
         The synthesizer's stream arrays.
+    missing : (>= 2 pairs, 2) int64
+        Buffer: its first ``n_missing`` rows are set to the (row, side) pairs that need a
+        stream first (nothing was driven for them).
 
     Returns
     -------
-    missing : (k, 2) int64
-        (row, side) pairs that need a stream first (nothing was driven for them).
+    n_missing : int
     need : int
         0, or the ring length needed before anything can be driven (nothing driven at all).
     """
     P = rows.shape[0]
-    missing = np.empty((2 * P, 2), np.int64)
     nm = 0
     cap = ring.shape[1]
     # the ring must hold the pending samples plus every stream's delay: check before any drive
@@ -71,7 +72,7 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
                 for m in range(D.shape[1]):
                     need = D[s, m] + (k1 - rendered) + slack
                     if need > cap:
-                        return missing[:0], need
+                        return 0, need
     p = np.empty(3)
     nrm = np.empty(3)
     for r in range(P):
@@ -101,26 +102,25 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
                 p[c] = rows[r, R_POINT + c]
                 nrm[c] = sign * rows[r, R_NORMAL + c]
             kernels.stream_drive(s, k0, k1, amp, alpha, p, nrm, regain, rendered, slack, SF, SI, D, ring)
-    return missing[:nm], 0
+    return nm, 0
 
 
 @njit(cache=True)
 def read_and_drive(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts,
-                   sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring):
+                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts, rows, srows, hits,
+                   sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring, missing):
     """The reader's per-step kernel (``contacts._fused_kernel``) followed by
     :func:`drive_rows` on its sustained rows: one numba call per physics step for reading
     every contact and driving every sliding / rolling stream. Returns the reader's outputs
-    then ``(missing, need)`` of :func:`drive_rows` (see :meth:`ContactReader.events_fast`)."""
-    rows, srows, hits, nbad, nhuge, n_onset, nslots = _fused_kernel(
+    then ``(n_missing, need)`` of :func:`drive_rows` (see :meth:`ContactReader.events_fast`)."""
+    P, ns, nh, nbad, nhuge, n_onset, nslots = _fused_kernel(
         geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts)
-    if srows.shape[0] and k1 > k0:
-        missing, need = drive_rows(srows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack,
-                                   SF, SI, D, ring)
-    else:
-        missing, need = np.empty((0, 2), np.int64), 0
-    return rows, srows, hits, nbad, nhuge, n_onset, nslots, missing, need
+        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts, rows, srows, hits)
+    nm, need = 0, 0
+    if ns and k1 > k0:
+        nm, need = drive_rows(srows[:ns], sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack,
+                              SF, SI, D, ring, missing)
+    return P, ns, nh, nbad, nhuge, n_onset, nslots, nm, need
 
 
 @njit(cache=True)

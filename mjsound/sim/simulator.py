@@ -408,7 +408,7 @@ class AudioSimulator:
         if impacts is not None:
             self._queue_impacts(impacts, t0, n0)
         if rows is not None and self._n_logged < self.keep_events:
-            self._log_pending.append((t0, "sustained", rows))
+            self._log_pending.append((t0, "sustained", rows.copy()))  # (rows: the reader's buffer)
             self._n_logged += len(rows)
         if rows is not None and self.sustained and nblock:
             done = reader.drive_result if drive is not None else None
@@ -488,12 +488,13 @@ class AudioSimulator:
             while True:
                 if need:
                     synth._streams_grow_ring(need)
-                missing, need = drive_rows(rows, *self._drive_args(n0, n1))
+                buf = np.empty((2 * len(rows), 2), np.int64)
+                nm, need = drive_rows(rows, *self._drive_args(n0, n1), buf)
                 if not need:
                     break
-            if not len(missing):
+            if not nm:
                 return
-            missing = missing.tolist()
+            missing = buf[:nm].tolist()
         for r, side in missing:
             row = rows[r]
             if not (math.isfinite(row[R_FORCE]) and math.isfinite(row[R_SPEED])):
