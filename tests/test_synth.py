@@ -302,6 +302,28 @@ def test_slide_roll_and_silence():
     assert np.abs(run("slide", 2.0)).max() > np.abs(s).max()  # faster: louder
 
 
+def test_streams_with_and_without_forcing_sources_superpose():
+    """A slide alone (its rows placed straight into the banks) plus a force signal alone equals
+    both at once (the general path that merges and sorts all source rows), on two microphones."""
+    model = many_modes(30)
+    mics = [[0, 0, 1.0], [0.5, -1.0, 0.3]]
+
+    def run(slide, force):
+        syn = Synthesizer(FS, microphones=mics, dtype="float64", cull_db=None, seed=3)
+        syn.add_object("o", model)
+        syn.add_object("p", many_modes(12, seed=2), position=(0.3, 0, 0))
+        if slide:
+            syn.slide("o", model.points[1], [0, 0, 1], 4.0, 0.8, 0.01, 0.2)
+            syn.slide("p", [0.3, 0, 0.05], [0, 1, 0], 2.0, 0.5, 0.0, 0.1)
+        if force:
+            syn.excite("o", model.points[4], [1, 0, 0], np.sin(np.arange(3000) * 0.05), 0.02)
+        return np.hstack([syn.render(2000), syn.render(FS // 4)])
+
+    a, b, both = run(True, False), run(False, True), run(True, True)
+    assert np.abs(a).max() > 0 and np.abs(b).max() > 0
+    np.testing.assert_allclose(both, a + b, rtol=0, atol=1e-6 * np.abs(both).max())  # (float32 output)
+
+
 def test_excite_signal_matches_impulse():
     syn = Synthesizer(FS, dtype="float64", cull_db=None)
     syn.add_object("o", one_mode())

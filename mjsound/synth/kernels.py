@@ -562,6 +562,57 @@ def streams_block(SF, SI, D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
 
 
 @njit(cache=True)
+def streams_bank_rows(SF, SI, D, st_gr, st_gi, ring, vbase, v_rel, v_len, n_mics, width, start, end, zero):
+    """:func:`streams_block` with its rows already placed in the microphone banks of
+    :func:`render_all` (voice ``v``'s gains at columns ``v_rel[v] ...`` of a row ``width``
+    wide) and grouped by microphone (stream order within one): ``(ptr (n_mics + 1,), sa, sb,
+    gr, gi, F)``, microphone ``m``'s rows ``ptr[m] : ptr[m + 1]``. (The render's path when the
+    streams are its only forcing sources: no sorting or placing afterwards.)"""
+    S = SF.shape[0]
+    mask = ring.shape[1] - 1
+    cap = ring.shape[1]
+    ptr = np.zeros(n_mics + 1, np.int64)
+    for m in range(n_mics):
+        for s in range(S):
+            if SI[s, SI_LIVE] and SI[s, SI_LAST] + D[s, m] > start:
+                ptr[m + 1] += 1
+    for m in range(n_mics):
+        ptr[m + 1] += ptr[m]
+    q = ptr[n_mics]
+    n = end - start
+    sa = np.empty(q, np.int64)
+    sb = np.empty(q, np.int64)
+    gr = np.zeros((q, width), st_gr.dtype)
+    gi = np.zeros((q, width), st_gr.dtype)
+    F = np.zeros((q, n), st_gr.dtype)
+    j = 0
+    for m in range(n_mics):
+        for s in range(S):
+            if not SI[s, SI_LIVE]:
+                continue
+            Dm = D[s, m]
+            hi = SI[s, SI_LAST] + Dm
+            if hi <= start:
+                continue
+            v = vbase[SI[s, SI_OBJ]] + m
+            c0 = v_rel[v]
+            w = min(v_len[v], st_gr.shape[2])
+            for k in range(w):
+                gr[j, c0 + k] = st_gr[s, m, k]
+                gi[j, c0 + k] = st_gi[s, m, k]
+            sa[j] = start
+            sb[j] = hi if hi < end else end
+            lo_src = SI[s, SI_GEN] - cap  # oldest sample still in the ring
+            gen = SI[s, SI_GEN]
+            for t in range(start, sb[j]):
+                ks = t - Dm
+                if ks >= lo_src and ks < gen:
+                    F[j, t - start] = ring[s, ks & mask]
+            j += 1
+    return ptr, sa, sb, gr, gi, F
+
+
+@njit(cache=True)
 def impacts_to_queue(obj, P, J, t, tau, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all, lam_all,
                      leps_all, pos_all, R_all, mics, c, fs, rmin, tol, rendered, grid,
                      QI, qkind, qre, qim, count, used):
@@ -657,17 +708,29 @@ def place_rows(voice, re, im, v_rel, v_len, v_mic, width):
 
 
 @njit(cache=True)
-def streams_gains(js, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all,
+def any_due(SI, n):
+    """Whether any of the first ``n`` streams is marked for new gains (``SI_DUE``)."""
+    for j in range(n):
+        if SI[j, SI_DUE]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def streams_gains(n, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all,
                   lre_all, lim_all, pos_all, R_all, mics, c, fs, rmin, tol):
-    """:func:`stream_gains` of the streams ``js`` in one call. Object ``o``'s surface points are
+    """:func:`stream_gains` of every stream ``j < n`` marked due (``SI_DUE``, cleared here) in
+    one call. Object ``o``'s surface points are
     rows ``pts_off[o]:pts_off[o+1]`` of ``pts_all``, its shapes the flat slice
     ``shk_off[o]:shk_off[o+1]`` of ``shk_all`` (points, 3, modes), its per-mode values the
     slice ``mode_off[o]:mode_off[o+1]`` of ``wd_all`` ...; its pose ``pos_all[o]``, ``R_all[o]``.
     Streams of removed objects (not live, or no points) are skipped. Returns the largest
     delay ``D`` computed [samples]."""
     dmax = 0
-    for q in range(js.shape[0]):
-        j = js[q]
+    for j in range(n):
+        if not SI[j, SI_DUE]:
+            continue
+        SI[j, SI_DUE] = 0
         o = SI[j, SI_OBJ]
         if not SI[j, SI_LIVE] or o + 1 >= pts_off.shape[0]:
             continue

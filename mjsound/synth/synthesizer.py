@@ -767,14 +767,11 @@ class Synthesizer:
         poses and the microphones after ``on_regain``), then make sure the ring holds a block plus the delays."""
         st = self._st
         SI, SF = st["SI"], st["SF"]
-        due = SI[: self._st_n, kernels.SI_DUE]
-        if due.any():
-            js = np.flatnonzero(due)
-            SI[js, kernels.SI_DUE] = 0
+        if kernels.any_due(SI, self._st_n):
             if self.on_regain is not None:
                 self.on_regain()
             g = self._gain_data
-            dmax = kernels.streams_gains(js, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
+            dmax = kernels.streams_gains(self._st_n, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
                                          g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"],
                                          self._poses.pos, self._poses.R, self._mics, self.speed_of_sound,
                                          float(self.sample_rate), R_MIN_M, _SAMPLE_TOL)
@@ -782,6 +779,14 @@ class Synthesizer:
             need = self._st_dmax + n + 1
             if need > st["ring"].shape[1]:
                 self._streams_grow_ring(need)
+
+    def _streams_bank_rows(self, start, end):
+        self._streams_regain(end - start)
+        st = self._st
+        n = self._st_n
+        return kernels.streams_bank_rows(st["SF"][:n], st["SI"][:n], st["D"][:n], st["gr"][:n], st["gi"][:n],
+                                         st["ring"][:n], self._vb_arr, self._v_rel, self._flat[9], self.n_channels,
+                                         self._mic_width, start, end, self.dtype.type(0))
 
     def _streams_rows(self, start, end):
         self._streams_regain(end - start)
@@ -944,8 +949,12 @@ class Synthesizer:
                 sv = self._ev_none
                 src_a, src_b, gr, gi, F = self._empty_src
                 F = np.zeros((0, n), dt)
-            if streams:
-                # persistent sliding / rolling streams: noise generated in numba, rows appended
+            src_ptr = None
+            if streams and not len(sv):
+                # persistent sliding / rolling streams only (the usual case): rows come placed
+                src_ptr, src_a, src_b, gr, gi, F = self._streams_bank_rows(start, end)
+            elif streams:
+                # streams and forcing sources: noise generated in numba, rows appended
                 s_v, s_a, s_b, s_gr, s_gi, s_F = self._streams_rows(start, end)
                 if len(s_v):
                     if len(sv):
@@ -959,7 +968,7 @@ class Synthesizer:
                         F = np.concatenate([F, s_F])[order]
                     else:
                         sv, src_a, src_b, gr, gi, F = s_v, s_a, s_b, s_gr, s_gi, s_F
-            if len(sv):
+            if src_ptr is None and len(sv):
                 sm, gr, gi = kernels.place_rows(sv, gr, gi, self._v_rel, self._flat[9], self._flat[10],
                                                 self._mic_width)
                 if self.n_channels > 1:  # rows by microphone (one microphone: already in order)
@@ -967,7 +976,7 @@ class Synthesizer:
                     src_a, src_b, gr, gi, F = src_a[order], src_b[order], gr[order], gi[order], F[order]
                     sm = sm[order]
                 src_ptr = np.searchsorted(sm, self._mic_ptr)
-            else:
+            elif src_ptr is None:
                 src_ptr = self._ev_ptr0
             Zr, Zi, P2, ACT, PR, PI, CR, CI = self._flat[:8]
             kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, self._mic_start, self._mic_len, self._mic_ids,
