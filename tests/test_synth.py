@@ -6,7 +6,7 @@ import pytest
 
 from mjsound import ModalModel, get_material
 from mjsound.synth.pulse import half_sine_spectrum, hertz_contact_time
-from mjsound.synth.synthesizer import D_MIN_PER_S, GRID, Synthesizer
+from mjsound.synth.synthesizer import D_MIN_PER_S, Synthesizer
 
 FS = 48000
 C = 343.0
