@@ -127,12 +127,23 @@ def _count_columns(start, zs, sg, oz, dz, ny, nz, s, counts):
     ``(i // s, j // s, k // s)`` of ``counts`` instead of being stored. A column's inside
     runs are visited in ascending z and each starts after the last sample counted, so a
     sample is counted once even where two runs meet exactly on it."""
+    longest = 0
+    for c in range(start.shape[0] - 1):
+        longest = max(longest, start[c + 1] - start[c])
+    order = np.empty(longest, np.int64)
     for c in range(start.shape[0] - 1):
         a = start[c]
         b = start[c + 1]
         if b - a < 2:
             continue
-        order = np.argsort(zs[a:b])
+        # insertion sort of the column's few crossings by height (np.argsort allocates)
+        for m in range(b - a):
+            z = zs[a + m]
+            q = m
+            while q > 0 and zs[a + order[q - 1]] > z:
+                order[q] = order[q - 1]
+                q -= 1
+            order[q] = m
         i = c // ny
         j = c - i * ny
         fi = i // s
