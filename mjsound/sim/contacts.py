@@ -81,6 +81,9 @@ def _contact_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpo
     vroll = np.empty(n)
     nbad = 0
     nhuge = 0
+    v = np.zeros((2, 3))  # per contact side: point velocity and angular velocity (reused)
+    w = np.zeros((2, 3))
+    wr = np.empty(3)
     for i in range(n):
         a = adr[i]
         f = 0.0
@@ -104,8 +107,6 @@ def _contact_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpo
             nrm[i, c] = frame[i, c]
             if not (np.isfinite(frame[i, c]) and np.isfinite(pos[i, c])):
                 ok = False
-        v = np.zeros((2, 3))
-        w = np.zeros((2, 3))
         for s in range(2):
             b = gbody[geom[i, s]]
             rb = broot[b]
@@ -140,7 +141,6 @@ def _contact_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpo
             t = vrel[i, c] - vn * nrm[i, c]
             st += t * t
         vslip[i] = np.sqrt(st)
-        wr = np.empty(3)
         for c in range(3):
             wr[c] = w[1, c] - w[0, c]
         wn = wr[0] * nrm[i, 0] + wr[1] * nrm[i, 1] + wr[2] * nrm[i, 2]
