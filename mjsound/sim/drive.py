@@ -24,7 +24,7 @@ from ..synth.pulse import contact_time
 from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
                        R_POINT, R_SLOT, R_SPEED, _fused_kernel)
 
-__all__ = ["drive_rows", "read_and_drive", "impact_sides", "pose_rows"]
+__all__ = ["drive_rows", "read_and_drive", "impact_sides", "impacts_to_synth", "pose_rows"]
 
 
 @njit(cache=True)
@@ -186,3 +186,21 @@ def impact_sides(imp, geom_obj, coef_row, coef):
             tau[n] = contact_time(c, imp[r, I_SPEED])
             n += 1
     return obj[:n], P[:n], J[:n], tau[:n], missing[:nm]
+
+
+@njit(cache=True)
+def impacts_to_synth(imp, geom_obj, coef_row, coef, t_ev, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all,
+                     w_all, lam_all, leps_all, pos_all, R_all, mics, c, fs, rmin, tol, rendered, grid,
+                     QI, qkind, qre, qim, count, used):
+    """:func:`impact_sides` then ``synth.kernels.impacts_to_queue`` at synth time ``t_ev``: a
+    step's impacts into the synthesizer's event queue in one call. Returns ``(count, used,
+    next sample, max |a|, missing)`` (nothing is queued while coefficients are missing)."""
+    obj, P, J, tau, missing = impact_sides(imp, geom_obj, coef_row, coef)
+    if missing.shape[0]:
+        return count, used, np.int64(2**62), 0.0, missing
+    t = np.full(obj.shape[0], t_ev)
+    count, used, nxt, amax = kernels.impacts_to_queue(obj, P, J, t, tau, pts_all, pts_off, shk_all, shk_off,
+                                                      mode_off, wd_all, w_all, lam_all, leps_all, pos_all, R_all,
+                                                      mics, c, fs, rmin, tol, rendered, grid, QI, qkind, qre, qim,
+                                                      count, used)
+    return count, used, nxt, amax, missing

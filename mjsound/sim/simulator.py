@@ -33,7 +33,7 @@ import numpy as np
 
 from .contacts import (I_G1, I_G2, I_IMPULSE, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
                        ContactReader)
-from .drive import drive_rows, impact_sides, pose_rows, read_and_drive
+from .drive import drive_rows, impacts_to_synth, pose_rows, read_and_drive
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -432,14 +432,15 @@ class AudioSimulator:
         if self._n_logged < self.keep_events:
             self._log_pending.append((t0, "impact", imp))
             self._n_logged += len(imp)
+        q = synth._impact_queue(2 * len(imp))
         while True:
-            obj, P, J, tau, missing = impact_sides(imp, self._geom_obj, self._coef_row, self._coef)
+            *out, missing = impacts_to_synth(imp, self._geom_obj, self._coef_row, self._coef, t_ev,
+                                             *synth._impact_data(), q.I, q.kind, q.re, q.im, q.count, q.pool_used)
             if not len(missing):
                 break
             for g, other in missing.tolist():
                 self._coef[self._coef_row[g], other] = self._hertz_coef(g, other)
-        if len(obj):
-            synth._impact_rows(obj, P, J, np.full(len(obj), t_ev), tau)
+        synth._commit_impacts(self._geom_obj[imp[:, I_G1:I_G2 + 1].astype(np.int64).ravel()], *out)
 
     def _hertz_coef(self, g, other) -> float:
         """Hertz coefficient of sounding geom ``g`` struck by geom ``other``."""

@@ -545,26 +545,40 @@ class Synthesizer:
         ``i`` strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at
         synth time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s] (rows with
         non-finite values are skipped). State is unchanged on error."""
+        q = self._impact_queue(len(obj))
+        f64 = np.float64
+        out = kernels.impacts_to_queue(
+            obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64), np.ascontiguousarray(t, f64),
+            np.ascontiguousarray(tau, f64), *self._impact_data(), q.I, q.kind, q.re, q.im, q.count, q.pool_used)
+        self._commit_impacts(obj, *out)
+
+    def _impact_queue(self, k):
+        """The event queue, with room for ``k`` more impacts (voice layout up to date)."""
         if self._dirty:
             self._rebuild()
-        M = self.n_channels
         q = self._ev
-        q.reserve(M * len(obj), M * int(self._n_modes_of[obj].sum()))
+        M = self.n_channels
+        q.reserve(M * k, M * k * self._nmax)
+        return q
+
+    def _impact_data(self) -> tuple:
+        """The arguments of :func:`.kernels.impacts_to_queue` between the impacts and the queue:
+        every object's flat modal data, the poses, microphones and constants."""
         g = self._gain_data
-        f64 = np.float64
-        count, used, nxt, amax = kernels.impacts_to_queue(
-            obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64), np.ascontiguousarray(t, f64),
-            np.ascontiguousarray(tau, f64), g["pts"], g["pts_off"], g["shk"], g["shk_off"], g["mode_off"], g["wd"],
-            g["w"], g["lam"], g["leps"], self._poses.pos, self._poses.R, self._mics, self.speed_of_sound,
-            float(self.sample_rate), R_MIN_M, _SAMPLE_TOL, self.samples_rendered, GRID,
-            q.I, q.kind, q.re, q.im, q.count, q.pool_used)
-        if not (amax <= MAX_AMPLITUDE):  # also catches NaN; the rows written past q.count are dropped
-            names = sorted({self._by_index[int(o)].name for o in obj.tolist() if int(o) in self._by_index})
+        return (g["pts"], g["pts_off"], g["shk"], g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lam"], g["leps"],
+                self._poses.pos, self._poses.R, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
+                _SAMPLE_TOL, self.samples_rendered, GRID)
+
+    def _commit_impacts(self, obj, count, used, nxt, amax) -> None:
+        """Keep the rows :func:`.kernels.impacts_to_queue` wrote past the queue's end, unless
+        an amplitude is out of range (then they are dropped and the error names the objects)."""
+        if not (amax <= MAX_AMPLITUDE):  # also catches NaN
+            names = sorted({self._by_index[int(o)].name for o in np.asarray(obj).tolist() if int(o) in self._by_index})
             raise ValueError(
                 f"impulse on {', '.join(map(repr, names))} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
                 "check the impulse units (N s) and magnitude"
             )
-        # ---- commit (nothing above mutated the queue's state)
+        q = self._ev
         q.count, q.pool_used = count, used
         q.next_sample = min(q.next_sample, int(nxt))
 
@@ -873,7 +887,6 @@ class Synthesizer:
             "lam": cat(lambda ob: ob.lam, (0,)).astype(np.complex128),
             "leps": cat(lambda ob: ob.logeps, (0,)).astype(np.complex128),
         }
-        self._n_modes_of = np.diff(offs["mode_off"])  # kept modes per object index
         vb_arr = np.full(self._next_index + 1, -1, np.int64)  # -1: removed (its queued events are dropped)
         for ob in obs:
             vb_arr[ob.index] = ob.vbase
