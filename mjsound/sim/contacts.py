@@ -346,7 +346,7 @@ H_COLS = 10
 
 @_njit(cache=True, nogil=True)
 def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm, counts, rows, sustained, hits):
+                  hkeys, hvals, SF, SI, nslots, t0, t1, step, prm, counts, rows, sustained, hits, onsets):
     """:func:`_contact_kernel`, :func:`_pair_kernel` and :func:`_state_kernel` in one call (the
     per-step hot path); ``counts`` (2,) adds the step's sliding and rolling pairs.
 
@@ -354,7 +354,9 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
     that no array is allocated for Python): ``rows`` (pairs, ``R_COLS``) and ``sustained`` (the
     rows of kind > 0): geom1, geom2, kind (0 none, 1 slide, 2 roll), total normal force, speed,
     point (3), normal (3), onset (1: an impact starts), slot (the pair's state slot); ``hits``
-    (``H_COLS``) the impacting contacts of onset pairs, grouped by row. Returns
+    (``H_COLS``) the impacting contacts of onset pairs, grouped by row; ``onsets`` (int64,
+    rows + 1 by 2) each onset pair's slot and first hit (its hits run to the next one's first;
+    row ``n_onset`` holds ``n_hits``). Returns
     ``(pairs, n_sustained, n_hits, nbad, nhuge, n_onset, nslots)``. ``pos`` is not modified."""
     pos = pos.copy()  # (the contact kernel sanitises non-finite points in place)
     fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge = _contact_kernel(
@@ -399,9 +401,13 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
                     if vapp[order[j]] > prm[P_V_IMPACT]:
                         nh += 1
     h = 0
+    q = 0
     if nh:
         for p in range(P):
             if onset[p]:
+                onsets[q, 0] = slot[p]
+                onsets[q, 1] = h
+                q += 1
                 for j in range(starts[p], starts[p + 1]):
                     i = order[j]
                     if vapp[i] > prm[P_V_IMPACT]:
@@ -413,6 +419,7 @@ def _fused_kernel(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos,
                             hits[h, H_NORMAL + c] = nrm[i, c]
                         hits[h, H_SPEED] = vapp[i]
                         h += 1
+    onsets[q, 1] = h
     return P, n_sust, nh, nbad, nhuge, n_onset, nslots
 
 
@@ -792,6 +799,7 @@ class ContactReader:
         self._srows_buf = np.empty((0, R_COLS))
         self._hits_buf = np.empty((0, H_COLS))
         self._missing_buf = np.empty((0, 2), np.int64)
+        self._onset_buf = np.empty((1, 2), np.int64)
         self._params = np.array([self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s,
                                  self.max_event_s, self.v_slide, self.v_roll, self.max_force])
 
@@ -976,10 +984,12 @@ class ContactReader:
                 self._srows_buf = np.empty((2 * n, R_COLS))
                 self._hits_buf = np.empty((2 * n, H_COLS))
                 self._missing_buf = np.empty((4 * n, 2), np.int64)
+                self._onset_buf = np.empty((2 * n + 1, 2), np.int64)
             args = (con.geom, con.pos, con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                     cvel, scom, gxpos, self.geom_body, self.body_root, self._plane,
                     self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
-                    self._params, self.sustained_steps, self._rows_buf, self._srows_buf, self._hits_buf)
+                    self._params, self.sustained_steps, self._rows_buf, self._srows_buf, self._hits_buf,
+                    self._onset_buf)
             if drive is None:
                 out = _fused_kernel(*args)
             else:
@@ -989,12 +999,8 @@ class ContactReader:
             if nbad or nhuge:
                 self._report_clamped(nbad, nhuge)
             if n_onset:
-                # hits are grouped by their pair's row, in row order
-                rows = self._rows_buf[:n_pairs]
-                hits = self._hits_buf[:n_hits]
-                pairs = np.flatnonzero(rows[:, R_ONSET])
-                hit_starts = np.searchsorted(hits[:, H_ROW], np.append(pairs, len(rows)))
-                _, _, impacts = self._impacts(data, hits, hit_starts, rows[pairs, R_SLOT].astype(np.int64), t0)
+                ons = self._onset_buf[: n_onset + 1]
+                _, _, impacts = self._impacts(data, self._hits_buf[:n_hits], ons[:, 1], ons[:-1, 0], t0)
             if n_sust:
                 sustained = self._srows_buf[:n_sust]
         elif self._any_open:

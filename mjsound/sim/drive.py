@@ -107,7 +107,7 @@ def drive_rows(rows, sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered
 
 @njit(cache=True)
 def read_and_drive(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts, rows, srows, hits,
+                   hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts, rows, srows, hits, onsets,
                    sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack, SF, SI, D, ring, missing):
     """The reader's per-step kernel (``contacts._fused_kernel``) followed by
     :func:`drive_rows` on its sustained rows: one numba call per physics step for reading
@@ -115,7 +115,7 @@ def read_and_drive(geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos
     then ``(n_missing, need)`` of :func:`drive_rows` (see :meth:`ContactReader.events_fast`)."""
     P, ns, nh, nbad, nhuge, n_onset, nslots = _fused_kernel(
         geom, pos, frame, adr, dim, efc, pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom,
-        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts, rows, srows, hits)
+        hkeys, hvals, CF, CI, nslots, t0, t1, step, prm, counts, rows, srows, hits, onsets)
     nm, need = 0, 0
     if ns and k1 > k0:
         nm, need = drive_rows(srows[:ns], sidx, geom_obj, rough, length, fs, k0, k1, regain, rendered, slack,
