@@ -24,7 +24,7 @@ from ..synth.pulse import contact_time
 from .contacts import (I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL,
                        R_POINT, R_SLOT, R_SPEED, _fused_kernel)
 
-__all__ = ["drive_rows", "read_and_drive", "impact_sides", "impacts_to_synth", "pose_rows"]
+__all__ = ["drive_rows", "read_and_drive", "impact_sides", "impacts_to_synth", "pose_rows", "follow_rows"]
 
 
 @njit(cache=True)
@@ -204,3 +204,21 @@ def impacts_to_synth(imp, geom_obj, coef_row, coef, t_ev, pts_all, pts_off, shk_
                                                       mics, c, fs, rmin, tol, rendered, grid, QI, qkind, qre, qim,
                                                       count, used)
     return count, used, nxt, amax, missing
+
+
+@njit(cache=True)
+def follow_rows(pos, rows, offsets, out):
+    """``out[m] = pos[rows[m]] + offsets[m]`` (microphones at a body or at their sites; a
+    single row repeated for a following listener), unless a position is not finite (then
+    ``out`` keeps the last good ones). Returns whether ``out`` was updated."""
+    M = out.shape[0]
+    s = 0.0
+    for m in range(M):
+        for c in range(3):
+            s += pos[rows[m], c] + offsets[m, c]
+    if not np.isfinite(s):
+        return False
+    for m in range(M):
+        for c in range(3):
+            out[m, c] = pos[rows[m], c] + offsets[m, c]
+    return True

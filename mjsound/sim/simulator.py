@@ -33,7 +33,7 @@ import numpy as np
 
 from .contacts import (I_G1, I_G2, I_IMPULSE, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
                        ContactReader)
-from .drive import drive_rows, impacts_to_synth, pose_rows, read_and_drive
+from .drive import drive_rows, follow_rows, impacts_to_synth, pose_rows, read_and_drive
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -239,6 +239,9 @@ class AudioSimulator:
         self._dyn_idx = np.array(sorted(self._dyn_geom), np.int64)  # moving objects, and their geoms
         self._dyn_geoms = np.array([self._dyn_geom[i] for i in self._dyn_idx.tolist()], np.int64)
         self._follow = None
+        self._mic_sites = np.asarray(scene.mic_site_ids, np.int64)
+        self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
+        self._zero_offsets = np.zeros((len(self._mic_sites), 3))
         # Hertz coefficient of (struck sounding geom, other geom), NaN until first needed
         self._coef_row = np.cumsum(self._geom_obj >= 0) - 1
         self._coef = np.full((int((self._geom_obj >= 0).sum()), model.ngeom), np.nan)
@@ -301,6 +304,7 @@ class AudioSimulator:
             raise ValueError(f"follow: give {self.n_channels} finite (x, y, z) offsets [m], one per microphone; "
                              f"got {len(off)}")
         self._follow = (int(body), off)
+        self._follow_rows = np.full(len(off), int(body))
 
     def step(self, render: bool = True) -> np.ndarray | None:
         """Process the step just taken by ``mj_step``; return its audio block.
@@ -366,15 +370,12 @@ class AudioSimulator:
     def _update_mics(self) -> None:
         """Microphones to where their sites / the followed body are now (nothing when they
         cannot move)."""
-        if self._follow is None and not (self.scene.mic_site_ids and self.scene.mics_move):
-            return
+        mics = self.synth._mics  # updated in place (same channels; a non-finite position keeps the last)
         if self._follow is not None:
-            body, offsets = self._follow
-            mics = self._xpos[body] + offsets
-        else:
-            mics = self._site_xpos[self.scene.mic_site_ids]
-        if math.isfinite(float(mics.sum())) and mics.shape == self.synth._mics.shape:
-            self.synth._mics = mics  # (Synthesizer.set_microphones without its checks: same channels, finite)
+            if len(mics) == len(self._follow_rows):
+                follow_rows(self._xpos, self._follow_rows, self._follow[1], mics)
+        elif self._sites_move and len(mics) == len(self._mic_sites):
+            follow_rows(self._site_xpos, self._mic_sites, self._zero_offsets, mics)
 
     def _before_regain(self) -> None:
         """``Synthesizer.on_regain``: poses and microphones as they are now."""
