@@ -442,6 +442,23 @@ def test_follow_moves_the_microphones_with_the_body_at_each_event():
     assert np.abs(sim.synth.microphones - fixed).max() > 0.05
 
 
+def test_microphone_site_on_a_moving_body_moves_with_it():
+    xml = drop_xml(h=0.3).replace('<geom name="ball"', '<site name="mic_ball" pos="0 0.2 0"/><geom name="ball"')
+    xml = xml.replace('<site name="mic0" pos="0.3 -0.5 0.3"/>', "")
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(xml, models)
+    start = sim.synth.microphones
+    for _ in range(600):
+        mujoco.mj_step(model, data)
+        n = sim.n_impacts
+        sim.step()
+        if sim.n_impacts > n:
+            break
+    assert sim.n_impacts == 1
+    np.testing.assert_allclose(sim.synth.microphones, data.site_xpos[[0]])  # where the site is at the impact
+    assert start[0, 2] - sim.synth.microphones[0, 2] > 0.25
+
+
 def test_follow_rejects_bad_arguments():
     models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
     model, data, sim = make_sim(drop_xml(h=0.3), models)
