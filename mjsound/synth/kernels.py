@@ -55,21 +55,19 @@ def bank_free(wr, wi, pr, pi, na, out, o0, n, zero):
 
 
 @njit(cache=True, fastmath=True)
-def bank_forced(wr, wi, pr, pi, na, out, o0, n, zero, gwr, gwi, F, act, nact, klo, khi):
+def bank_forced(wr, wi, pr, pi, na, out, o0, n, zero, gwr, gwi, F, act, nact):
     """Like :func:`bank_free` with forcing: ``z_i += sum_q g_{q,i} F[q, s]`` before output.
 
     gwr, gwi : (n_src, >=na) dtype  complex per-mode gain of each source (gathered)
     F        : (n_src, N) dtype     per-sample force values [N] of each source on this block
     act      : (nact,) int64        indices of the sources active on this segment
-    klo, khi : (n_src,) int64       source j's non-zero gains lie in ``[klo[j], khi[j])`` (a
-                                    source drives one object: a few columns of a wide bank)
     """
     for s in range(o0, o0 + n):
         acc = zero
         for q in range(nact):
             j = act[q]
             fv = F[j, s]
-            for k in range(klo[j], khi[j]):
+            for k in range(na):
                 wr[k] += gwr[j, k] * fv
                 wi[k] += gwi[j, k] * fv
         for k in range(na):
@@ -97,21 +95,6 @@ def _gather(zr, zi, active, pr, pi, gr, gi, wr, wi, wpr, wpi, gwr, gwi, idx):
                 gwi[q, k] = gi[q, i]
             k += 1
     return k
-
-
-@njit(cache=True)
-def _gain_ranges(gwr, gwi, na, klo, khi):
-    """``[klo[q], khi[q])``: the gathered columns where source ``q``'s gain is non-zero."""
-    for q in range(gwr.shape[0]):
-        lo = na
-        hi = 0
-        for k in range(na):
-            if gwr[q, k] != 0.0 or gwi[q, k] != 0.0:
-                if k < lo:
-                    lo = k
-                hi = k + 1
-        klo[q] = lo if lo < hi else 0
-        khi[q] = hi
 
 
 @njit(cache=True)
@@ -171,8 +154,6 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
     gwi = np.empty((nsrc, m), pr.dtype)
     idx = np.empty(m, np.int64)
     act = np.empty(max(nsrc, 1), np.int64)
-    klo = np.zeros(nsrc, np.int64)
-    khi = np.zeros(nsrc, np.int64)
     # a source already acting at the block start drives its modes from here on (a no-op for
     # sources whose start event activated them earlier: they cannot be culled while acting)
     for q in range(nsrc):
@@ -184,7 +165,6 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
                     zi[i] = 0.0
                     peak2[i] = 0.0
     na = _gather(zr, zi, active, pr, pi, gr, gi, wr, wi, wpr, wpi, gwr, gwi, idx)
-    _gain_ranges(gwr, gwi, na, klo, khi)
     # forcing sources must not be culled while they act
     pos = start
     end = start + n
@@ -230,7 +210,6 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
                     gwi[q, w] = gwi[q, k]
                 w += 1
             na = w
-            _gain_ranges(gwr, gwi, na, klo, khi)
         # ---- events at this sample
         if e < ne and ev_n[e] <= pos:
             _scatter(zr, zi, wr, wi, idx, na)
@@ -260,7 +239,6 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
                                 peak2[i] = 0.0
                 e += 1
             na = _gather(zr, zi, active, pr, pi, gr, gi, wr, wi, wpr, wpi, gwr, gwi, idx)
-            _gain_ranges(gwr, gwi, na, klo, khi)
         # ---- run to the next grid point / event / source boundary / block end
         stop = end
         g = (pos // grid + 1) * grid
@@ -282,7 +260,7 @@ def render_voice(zr, zi, peak2, active, pr, pi, corr_r, corr_i,
         if nact == 0:
             bank_free(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero)
         else:
-            bank_forced(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact, klo, khi)
+            bank_forced(wr, wi, wpr, wpi, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact)
         pos = stop
     _scatter(zr, zi, wr, wi, idx, na)
 
