@@ -20,15 +20,16 @@ pre-contact velocities:
 
 * the approach speeds ``v_c = -(v_rel . n)`` at the new contact points,
 * the contact-space inverse inertia ``A = J M^-1 J^T`` of those points along their normals
-  (``mj_jac`` + ``mj_solveM``: the true effective mass including rotation and
-  articulation; for a ball on the ground ``A = 1/m``),
+  (the point Jacobians as ``mj_jac`` computes them, in numba, and one ``mj_solveM`` for all
+  of a step's impacts: the true effective mass including rotation and articulation; for a
+  ball on the ground ``A = 1/m``),
 * the restitution ``e`` of the two acoustic materials (``sqrt(e1 e2)``, or the one known),
 
 ``lambda = A^+ (1 + e) v`` (clipped to >= 0), one impulse per new contact point of the pair.
 While the event lasts (until the pair separates, comes to rest, or 0.1 s) MuJoCo's normal
-impulse ``sum F_n dt`` is accumulated and stored next to the prediction in
-:attr:`ContactReader.impacts` (an :class:`ImpactRecord` each), which is the check the tests
-use. A new impact starts at a pair's onset with an approach speed above ``v_impact``
+impulse ``sum F_n dt`` is accumulated (in the per-pair state, read into the records when
+:attr:`ContactReader.impacts` is read) and stored next to the prediction in an
+:class:`ImpactRecord` per event, which is the check the tests use. A new impact starts at a pair's onset with an approach speed above ``v_impact``
 (default 0.05 m/s: a 0.13 mm fall; slower touches, solver jitter and a resting or sliding
 body's contact flicker are silent) or, while a pair stays in contact, when its approach speed
 jumps by more than ``2 v_impact`` to more than twice that of the step before (a box slapping
@@ -45,7 +46,8 @@ While a pair stays in contact with a positive normal force, per step and per pai
 speed, *roll* when the rolling speed ``|omega_rel,t| r`` exceeds ``v_roll``, otherwise silence
 (resting contact). Forces are summed over the pair's contacts, the point is their force-
 weighted centroid. Both bodies sound, each driven at the (shared) contact point, with
-opposite impulses.
+opposite impulses. (The driver keeps one noise stream per pair and side across slide and
+roll steps: :mod:`.drive`.)
 
 Bad input
 ---------
