@@ -954,8 +954,8 @@ class ContactReader:
 
     def events_fast(self, data, t0: float, t1: float, drive=None):
         """:meth:`events` for the per-step driver: the same events and state in one numba call
-        per step; sustained contact comes back as rows, not objects (a
-        :class:`ContactFrame` is only built on a step with an impact onset).
+        per step (plus one more on a step where impacts start), returned as arrays instead of
+        event objects; no :class:`ContactFrame` is built.
 
         Returns
         -------
