@@ -424,3 +424,20 @@ def test_moving_microphones_and_channel_count():
     with pytest.raises(ValueError):
         syn.set_microphones([[0, 0, np.nan]])
     assert syn.n_channels == 2
+
+
+def test_many_objects_keep_their_poses_and_delays():
+    """Poses live in one table that grows as objects are added; every object keeps its own,
+    and an impact on the last one arrives after its own distance."""
+    syn = Synthesizer(FS, microphones=[[0, 0, 0]], dtype="float64", cull_db=None)
+    for i in range(20):
+        syn.add_object(f"o{i}", one_mode(f=500.0 + 10 * i), position=(1.0 + i, 0, 0))
+    syn.set_pose("o3", (0, 5.0, 0), np.eye(3)[[1, 0, 2]])
+    for i in range(20):
+        ob = syn._objects[f"o{i}"]
+        np.testing.assert_array_equal(ob.pos, (0, 5.0, 0) if i == 3 else (1.0 + i, 0, 0))
+    np.testing.assert_array_equal(syn._objects["o3"].R, np.eye(3)[[1, 0, 2]])
+    syn.impact("o19", (20.0, 0, 0), (0, 0, 0.01), 0.0, pulse_s=0.0)
+    y = syn.render(FS // 10)[0]
+    first = np.flatnonzero(y)[0]
+    assert first == int(np.ceil(20.0 / C * FS - 1e-9))
