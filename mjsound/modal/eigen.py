@@ -334,7 +334,6 @@ def solve_band(
     BandSolution
     """
     t0 = time.perf_counter()
-    n = K.shape[0]
     K = sp.csr_matrix(K)
     M = sp.csr_matrix(M)
     # ARPACK's level-2 BLAS on vectors of a few thousand entries is ~10x slower with

@@ -426,12 +426,10 @@ def discretize_hex(
     node = node.reshape(gnode.shape)
     ndof = 3 * len(used)
     nd = 3 * q**3
-    dof = (3 * node[:, :, None] + np.arange(3)[None, None, :]).reshape(len(active), nd)
     # Assemble by node pairs (3x3 blocks): each cell adds q^6 blocks; equal node pairs
     # are summed after one sort of their keys, shared by K and M, in chunks (a 27-node
     # cell has 81^2 entries: all cells at once need not fit).
     nn = len(used)
-    m3 = q**3
     chunk = max(1, int(4e6 // nd**2))
     keys, kb, mb = [], [], []
     for s0 in range(0, len(active), chunk):

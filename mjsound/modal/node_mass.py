@@ -22,6 +22,8 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from .quadratic_forms import row_combination
+
 __all__ = ["node_mass", "mass_rows"]
 
 
@@ -68,13 +70,7 @@ def _node_mass_rows(indptr, indices, data, X, out, S):
                 S[i, 3 * k + c] = X[k, 3 * i + c]
     acc = np.empty(w)
     for i in range(nn):
-        for c in range(w):
-            acc[c] = 0.0
-        for p in range(indptr[i], indptr[i + 1]):
-            a = data[p]
-            x = S[indices[p]]
-            for c in range(w):
-                acc[c] += a * x[c]
+        row_combination(indptr, indices, data, S, i, acc)
         for k in range(b):
             for c in range(3):
                 out[k, 3 * i + c] = acc[3 * k + c]

@@ -20,18 +20,25 @@ import scipy.sparse as sp
 __all__ = ["quadratic_forms"]
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def row_combination(indptr, indices, data, X, r, acc):
+    """``acc = sum_p A[r, j_p] X[j_p]``: row ``r`` of the CSR matrix ``A`` applied to the
+    rows of ``X`` (each row one node's / dof's numbers of all vectors, contiguous)."""
+    for c in range(acc.shape[0]):
+        acc[c] = 0.0
+    for p in range(indptr[r], indptr[r + 1]):
+        a = data[p]
+        x = X[indices[p]]
+        for c in range(acc.shape[0]):
+            acc[c] += a * x[c]
+
+
 @nb.njit(cache=True, nogil=True, fastmath=True)
 def _quadratic_forms(indptr, indices, data, Yt, out):
     k = Yt.shape[1]
     acc = np.empty(k)
     for r in range(indptr.shape[0] - 1):
-        for c in range(k):
-            acc[c] = 0.0
-        for p in range(indptr[r], indptr[r + 1]):
-            a = data[p]
-            y = Yt[indices[p]]
-            for c in range(k):
-                acc[c] += a * y[c]
+        row_combination(indptr, indices, data, Yt, r, acc)
         yr = Yt[r]
         for c in range(k):
             out[c] += yr[c] * acc[c]

@@ -312,7 +312,6 @@ def _assemble_K(conn, vol, gradL, lam, mu, order, n_nodes, chunk=6000):
 
 def _assemble_M(conn, vol, rho, order, n_nodes):
     """Consistent mass, ``kron(M_scalar, I3)``: (3 n_nodes, 3 n_nodes) csr [kg]."""
-    nn = conn.shape[1]
     Me = rho * vol[:, None, None] * _MREF[order][None]  # (E, nn, nn)
     rows = np.broadcast_to(conn[:, :, None], Me.shape).reshape(-1)
     cols = np.broadcast_to(conn[:, None, :], Me.shape).reshape(-1)

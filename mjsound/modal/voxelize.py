@@ -74,27 +74,58 @@ def _column_crossings(tri, ox, oy, dx, dy, nx, ny):
     return start, zs, sg
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _inside_runs(start, zs, sg, c, oz, dz, nz, order, runs):
+    """The inside runs of sample column ``c``: rows ``[k0, k1]`` of ``runs`` (ascending, no
+    sample twice even where two runs meet exactly on it), walking the column's crossings
+    ``zs[start[c]:start[c + 1]]`` (signs ``sg``) by height. Returns the number of runs."""
+    a = start[c]
+    b = start[c + 1]
+    if b - a < 2:
+        return 0
+    # insertion sort of the column's few crossings by height (np.argsort allocates)
+    for m in range(b - a):
+        z = zs[a + m]
+        q = m
+        while q > 0 and zs[a + order[q - 1]] > z:
+            order[q] = order[q - 1]
+            q -= 1
+        order[q] = m
+    w = 0
+    last = -1
+    n = 0
+    for m in range(b - a - 1):
+        k = a + order[m]
+        w += sg[k]
+        if w != 0:
+            k0 = max(int(np.ceil((zs[k] - oz) / dz - 0.5)), 0, last + 1)
+            k1 = min(int(np.floor((zs[a + order[m + 1]] - oz) / dz - 0.5)), nz - 1)
+            if k1 < k0:
+                continue
+            last = k1
+            runs[n, 0] = k0
+            runs[n, 1] = k1
+            n += 1
+    return n
+
+
+@nb.njit(cache=True, nogil=True)
+def _column_scratch(start):
+    longest = 1
+    for c in range(start.shape[0] - 1):
+        longest = max(longest, start[c + 1] - start[c])
+    return np.empty(longest, np.int64), np.empty((longest, 2), np.int64)
+
+
 @nb.njit(cache=True, nogil=True)
 def _fill_columns(start, zs, sg, oz, dz, nx, ny, nz, out):
+    order, runs = _column_scratch(start)
     for c in range(nx * ny):
-        a = start[c]
-        b = start[c + 1]
-        if b - a < 2:
-            continue
-        order = np.argsort(zs[a:b])
         i = c // ny
         j = c - i * ny
-        w = 0
-        for m in range(b - a):
-            k = a + order[m]
-            w += sg[k]
-            if w != 0 and m + 1 < b - a:
-                zlo = zs[k]
-                zhi = zs[a + order[m + 1]]
-                k0 = max(int(np.ceil((zlo - oz) / dz - 0.5)), 0)
-                k1 = min(int(np.floor((zhi - oz) / dz - 0.5)), nz - 1)
-                for kk in range(k0, k1 + 1):
-                    out[i, j, kk] = 1
+        for r in range(_inside_runs(start, zs, sg, c, oz, dz, nz, order, runs)):
+            for kk in range(runs[r, 0], runs[r, 1] + 1):
+                out[i, j, kk] = 1
 
 
 def winding_fill(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
@@ -124,48 +155,20 @@ def winding_fill(triangles: np.ndarray, origin, spacing, shape) -> np.ndarray:
 @nb.njit(cache=True, nogil=True)
 def _count_columns(start, zs, sg, oz, dz, ny, nz, s, counts):
     """Like :func:`_fill_columns`, but each inside sample adds 1 to its fine voxel
-    ``(i // s, j // s, k // s)`` of ``counts`` instead of being stored. A column's inside
-    runs are visited in ascending z and each starts after the last sample counted, so a
-    sample is counted once even where two runs meet exactly on it."""
-    longest = 0
+    ``(i // s, j // s, k // s)`` of ``counts`` instead of being stored."""
+    order, runs = _column_scratch(start)
     for c in range(start.shape[0] - 1):
-        longest = max(longest, start[c + 1] - start[c])
-    order = np.empty(longest, np.int64)
-    for c in range(start.shape[0] - 1):
-        a = start[c]
-        b = start[c + 1]
-        if b - a < 2:
-            continue
-        # insertion sort of the column's few crossings by height (np.argsort allocates)
-        for m in range(b - a):
-            z = zs[a + m]
-            q = m
-            while q > 0 and zs[a + order[q - 1]] > z:
-                order[q] = order[q - 1]
-                q -= 1
-            order[q] = m
         i = c // ny
         j = c - i * ny
         fi = i // s
         fj = j // s
-        w = 0
-        last = -1
-        for m in range(b - a):
-            k = a + order[m]
-            w += sg[k]
-            if w != 0 and m + 1 < b - a:
-                zlo = zs[k]
-                zhi = zs[a + order[m + 1]]
-                k0 = max(int(np.ceil((zlo - oz) / dz - 0.5)), 0, last + 1)
-                k1 = min(int(np.floor((zhi - oz) / dz - 0.5)), nz - 1)
-                if k1 < k0:
-                    continue
-                last = k1
-                # samples k0..k1 in fine voxels k0 // s .. k1 // s
-                for fk in range(k0 // s, k1 // s + 1):
-                    lo_k = max(k0, fk * s)
-                    hi_k = min(k1, fk * s + s - 1)
-                    counts[fi, fj, fk] += hi_k - lo_k + 1
+        for r in range(_inside_runs(start, zs, sg, c, oz, dz, nz, order, runs)):
+            k0, k1 = runs[r, 0], runs[r, 1]
+            # samples k0..k1 in fine voxels k0 // s .. k1 // s
+            for fk in range(k0 // s, k1 // s + 1):
+                lo_k = max(k0, fk * s)
+                hi_k = min(k1, fk * s + s - 1)
+                counts[fi, fj, fk] += hi_k - lo_k + 1
 
 
 def winding_occupancy(triangles: np.ndarray, origin, spacing, shape, s: int) -> np.ndarray:

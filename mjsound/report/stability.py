@@ -191,7 +191,6 @@ def case_stiff(quick):
 
 
 def case_damping(quick):
-    from ..modal.model import ModalModel
     from ..materials import get_material
 
     rows = []

@@ -939,9 +939,7 @@ class ContactReader:
                         "slide" if kind[p] == 1 else "roll", t0, t1, int(geom[i0, 0]), int(geom[i0, 1]),
                         point[p], normal[p], float(ftot[p]), float(speed[p])))
         elif self._any_open:
-            # nothing touches: every open record closes
-            self._SI[SI_OPEN, : self._nslots] = 0
-            self._any_open = False
+            self._close_all()
         return impacts, contacts, cf
 
     def step_if_quiet(self, data) -> bool:
@@ -1006,9 +1004,13 @@ class ContactReader:
             if n_sust:
                 sustained = self._srows_buf[:n_sust]
         elif self._any_open:
-            self._SI[SI_OPEN, : self._nslots] = 0
-            self._any_open = False
+            self._close_all()
         return impacts, sustained
+
+    def _close_all(self) -> None:
+        """Nothing touches: every open impact record closes."""
+        self._SI[SI_OPEN, : self._nslots] = 0
+        self._any_open = False
 
     def _data_views(self, data):
         """``(cvel, subtree_com, geom_xpos, cdof)`` of ``data``: fixed-size MjData arrays, whose

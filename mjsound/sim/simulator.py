@@ -197,7 +197,6 @@ class AudioSimulator:
         self.reader = ContactReader(model, restitution=restitution, **(reader_kwargs or {}))
         self._sounding = scene.by_geom()
         self._names = {g: s.name for g, s in self._sounding.items()}
-        self._dynamic = [s for s in scene.sounding if s.dynamic]
         self._radius = np.array([geom_contact_radius(model, g) for g in range(model.ngeom)])
         m = model
         self._other_mass = np.array(
@@ -223,21 +222,20 @@ class AudioSimulator:
                     position=np.array(self.data.geom_xpos[s.geom_id]),
                     rotation=np.array(self.data.geom_xmat[s.geom_id]).reshape(3, 3),
                 )
-            self.synth.on_regain = self._before_regain
-        # synth object index of each geom (-1: silent, or no modes to drive)
+            self.synth.on_regain = self._sync_poses
+        # synth object index of each geom (-1: silent, or no modes to drive), and the moving
+        # objects with their geoms
         self._geom_obj = np.full(model.ngeom, -1, np.int64)
-        self._obj_geom = {}
-        self._dyn_geom = {}  # synth object index -> geom, for objects that move
+        moving = {}
         if self.synth is not None:
             for g, s in self._sounding.items():
                 ob = self.synth._objects[s.name]
-                self._obj_geom[ob.index] = g
                 if s.dynamic:
-                    self._dyn_geom[ob.index] = g
+                    moving[ob.index] = g
                 if len(ob.keep):
                     self._geom_obj[g] = ob.index
-        self._dyn_idx = np.array(sorted(self._dyn_geom), np.int64)  # moving objects, and their geoms
-        self._dyn_geoms = np.array([self._dyn_geom[i] for i in self._dyn_idx.tolist()], np.int64)
+        self._dyn_idx = np.array(sorted(moving), np.int64)
+        self._dyn_geoms = np.array([moving[i] for i in self._dyn_idx.tolist()], np.int64)
         self._follow = None
         self._mic_sites = np.asarray(scene.mic_site_ids, np.int64)
         self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
@@ -279,16 +277,15 @@ class AudioSimulator:
         self._regain = max(1, int(round(self.sustained_block_s * self.sample_rate)))
 
     # ------------------------------------------------------------------ stepping
-    def _sync_clock(self) -> None:
-        """Re-anchor when ``data.time`` or the timestep no longer match the count."""
-        dt = float(self.model.opt.timestep)
+    def _reanchor_clock(self) -> None:
+        """``data.time`` or the timestep no longer match the count (:meth:`step` checks):
+        restart counting at this step. The synthesizer keeps counting where it stopped, so
+        absolute samples are re-mapped onto it."""
         c = self.clock
-        t_expect = c.t_start + (c.k + 1) * c.timestep
-        if dt != c.timestep or abs(float(self.data.time) - t_expect) > 0.25 * dt:
-            # the synthesizer keeps counting where it stopped; re-map absolute samples onto it
-            n_prev = c.n
-            c.anchor(dt, float(self.data.time) - dt)
-            self._origin += c.n - n_prev
+        n_prev = c.n
+        dt = float(self._opt.timestep)
+        c.anchor(dt, float(self.data.time) - dt)
+        self._origin += c.n - n_prev
 
     def follow(self, body: int, offsets) -> None:
         """Move the microphones with ``body`` (translation only): microphone m sits at
@@ -327,7 +324,7 @@ class AudioSimulator:
         c = self.clock
         dt = c.timestep
         if self._opt.timestep != dt or abs(self.data.time - (c.t_start + (c.k + 1) * dt)) > 0.25 * dt:
-            self._sync_clock()
+            self._reanchor_clock()
         n0 = c.n
         c.k += 1
         c.n = c.sample_at(c.k)
@@ -377,14 +374,11 @@ class AudioSimulator:
         elif self._sites_move and len(mics) == len(self._mic_sites):
             follow_rows(self._site_xpos, self._mic_sites, self._zero_offsets, mics)
 
-    def _before_regain(self) -> None:
-        """``Synthesizer.on_regain``: poses and microphones as they are now."""
+    def _sync_poses(self) -> None:
+        """Microphones and every moving sounding object to where they are now, before an
+        event needs them (impacts; ``Synthesizer.on_regain`` for the streams' gains). An
+        exploding simulation's non-finite poses are skipped: those keep the last good one."""
         self._update_mics()
-        self._pose_moving()
-
-    def _pose_moving(self) -> None:
-        """Every moving sounding object to its geom's current pose, in one array operation
-        (an exploding simulation's non-finite poses are skipped: those objects keep the last)."""
         if len(self._dyn_idx):
             poses = self.synth._poses
             pose_rows(self._geom_xpos, self._geom_xmat, self._dyn_geoms, self._dyn_idx, poses.pos, poses.R)
@@ -427,8 +421,7 @@ class AudioSimulator:
         fs = self.sample_rate
         # synth time of the step start (never before what the synthesizer has rendered)
         t_ev = max(t0 - self._origin / fs, (n0 - self._origin) / fs)
-        self._update_mics()
-        self._pose_moving()
+        self._sync_poses()
         self._n_impacts += len(imp)
         if self._n_logged < self.keep_events:
             self._log_pending.append((t0, "impact", imp))
@@ -441,7 +434,7 @@ class AudioSimulator:
                 break
             for g, other in missing.tolist():
                 self._coef[self._coef_row[g], other] = self._hertz_coef(g, other)
-        synth._commit_impacts(self._geom_obj[imp[:, I_G1:I_G2 + 1].astype(np.int64).ravel()], *out)
+        synth._commit_impacts(*out, struck=lambda: self._geom_obj[imp[:, I_G1:I_G2 + 1].astype(np.int64).ravel()])
 
     def _hertz_coef(self, g, other) -> float:
         """Hertz coefficient of sounding geom ``g`` struck by geom ``other``."""

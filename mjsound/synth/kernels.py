@@ -396,7 +396,7 @@ def stream_seed(seed, obj, key):
 
 
 @njit(cache=True)
-def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c, fs, rmin, tol,
+def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam, mics, c, fs, rmin, tol,
                  gr, gi, D):
     """Per-microphone complex gain ``gr + j gi`` (n,) and integer delay ``D`` of a force along
     world ``nrm`` at world point ``p`` on an object at (pos, R) (see ``Synthesizer._add_source``)."""
@@ -428,8 +428,8 @@ def stream_gains(pts, shk, pos, R, p, nrm, wd, weights, lam_re, lam_im, mics, c,
         for k in range(n):
             G = d0 * shk[bi, 0, k] + d1 * shk[bi, 1, k] + d2 * shk[bi, 2, k]
             a = G / (fs * wd[k]) * weights[k] / r
-            e = np.exp(lam_re[k] * dts)
-            ph = lam_im[k] * dts
+            e = np.exp(lam[k].real * dts)
+            ph = lam[k].imag * dts
             gr[m, k] = a * e * np.cos(ph)
             gi[m, k] = a * e * np.sin(ph)
             if not (np.isfinite(gr[m, k]) and np.isfinite(gi[m, k])):
@@ -512,62 +512,12 @@ def stream_drive(s, k0, k1, amp, alpha, p, nrm, regain, rendered, slack, SF, SI,
 
 
 @njit(cache=True)
-def streams_block(SF, SI, D, st_gr, st_gi, ring, vbase, start, end, nmax, zero):
-    """The block's source rows of every stream for :func:`render_all` (sorted by voice; rows
-    active on ``[start, min(end, last + D))``, read from the ring: the noise was generated
-    when the stream was driven)."""
-    S = SF.shape[0]
-    M = D.shape[1]
-    mask = ring.shape[1] - 1
-    cap = ring.shape[1]
-    q = 0
-    for s in range(S):
-        if not SI[s, SI_LIVE]:
-            continue
-        for m in range(M):
-            if SI[s, SI_LAST] + D[s, m] > start:
-                q += 1
-    voice = np.empty(q, np.int64)
-    sa = np.empty(q, np.int64)
-    sb = np.empty(q, np.int64)
-    gr = np.zeros((q, nmax), st_gr.dtype)
-    gi = np.zeros((q, nmax), st_gr.dtype)
-    n = end - start
-    F = np.zeros((q, n), st_gr.dtype)
-    j = 0
-    for s in range(S):
-        if not SI[s, SI_LIVE]:
-            continue
-        gen = SI[s, SI_GEN]
-        for m in range(M):
-            Dm = D[s, m]
-            hi = SI[s, SI_LAST] + Dm
-            if hi <= start:
-                continue
-            voice[j] = vbase[SI[s, SI_OBJ]] + m
-            sa[j] = start
-            sb[j] = hi if hi < end else end
-            w = min(nmax, st_gr.shape[2])
-            for k in range(w):
-                gr[j, k] = st_gr[s, m, k]
-                gi[j, k] = st_gi[s, m, k]
-            lo_src = gen - cap  # oldest sample still in the ring
-            for t in range(start, sb[j]):
-                ks = t - Dm
-                if ks >= lo_src and ks < gen:
-                    F[j, t - start] = ring[s, ks & mask]
-            j += 1
-    order = np.argsort(voice, kind="mergesort")
-    return voice[order], sa[order], sb[order], gr[order], gi[order], F[order]
-
-
-@njit(cache=True)
 def streams_bank_rows(SF, SI, D, st_gr, st_gi, ring, vbase, v_rel, v_len, n_mics, width, start, end, zero):
-    """:func:`streams_block` with its rows already placed in the microphone banks of
-    :func:`render_all` (voice ``v``'s gains at columns ``v_rel[v] ...`` of a row ``width``
-    wide) and grouped by microphone (stream order within one): ``(ptr (n_mics + 1,), sa, sb,
-    gr, gi, F)``, microphone ``m``'s rows ``ptr[m] : ptr[m + 1]``. (The render's path when the
-    streams are its only forcing sources: no sorting or placing afterwards.)"""
+    """The block's rows of every stream for :func:`render_all`, active on ``[start,
+    min(end, last + D))`` and read from the ring (the noise was generated when the stream was
+    driven), placed in the microphone banks (voice ``v``'s gains at columns ``v_rel[v] ...``
+    of a row ``width`` wide) and grouped by microphone (stream order within one):
+    ``(ptr (n_mics + 1,), sa, sb, gr, gi, F)``, microphone ``m``'s rows ``ptr[m] : ptr[m + 1]``."""
     S = SF.shape[0]
     mask = ring.shape[1] - 1
     cap = ring.shape[1]
@@ -718,7 +668,7 @@ def any_due(SI, n):
 
 @njit(cache=True)
 def streams_gains(n, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all,
-                  lre_all, lim_all, pos_all, R_all, mics, c, fs, rmin, tol):
+                  lam_all, pos_all, R_all, mics, c, fs, rmin, tol):
     """:func:`stream_gains` of every stream ``j < n`` marked due (``SI_DUE``, cleared here) in
     one call. Object ``o``'s surface points are
     rows ``pts_off[o]:pts_off[o+1]`` of ``pts_all``, its shapes the flat slice
@@ -740,7 +690,7 @@ def streams_gains(n, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off
             continue
         shk = shk_all[shk_off[o]:shk_off[o + 1]].reshape((p1 - p0, 3, m1 - m0))
         stream_gains(pts_all[p0:p1], shk, pos_all[o], R_all[o], SF[j, SF_P:SF_P + 3], SF[j, SF_N:SF_N + 3],
-                     wd_all[m0:m1], w_all[m0:m1], lre_all[m0:m1], lim_all[m0:m1], mics, c, fs, rmin, tol,
+                     wd_all[m0:m1], w_all[m0:m1], lam_all[m0:m1], mics, c, fs, rmin, tol,
                      st_gr[j], st_gi[j], D[j])
         for m in range(D.shape[1]):
             if D[j, m] > dmax:

@@ -346,8 +346,6 @@ class Synthesizer:
         wd = np.sqrt(w0[keep] ** 2 - d**2)
         ob.d, ob.wd = d, wd
         ob.lam = -d + 1j * wd
-        ob.lam_re = np.ascontiguousarray(ob.lam.real)
-        ob.lam_im = np.ascontiguousarray(ob.lam.imag)
         if self.radiation:
             ob.weights = rad[keep]  # capped at full radiation efficiency by the analysis
         else:
@@ -550,7 +548,7 @@ class Synthesizer:
         out = kernels.impacts_to_queue(
             obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64), np.ascontiguousarray(t, f64),
             np.ascontiguousarray(tau, f64), *self._impact_data(), q.I, q.kind, q.re, q.im, q.count, q.pool_used)
-        self._commit_impacts(obj, *out)
+        self._commit_impacts(*out, struck=lambda: obj)
 
     def _impact_queue(self, k):
         """The event queue, with room for ``k`` more impacts (voice layout up to date)."""
@@ -569,11 +567,12 @@ class Synthesizer:
                 self._poses.pos, self._poses.R, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
                 _SAMPLE_TOL, self.samples_rendered, GRID)
 
-    def _commit_impacts(self, obj, count, used, nxt, amax) -> None:
+    def _commit_impacts(self, count, used, nxt, amax, struck) -> None:
         """Keep the rows :func:`.kernels.impacts_to_queue` wrote past the queue's end, unless
-        an amplitude is out of range (then they are dropped and the error names the objects)."""
+        an amplitude is out of range (then they are dropped and the error names the objects
+        ``struck()`` returns: indices, called only then)."""
         if not (amax <= MAX_AMPLITUDE):  # also catches NaN
-            names = sorted({self._by_index[int(o)].name for o in np.asarray(obj).tolist() if int(o) in self._by_index})
+            names = sorted({self._by_index[int(o)].name for o in np.asarray(struck()).tolist() if int(o) in self._by_index})
             raise ValueError(
                 f"impulse on {', '.join(map(repr, names))} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
                 "check the impulse units (N s) and magnitude"
@@ -786,7 +785,7 @@ class Synthesizer:
                 self.on_regain()
             g = self._gain_data
             dmax = kernels.streams_gains(self._st_n, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
-                                         g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lre"], g["lim"],
+                                         g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lam"],
                                          self._poses.pos, self._poses.R, self._mics, self.speed_of_sound,
                                          float(self.sample_rate), R_MIN_M, _SAMPLE_TOL)
             self._st_dmax = max(self._st_dmax, int(dmax))
@@ -802,12 +801,35 @@ class Synthesizer:
                                          st["ring"][:n], self._vb_arr, self._v_rel, self._flat[9], self.n_channels,
                                          self._mic_width, start, end, self.dtype.type(0))
 
-    def _streams_rows(self, start, end):
-        self._streams_regain(end - start)
-        st = self._st
-        n = self._st_n
-        return kernels.streams_block(st["SF"][:n], st["SI"][:n], st["D"][:n], st["gr"][:n], st["gi"][:n],
-                                     st["ring"][:n], self._vb_arr, start, end, self._nmax, self.dtype.type(0))
+    def _source_rows(self, srcs, start, end):
+        """Forcing sources ``srcs`` (entries of ``_src`` overlapping ``[start, end)``) as
+        :func:`.kernels.render_all` rows: ``(ptr, a, b, gr, gi, F)``, gains placed in the
+        microphone banks, grouped by microphone (by voice, then in order, within one)."""
+        vb = self._vbase
+        dt = self.dtype
+        n = end - start
+        sv = np.array([vb[s[0]] + s[1] for s in srcs], np.int64)
+        order = np.argsort(sv, kind="stable")
+        q = len(srcs)
+        src_a = np.empty(q, np.int64)
+        src_b = np.empty(q, np.int64)
+        gr = np.zeros((q, self._nmax), dt)
+        gi = np.zeros((q, self._nmax), dt)
+        F = np.zeros((q, n), dt)
+        for j, i in enumerate(order.tolist()):
+            _, _, a, b, g, f = srcs[i]
+            src_a[j] = a
+            src_b[j] = b
+            gr[j, : len(g)] = g.real
+            gi[j, : len(g)] = g.imag
+            lo, hi = max(a, start), min(b, end)
+            F[j, lo - start: hi - start] = f[lo - a: hi - a]
+        sm, gr, gi = kernels.place_rows(sv[order], gr, gi, self._v_rel, self._flat[9], self._flat[10],
+                                        self._mic_width)
+        if self.n_channels > 1:  # rows by microphone (one microphone: already in order)
+            order = np.argsort(sm, kind="stable")
+            src_a, src_b, gr, gi, F, sm = src_a[order], src_b[order], gr[order], gi[order], F[order], sm[order]
+        return np.searchsorted(sm, self._mic_ptr), src_a, src_b, gr, gi, F
 
     # ------------------------------------------------------------------ rendering
     def _rebuild(self) -> None:
@@ -883,7 +905,6 @@ class Synthesizer:
             **offs,
             "pts": cat(lambda ob: ob.pts.reshape(-1, 3), (0, 3)), "shk": cat(lambda ob: ob.shk.ravel(), (0,)),
             "wd": cat(lambda ob: ob.wd, (0,)), "w": cat(lambda ob: np.asarray(ob.weights, np.float64), (0,)),
-            "lre": cat(lambda ob: ob.lam_re, (0,)), "lim": cat(lambda ob: ob.lam_im, (0,)),
             "lam": cat(lambda ob: ob.lam, (0,)).astype(np.complex128),
             "leps": cat(lambda ob: ob.logeps, (0,)).astype(np.complex128),
         }
@@ -892,7 +913,6 @@ class Synthesizer:
             vb_arr[ob.index] = ob.vbase
         self._vb_arr = vb_arr
         self._ev_ptr0 = np.zeros(M + 1, np.int64)
-        self._ev_none = np.zeros(0, np.int64)
         self._nmax = max([len(ob.keep) for ob in obs], default=0)
         self._empty_ev = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, self._nmax)),
                           np.zeros((0, self._nmax)))
@@ -924,73 +944,37 @@ class Synthesizer:
         end = start + n
         streams = self._st_n > 0
         if self._ev.count or self._src or streams or self._live.any():
-            nmax = self._nmax
-            # ---- events due in this block, sorted by (voice, sample), insertion order kept
+            # ---- events due in this block: rows placed in the microphone banks, sorted by
+            # (microphone, sample), ties in order
             if self._ev.count and self._ev.next_sample < end:
-                # rows placed in the microphone banks, sorted by (microphone, sample), ties in order
                 ev_ptr, ev_n, ev_kind, ev_re, ev_im = self._ev.take(end, self._vb_arr, self._v_rel, self._flat[9],
                                                                     self.n_channels, self._mic_width)
             else:
                 ev_n, ev_kind, ev_re, ev_im = self._empty_ev
                 ev_ptr = self._ev_ptr0
-            # ---- forcing sources overlapping the block
-            if self._src:
-                srcs = [s for s in self._src if s[2] < end and s[3] > start]
-            else:
-                srcs = ()
+            # ---- forcing sources overlapping the block, as rows placed in the microphone banks
+            # and grouped by microphone (src_ptr)
+            srcs = [s for s in self._src if s[2] < end and s[3] > start] if self._src else ()
             if srcs:
-                vb = self._vbase
-                sv = np.array([vb[s[0]] + s[1] for s in srcs], np.int64)
-                order = np.argsort(sv, kind="stable")
-                q = len(srcs)
-                src_a = np.empty(q, np.int64)
-                src_b = np.empty(q, np.int64)
-                gr = np.zeros((q, nmax), dt)
-                gi = np.zeros((q, nmax), dt)
-                F = np.zeros((q, n), dt)
-                for j, i in enumerate(order.tolist()):
-                    _, _, a, b, g, f = srcs[i]
-                    src_a[j] = a
-                    src_b[j] = b
-                    gr[j, : len(g)] = g.real
-                    gi[j, : len(g)] = g.imag
-                    lo, hi = max(a, start), min(b, end)
-                    F[j, lo - start: hi - start] = f[lo - a: hi - a]
-                sv = sv[order]
+                src_ptr, src_a, src_b, gr, gi, F = self._source_rows(srcs, start, end)
                 self._src = [s for s in self._src if s[3] > end]
-            else:
-                sv = self._ev_none
+            if streams:
+                # persistent sliding / rolling streams: noise generated in numba, rows placed there
+                rows = self._streams_bank_rows(start, end)
+                if srcs:  # both: merged by microphone, the forcing sources' rows first
+                    M = self.n_channels
+                    mic = np.concatenate([np.repeat(np.arange(M), np.diff(src_ptr)),
+                                          np.repeat(np.arange(M), np.diff(rows[0]))])
+                    order = np.argsort(mic, kind="stable")
+                    src_a, src_b, gr, gi, F = (np.concatenate([x, y])[order] for x, y in
+                                               zip((src_a, src_b, gr, gi, F), rows[1:]))
+                    src_ptr = np.searchsorted(mic[order], self._mic_ptr)
+                else:
+                    src_ptr, src_a, src_b, gr, gi, F = rows
+            elif not srcs:
+                src_ptr = self._ev_ptr0
                 src_a, src_b, gr, gi, F = self._empty_src
                 F = np.zeros((0, n), dt)
-            src_ptr = None
-            if streams and not len(sv):
-                # persistent sliding / rolling streams only (the usual case): rows come placed
-                src_ptr, src_a, src_b, gr, gi, F = self._streams_bank_rows(start, end)
-            elif streams:
-                # streams and forcing sources: noise generated in numba, rows appended
-                s_v, s_a, s_b, s_gr, s_gi, s_F = self._streams_rows(start, end)
-                if len(s_v):
-                    if len(sv):
-                        sv = np.concatenate([sv, s_v])
-                        order = np.argsort(sv, kind="stable")
-                        sv = sv[order]
-                        src_a = np.concatenate([src_a, s_a])[order]
-                        src_b = np.concatenate([src_b, s_b])[order]
-                        gr = np.concatenate([gr, s_gr])[order]
-                        gi = np.concatenate([gi, s_gi])[order]
-                        F = np.concatenate([F, s_F])[order]
-                    else:
-                        sv, src_a, src_b, gr, gi, F = s_v, s_a, s_b, s_gr, s_gi, s_F
-            if src_ptr is None and len(sv):
-                sm, gr, gi = kernels.place_rows(sv, gr, gi, self._v_rel, self._flat[9], self._flat[10],
-                                                self._mic_width)
-                if self.n_channels > 1:  # rows by microphone (one microphone: already in order)
-                    order = np.argsort(sm, kind="stable")
-                    src_a, src_b, gr, gi, F = src_a[order], src_b[order], gr[order], gi[order], F[order]
-                    sm = sm[order]
-                src_ptr = np.searchsorted(sm, self._mic_ptr)
-            elif src_ptr is None:
-                src_ptr = self._ev_ptr0
             Zr, Zi, P2, ACT, PR, PI, CR, CI = self._flat[:8]
             kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, self._mic_start, self._mic_len, self._mic_ids,
                                self._live,
