@@ -399,7 +399,10 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Progress bar over the modal analyses.
     sim_kwargs : dict, optional
         Extra keyword arguments for :class:`mjsound.sim.AudioSimulator` (``sustained``,
-        ``synth_kwargs``, ``reader_kwargs``...).
+        ``synth_kwargs``, ``reader_kwargs``...). ``keep_events`` defaults to 0 here: an
+        environment keeps no event log (``env.sim.event_log``), which lets a whole
+        ``frame_skip`` run in one numba call (:mod:`mjsound.sim.fused`); give e.g.
+        ``keep_events=100_000`` to keep one.
 
     Observation
     -----------
@@ -476,7 +479,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                             budget_modes=budget_modes, progress=progress, models=models)
         self.scene = scene
         self.sim = AudioSimulator(model, data, scene=scene, sample_rate=self.sample_rate, progress=False,
-                                  **(sim_kwargs or {}))
+                                  **{"keep_events": 0, **(sim_kwargs or {})})
         self.n_channels = self.sim.n_channels
 
         # listener that follows a body (translation only; AudioSimulator.follow)
@@ -516,13 +519,11 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def _install_hook(self, uw) -> None:
         mj = self._mj
         model, data = uw.model, uw.data
-        step = self.sim.step  # (= on_substep, without one call level per substep)
+        substeps = self.sim.substeps  # mj_step + on_substep, n_frames times (one numba call)
 
         def _step_mujoco_simulation(ctrl, n_frames):
             data.ctrl[:] = ctrl
-            for _ in range(int(n_frames)):
-                mj.mj_step(model, data)
-                step(False)
+            substeps(n_frames)
             mj.mj_rnePostConstraint(model, data)
 
         uw._step_mujoco_simulation = _step_mujoco_simulation

@@ -797,13 +797,17 @@ class ContactReader:
         #: sliding and rolling pair-steps seen by :meth:`events_fast` (counted in numba)
         self.sustained_steps = np.zeros(2, np.int64)
         # output buffers of the per-step kernel (grown to the largest contact count seen)
-        self._rows_buf = np.empty((0, R_COLS))
-        self._srows_buf = np.empty((0, R_COLS))
-        self._hits_buf = np.empty((0, H_COLS))
-        self._missing_buf = np.empty((0, 2), np.int64)
-        self._onset_buf = np.empty((1, 2), np.int64)
+        self._buffers(8)
         self._params = np.array([self.v_impact, self.v_hard, self.min_apart_s, self.refractory_s,
                                  self.max_event_s, self.v_slide, self.v_roll, self.max_force])
+
+    def _buffers(self, n: int) -> None:
+        """Output buffers of the per-step kernel for up to ``n`` contacts."""
+        self._rows_buf = np.empty((n, R_COLS))
+        self._srows_buf = np.empty((n, R_COLS))
+        self._hits_buf = np.empty((n, H_COLS))
+        self._missing_buf = np.empty((2 * n, 2), np.int64)
+        self._onset_buf = np.empty((n + 1, 2), np.int64)
 
     def _alloc_slots(self, cap):
         """Room for ``cap`` pair slots (state kept; the table stays at most half full)."""
@@ -971,8 +975,6 @@ class ContactReader:
         """
         self._step += 1
         step = self._step
-        impacts = None
-        sustained = None
         self.drive_result = None
         n = data.ncon
         if n:
@@ -980,11 +982,7 @@ class ContactReader:
             con = data.contact
             cvel, scom, gxpos, _ = self._data_views(data)
             if n > len(self._rows_buf):
-                self._rows_buf = np.empty((2 * n, R_COLS))
-                self._srows_buf = np.empty((2 * n, R_COLS))
-                self._hits_buf = np.empty((2 * n, H_COLS))
-                self._missing_buf = np.empty((4 * n, 2), np.int64)
-                self._onset_buf = np.empty((2 * n + 1, 2), np.int64)
+                self._buffers(2 * n)
             args = (con.geom, con.pos, con.frame, con.efc_address, con.dim, data.efc_force, self._pyramidal,
                     cvel, scom, gxpos, self.geom_body, self.body_root, self._plane,
                     self.model.ngeom, self._hkeys, self._hvals, self._SF, self._SI, self._nslots, t0, t1, step,
@@ -994,18 +992,36 @@ class ContactReader:
                 out = _fused_kernel(*args)
             else:
                 out = drive[0](*args, *drive[1], self._missing_buf)
-                self.drive_result = (self._missing_buf[: out[7]], out[8])
-            n_pairs, n_sust, n_hits, nbad, nhuge, n_onset, self._nslots = out[:7]
-            if nbad or nhuge:
-                self._report_clamped(nbad, nhuge)
-            if n_onset:
-                ons = self._onset_buf[: n_onset + 1]
-                _, _, impacts = self._impacts(data, self._hits_buf[:n_hits], ons[:, 1], ons[:-1, 0], t0)
-            if n_sust:
-                sustained = self._srows_buf[:n_sust]
-        elif self._any_open:
+            return self.kernel_outputs(out, data, t0)
+        if self._any_open:
             self._close_all()
+        return None, None
+
+    def kernel_outputs(self, out, data, t0: float):
+        """:meth:`events_fast`'s results from its kernel's outputs ``out`` (of
+        ``_fused_kernel``, or of :func:`.drive.read_and_drive` when 9 long: then
+        :attr:`drive_result` is set): the step's impact events are made here."""
+        impacts = sustained = None
+        n_pairs, n_sust, n_hits, nbad, nhuge, n_onset, self._nslots = out[:7]
+        if len(out) > 7:
+            self.drive_result = (self._missing_buf[: out[7]], out[8])
+        if nbad or nhuge:
+            self._report_clamped(nbad, nhuge)
+        if n_onset:
+            ons = self._onset_buf[: n_onset + 1]
+            _, _, impacts = self._impacts(data, self._hits_buf[:n_hits], ons[:, 1], ons[:-1, 0], t0)
+        if n_sust:
+            sustained = self._srows_buf[:n_sust]
         return impacts, sustained
+
+    def state_args(self, data) -> tuple | None:
+        """The arguments of ``_fused_kernel`` after the contacts and ``efc_force`` except
+        ``nslots, t0, t1, step`` (:func:`.fused.run_substeps` keeps those itself), then the
+        drive's ``missing`` buffer."""
+        cvel, scom, gxpos, _ = self._data_views(data)
+        return (self._pyramidal, cvel, scom, gxpos, self.geom_body, self.body_root, self._plane, self.model.ngeom,
+                self._hkeys, self._hvals, self._SF, self._SI, self._params, self.sustained_steps, self._rows_buf,
+                self._srows_buf, self._hits_buf, self._onset_buf), self._missing_buf
 
     def _close_all(self) -> None:
         """Nothing touches: every open impact record closes."""

@@ -26,6 +26,7 @@ render instead of every ``sustained_block_s``.
 from __future__ import annotations
 
 import math
+import os
 import time as _time
 from fractions import Fraction
 
@@ -34,6 +35,7 @@ import numpy as np
 from .contacts import (I_G1, I_G2, I_IMPULSE, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
                        ContactReader)
 from .drive import drive_rows, follow_rows, impacts_to_synth, pose_rows, read_and_drive
+from .fused import DONE, PYTHON_AFTER, PYTHON_STEP, mj_step_address, mjdata_layout, run_substeps
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -158,6 +160,7 @@ class AudioSimulator:
         keep_events: int = 100_000,
         sustained_block_s: float = 0.004,
         render_block_s: float = 0.01,
+        fused: bool = True,
     ):
         import mujoco
 
@@ -166,8 +169,6 @@ class AudioSimulator:
             if scene is not None:
                 model = scene.model
             else:
-                import os
-
                 model = mujoco.MjModel.from_xml_path(os.fspath(model))
         self.model = model
         self.data = data if data is not None else mujoco.MjData(model)
@@ -243,6 +244,16 @@ class AudioSimulator:
         # Hertz coefficient of (struck sounding geom, other geom), NaN until first needed
         self._coef_row = np.cumsum(self._geom_obj >= 0) - 1
         self._coef = np.full((int((self._geom_obj >= 0).sum()), model.ngeom), np.nan)
+        # substeps in one numba call (.fused) where this MuJoCo build's struct layout checks out
+        self._fused_layout = None
+        if fused and os.environ.get("MJSOUND_FUSED", "1") != "0":
+            self._fused_layout = mjdata_layout()
+        if self._fused_layout is not None:
+            self._fused_step = mj_step_address()
+        self._fused_state = np.zeros(3, np.int64)
+        self._no_streams = {"SF": np.zeros((0, 9)), "SI": np.zeros((0, 9), np.int64),
+                            "D": np.zeros((0, self.n_channels), np.int64), "ring": np.zeros((0, 1))}
+        self._fused_buf = None
         self.reset(clear_reader=True)
 
     # ------------------------------------------------------------------ state
@@ -270,6 +281,7 @@ class AudioSimulator:
         self.on_block = None
         self.seconds_contacts = 0.0
         self.seconds_synth = 0.0
+        self.seconds_fused = 0.0  # substeps run by .fused (mj_step included)
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
         self._sidx = np.full((16, 2), -1, np.int64)
@@ -330,6 +342,78 @@ class AudioSimulator:
         c.n = c.sample_at(c.k)
         return self._process(n0, c.n, render=render)
 
+    def substeps(self, nstep: int) -> None:
+        """``mj_step`` then :meth:`step` ``(render=False)``, ``nstep`` times (a gymnasium env's
+        ``frame_skip``); the audio comes from :meth:`flush`.
+
+        The substeps run in one numba call (:mod:`.fused`: ``mj_step`` called from numba,
+        the reader's and the drive's kernels after each) whenever this simulator can
+        (``fused=True``, streams exist, the clock fits 64-bit integers); a substep that
+        needs Python (an impact starts, a new sliding pair, ...) is finished here and the
+        call goes on. The result is the same as the loop in Python, bit for bit."""
+        done, nstep = 0, int(nstep)
+        while done < nstep:
+            args = self._fused_args(nstep - done)
+            if args is None:
+                for _ in range(nstep - done):
+                    self._mj.mj_step(self.model, self.data)
+                    self.step(render=False)
+                return
+            tc = _time.perf_counter()
+            i, code, out = run_substeps(*args)
+            self.seconds_fused += _time.perf_counter() - tc
+            self._count_fused(i)
+            done += i + (code != DONE)
+            if code == PYTHON_STEP:
+                self.step(render=False)
+            elif code == PYTHON_AFTER:
+                self._finish_fused(out)
+
+    def _fused_args(self, nstep: int) -> tuple | None:
+        """:func:`.fused.run_substeps`'s arguments for the next ``nstep`` substeps, or None
+        when they must run in Python."""
+        synth, c = self.synth, self.clock
+        if self._fused_layout is None or synth is None or not self.sustained:
+            return None
+        top = max(abs(c._a0), abs(c._a0 + (c.k + nstep) * c._b))
+        if self._opt.timestep != c.timestep or top >= 2**53 or top * c.fs >= 2**62:
+            return None  # (step times as int64 ratios, exact as in SampleClock)
+        reader_args, missing = self.reader.state_args(self.data)
+        cap = len(reader_args[-4])
+        if self._fused_buf is None or len(self._fused_buf[0]) != cap:
+            self._fused_buf = (np.empty((cap, 2), np.int32), np.empty((cap, 3)), np.empty((cap, 9)),
+                               np.empty(cap, np.int32), np.empty(cap, np.int32))
+        r = self.reader
+        st = self._fused_state
+        st[0], st[1], st[2] = r._nslots, r._any_open, r._step
+        clk = np.array([c._a0, c._b, c._den, c.fs, c.k, self._origin], np.int64)
+        return (self._fused_step, self.model._address, self.data._address, self._fused_layout, nstep, clk,
+                np.array([c.t_start, c.timestep]), st, self._n_logged < self.keep_events,
+                *reader_args, *self._stream_args(), missing, *self._fused_buf)
+
+    def _count_fused(self, m: int) -> None:
+        """Take over the state of :func:`.fused.run_substeps` after it finished ``m`` substeps."""
+        r, st = self.reader, self._fused_state
+        r._nslots, r._any_open, r._step = int(st[0]), bool(st[1]), int(st[2])
+        if m:
+            c = self.clock
+            n0 = c.n
+            c.k += m
+            c.n = c.sample_at(c.k)
+            self._count(n0, c.n, m)
+
+    def _finish_fused(self, out) -> None:
+        """Finish the substep that :func:`.fused.run_substeps` read but left to Python (its
+        kernel outputs ``out``): make its impacts, drive what needs new streams, log."""
+        c = self.clock
+        n0 = c.n
+        c.k += 1
+        c.n = c.sample_at(c.k)
+        self._count(n0, c.n)
+        t0 = c.time_at(c.k - 1)
+        impacts, rows = self.reader.kernel_outputs(out, self.data, t0)
+        self._queue_outputs(impacts, rows, t0, n0, c.n, True)
+
     def flush(self) -> np.ndarray:
         """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
         ``(channels, n)`` float32 pressure [Pa]."""
@@ -339,14 +423,18 @@ class AudioSimulator:
                  render: bool = True) -> np.ndarray | None:
         """Count the step of samples ``[n0, n1)`` (times ``t0, t1``: default from the clock),
         queue its sound, and render what is pending if ``render``."""
-        if self._pending == 0:
-            self._pending_n0 = n0
-        self._pending += n1 - n0
-        self.steps += 1
-        self.samples += n1 - n0
+        self._count(n0, n1)
         if self.synth is not None and not self.reader.step_if_quiet(self.data):
             self._queue(n0, n1, t0, t1)
         return self._render_pending() if render else None
+
+    def _count(self, n0: int, n1: int, steps: int = 1) -> None:
+        """Count ``steps`` physics steps of samples ``[n0, n1)``, not rendered yet."""
+        if self._pending == 0:
+            self._pending_n0 = n0
+        self._pending += n1 - n0
+        self.steps += steps
+        self.samples += n1 - n0
 
     def _render_pending(self) -> np.ndarray:
         n, n0 = self._pending, self._pending_n0
@@ -386,7 +474,6 @@ class AudioSimulator:
     def _queue(self, n0: int, n1: int, t0: float | None = None, t1: float | None = None) -> None:
         """Read the step's contacts (something touches, or an impact is open) and queue its
         impacts and sustained drives (sounding scenes only)."""
-        nblock = n1 - n0
         reader = self.reader
         if t0 is None:
             c = self.clock
@@ -400,18 +487,25 @@ class AudioSimulator:
         impacts, rows = reader.events_fast(self.data, t0, t1, drive)
         t_read = _time.perf_counter()
         self.seconds_contacts += t_read - tc
+        self._queue_outputs(impacts, rows, t0, n0, n1, drive is not None)
+        self.seconds_synth += _time.perf_counter() - t_read
+
+    def _queue_outputs(self, impacts, rows, t0, n0, n1, driven: bool) -> None:
+        """Queue what the reader found in a step (``driven``: its kernel drove the streams
+        it could, :attr:`ContactReader.drive_result` says what is left)."""
+        reader = self.reader
+        nblock = n1 - n0
         if impacts is not None:
             self._queue_impacts(impacts, t0, n0)
         if rows is not None and self._n_logged < self.keep_events:
             self._log_pending.append((t0, "sustained", rows.copy()))  # (rows: the reader's buffer)
             self._n_logged += len(rows)
         if rows is not None and self.sustained and nblock:
-            done = reader.drive_result if drive is not None else None
+            done = reader.drive_result if driven else None
             if done is None:
                 self._drive(rows, n0, n1)
             elif done[1] or len(done[0]):  # a ring too short, or pairs without a stream yet
                 self._drive(rows, n0, n1, done)
-        self.seconds_synth += _time.perf_counter() - t_read
 
     def _queue_impacts(self, imp, t0, n0) -> None:
         """Queue the step's impacts (rows of :meth:`ContactReader.events_fast`, columns ``I_*``):
@@ -451,13 +545,20 @@ class AudioSimulator:
     def _drive_args(self, n0, n1) -> tuple:
         """The arguments of :func:`.drive.drive_rows` after the rows, for the step's samples
         ``[n0, n1)`` (the synthesizer's streams must exist)."""
+        a = self._stream_args()
+        return a[:5] + (n0 - self._origin, n1 - self._origin) + a[5:]
+
+    def _stream_args(self) -> tuple:
+        """:meth:`_drive_args` without the step's samples ``k0, k1`` (before the first stream
+        exists: empty stream arrays, so that every sounding side is reported missing)."""
         synth = self.synth
         if self._sidx_epoch != synth._st_epoch:  # the synthesizer forgot its streams
             self._reset_sidx()
         st = synth._st
-        return (self._sidx, self._geom_obj, self._rough, self._length, float(self.sample_rate),
-                n0 - self._origin, n1 - self._origin, self._regain, synth.samples_rendered, synth._RING_SLACK,
-                st["SF"], st["SI"], st["D"], st["ring"])
+        if st is None:
+            st = self._no_streams
+        return (self._sidx, self._geom_obj, self._rough, self._length, float(self.sample_rate), self._regain,
+                synth.samples_rendered, synth._RING_SLACK, st["SF"], st["SI"], st["D"], st["ring"])
 
     def _drive(self, rows, n0, n1, done=None) -> None:
         """One persistent noise stream per (pair, side), whether it slides or rolls: its force,
@@ -535,9 +636,12 @@ class AudioSimulator:
         blocks = []
         if self._pending:
             blocks.append(self.flush())
-        for i in range(nsteps):
-            if callback is not None:
-                callback(self.model, self.data)
+        if callback is None:  # render_block_s of substeps at a time (one numba call each: .fused)
+            for i in range(0, nsteps, every):
+                self.substeps(min(every, nsteps - i))
+                blocks.append(self.flush())
+        for i in range(nsteps if callback is not None else 0):
+            callback(self.model, self.data)
             self._mj.mj_step(self.model, self.data)
             b = self.step(render=(i + 1) % every == 0 or i == nsteps - 1)
             if b is not None:

@@ -1,0 +1,118 @@
+"""Substeps in one numba call (mjsound.sim.fused): the mjData layout it reads, and the same
+sound, events and state as the per-substep Python path, bit for bit."""
+
+from __future__ import annotations
+
+import ctypes
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjsound.sim import fused
+from mjsound.sim.scene import SoundScene
+from mjsound.sim.simulator import AudioSimulator
+from mjsound.sim.stub import stub_model
+
+FS = 16000
+
+# a ball that bounces then rolls, and a box pushed along the floor: impacts, rolling, sliding
+SCENE = """
+<mujoco>
+  <option timestep="0.002"/>
+  <custom><text name="mjsound:ball" data="steel"/><text name="mjsound:box" data="oak"/></custom>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 .1" solref="-1e5 -120"/>
+    <site name="mic0" pos="0.3 -0.5 0.3"/>
+    <body name="ball" pos="0 0 0.2"><freejoint/><geom name="ball" type="sphere" size="0.02" solref="-1e5 -120"/></body>
+    <body name="box" pos="0.5 0 0.03"><freejoint/><geom name="box" type="box" size="0.04 0.03 0.03"/></body>
+  </worldbody>
+</mujoco>"""
+
+MODELS = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0), "box": stub_model("box:0.08,0.06,0.06", "oak", 6, 700.0)}
+
+
+def make(fused_on, keep_events=0):
+    model = mujoco.MjModel.from_xml_string(SCENE)
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.4  # the ball rolls after its bounces
+    scene = SoundScene.from_model(model, models=MODELS, progress=False)
+    sim = AudioSimulator(model, data, scene=scene, sample_rate=FS, fused=fused_on, keep_events=keep_events)
+    return model, data, sim
+
+
+def play(model, data, sim, n_env=150, frame_skip=5, jump_at=None):
+    """``substeps(frame_skip)`` + ``flush()`` per env step; the box is pushed for a while."""
+    blocks = []
+    for i in range(n_env):
+        data.xfrc_applied[2, 0] = 3.0 if 30 <= i < 90 else 0.0
+        if i == jump_at:
+            data.time += 0.37  # a state jump: the clock re-anchors
+        sim.substeps(frame_skip)
+        blocks.append(sim.flush())
+    return np.concatenate(blocks, axis=1)
+
+
+def test_mjdata_layout_reads_what_the_bindings_read():
+    L = fused.mjdata_layout()
+    assert L is not None, "the mjData layout from mujoco.introspect disagrees with the bindings"
+    model, data, _ = make(True)
+    seen = 0
+    for _ in range(400):
+        mujoco.mj_step(model, data)
+        raw = np.frombuffer(ctypes.string_at(data._address, int(L[fused.L_EFC_FORCE]) + 8), np.uint8)
+        assert raw[L[fused.L_NCON]: L[fused.L_NCON] + 4].view(np.int32)[0] == data.ncon
+        assert raw[L[fused.L_NEFC]: L[fused.L_NEFC] + 4].view(np.int32)[0] == data.nefc
+        assert raw[L[fused.L_TIME]: L[fused.L_TIME] + 8].view(np.float64)[0] == data.time
+        if data.ncon:
+            seen += 1
+            base = raw[L[fused.L_CONTACT]: L[fused.L_CONTACT] + 8].view(np.uint64)[0]
+            assert base == data.contact.dist.__array_interface__["data"][0]
+            geom = np.frombuffer(ctypes.string_at(int(base) + int(L[fused.L_CGEOM]), 8), np.int32)
+            np.testing.assert_array_equal(geom, data.contact.geom[0])
+    assert seen > 100
+
+
+@pytest.mark.parametrize("keep_events", [0, 100_000])
+def test_fused_substeps_equal_the_python_loop_bit_for_bit(keep_events):
+    """Audio, events, impact records and the reader's state: identical with and without the
+    fused path (with an event log, the substeps with sustained rows finish in Python)."""
+    runs = []
+    for on in (False, True):
+        model, data, sim = make(on, keep_events)
+        assert (sim._fused_layout is not None) == on
+        audio = play(model, data, sim)
+        recs = [(r.time, r.geom1, r.geom2, r.impulse_pred, r.impulse_sim, r.steps, r.duration, r.open)
+                for r in sim.impacts]
+        runs.append((audio, sim.events, recs, sim.event_log, sim.steps, sim.samples, sim.reader._step,
+                     sim.clock.k, sim.seconds_fused))
+    (a0, ev0, rec0, log0, *state0, t0), (a1, ev1, rec1, log1, *state1, t1) = runs
+    assert t0 == 0.0 and t1 > 0.0  # the fused path did run
+    assert ev0["impact"] >= 3 and ev0["slide"] > 50 and ev0["roll"] > 50, ev0
+    assert np.abs(a0).max() > 0
+    np.testing.assert_array_equal(a0, a1)
+    assert ev0 == ev1 and rec0 == rec1 and log0 == log1 and state0 == state1
+    assert (len(log0) > 0) == (keep_events > 0)
+
+
+def test_fused_substeps_follow_a_time_jump_like_the_python_loop():
+    out = []
+    for on in (False, True):
+        model, data, sim = make(on)
+        out.append((play(model, data, sim, n_env=60, jump_at=20), sim.samples, sim.clock.n))
+    np.testing.assert_array_equal(out[0][0], out[1][0])
+    assert out[0][1:] == out[1][1:]
+
+
+def test_fused_path_can_be_switched_off(monkeypatch):
+    monkeypatch.setenv("MJSOUND_FUSED", "0")
+    assert make(True)[2]._fused_layout is None
+
+
+def test_struct_layout_follows_c_alignment():
+    off, size, align = fused.struct_layout("mjContact")
+    assert off["dist"] == 0 and off["pos"] == 8 and align == 8 and size % 8 == 0
+    c = mujoco.MjContact()
+    addr = lambda a: a.__array_interface__["data"][0]
+    assert addr(c.geom) - addr(c.pos) == off["geom"] - off["pos"]
+    assert addr(c.frame) - addr(c.pos) == off["frame"] - off["pos"]
