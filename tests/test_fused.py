@@ -73,14 +73,43 @@ def test_mjdata_layout_reads_what_the_bindings_read():
     assert seen > 100
 
 
-@pytest.mark.parametrize("keep_events", [0, 100_000])
-def test_fused_substeps_equal_the_python_loop_bit_for_bit(keep_events):
+@pytest.mark.parametrize("variant", ["plain", "event_log", "follow", "tiny_buffers"])
+def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     """Audio, events, impact records and the reader's state: identical with and without the
-    fused path (with an event log, the substeps with sustained rows finish in Python)."""
+    fused path. Variants: with an event log (substeps with events finish in Python), with a
+    listener following the box (microphones move at each impact), with buffers too small for
+    the impact records or the event queue (numba hands those substeps to Python)."""
+    from mjsound.sim.contacts import REC_COLS
+
+    import mjsound.sim.simulator as simulator
+
+    keep_events = 100_000 if variant == "event_log" else 0
+    in_numba = []  # impact events made in numba, per call
+    run = simulator.run_substeps
+
+    def counting(*args):
+        out = run(*args)
+        in_numba.append(int(args[7][3]))  # (st: nslots, any_open, step, records, impacts)
+        return out
+
+    monkeypatch.setattr(simulator, "run_substeps", counting)
     runs = []
     for on in (False, True):
         model, data, sim = make(on, keep_events)
         assert (sim._fused_layout is not None) == on
+        if variant == "follow":
+            sim.follow(2, [[0.0, -0.4, 0.2]])
+        if variant == "tiny_buffers":
+            sim.reader.record_buffer = np.zeros((1, REC_COLS))
+            fused_args = sim._fused_args
+
+            def no_room(n, fused_args=fused_args):  # the event queue "has no room": impacts go to Python
+                args = fused_args(n)
+                if args is not None:
+                    args[-1][:] = 2**40
+                return args
+
+            sim._fused_args = no_room
         audio = play(model, data, sim)
         recs = [(r.time, r.geom1, r.geom2, r.impulse_pred, r.impulse_sim, r.steps, r.duration, r.open)
                 for r in sim.impacts]
@@ -93,6 +122,9 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(keep_events):
     np.testing.assert_array_equal(a0, a1)
     assert ev0 == ev1 and rec0 == rec1 and log0 == log1 and state0 == state1
     assert (len(log0) > 0) == (keep_events > 0)
+    assert len(in_numba) > 100 and (sum(in_numba) > 0) == (variant in ("plain", "follow"))
+    if variant == "follow":
+        assert not np.allclose(sim.synth._mics, [[0.5, -0.4, 0.23]])  # moved with the box
 
 
 def test_fused_substeps_follow_a_time_jump_like_the_python_loop():

@@ -500,9 +500,16 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
     old = C.ImpactRecord(time=0.0, geom1=0, geom2=1, speed=1.0, impulse_pred=1.5, impulse_sim=0.0,
                          restitution=0.5, effective_mass=1.0)
     reader._open[j] = old
-    reader._close_banked(j)
+    hits = np.zeros((1, C.H_COLS))
+    hits[0, C.H_G2] = 1
+    row = np.empty((1, C.REC_COLS))
+    C._record_rows(hits, np.array([0, 1]), np.array([j]), np.array([[0.5, 5.0, 3.0, 0.0]]), 0.02, reader._SF,
+                   reader._SI, row)
+    reader.add_records(row)
     assert not old.open and old.steps == 2
     assert old.impulse_sim == pytest.approx(1.5) and old.duration == pytest.approx(0.02)
+    new = reader._open[j]
+    assert new.open and (new.time, new.geom1, new.geom2, new.speed, new.impulse_pred) == (0.02, 0, 1, 5.0, 3.0)
 
 
 def test_impact_records_read_lazily_equal_records_read_every_step():

@@ -484,6 +484,32 @@ def _restitution_of(e_geom, g1, g2):
     return 0.5
 
 
+#: columns of an impact event's record row (:func:`_record_rows`)
+REC_COLS = 11
+
+
+@_njit(cache=True, nogil=True)
+def _record_rows(hits, starts, slots, stats, t0, SF, SI, out):
+    """Record rows of a step's impact events (``stats`` of :func:`_impulses_grouped`, event
+    ``q`` on pair slot ``slots[q]``) into ``out`` (events, ``REC_COLS``): time, geom1, geom2,
+    largest approach speed, predicted impulse, restitution, slot, clamped (0/1), then what the
+    state kernel banked at this onset for the slot's previous record (sum F dt, steps, end
+    time), which closes it (:meth:`ContactReader.add_records`)."""
+    for q in range(stats.shape[0]):
+        a, j = starts[q], slots[q]
+        out[q, 0] = t0
+        out[q, 1] = hits[a, H_G1]
+        out[q, 2] = hits[a, H_G2]
+        out[q, 3] = stats[q, 1]
+        out[q, 4] = stats[q, 2]
+        out[q, 5] = stats[q, 0]
+        out[q, 6] = j
+        out[q, 7] = stats[q, 3]
+        out[q, 8] = SF[SF_PRIMP, j]
+        out[q, 9] = SI[SI_PRSTEPS, j]
+        out[q, 10] = SF[SF_PREND, j]
+
+
 @_njit(cache=True, nogil=True)
 def _impulses_grouped(hits, Jn, MinvJt, starts, e_geom, tree_mass, root_mass, gbody, jmax):
     """:func:`_impulse_kernel` for every impact event of a step at once: contacts (rows of
@@ -766,7 +792,10 @@ class ContactReader:
         T = mujoco.mjtGeom
         self._plane = np.asarray(model.geom_type) == T.mjGEOM_PLANE
         self._pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
-        self._kin = None  # kinematic tree arrays for _normal_jacobians (made at the first impact)
+        #: record rows of impacts made in numba (:mod:`.fused`), taken by :meth:`add_records`
+        self.record_buffer = np.zeros((64, REC_COLS))
+        self._kin = tuple(np.asarray(a, np.int64) for a in (model.body_dofnum, model.body_dofadr, model.body_parentid,
+                                                            model.body_rootid, model.dof_parentid))  # for _normal_jacobians
         self._views_of = None  # MjData whose fixed-size views (cvel, subtree_com, geom_xpos) are cached
         self._warned = set()
         self._records: list[ImpactRecord] = []
@@ -1014,6 +1043,13 @@ class ContactReader:
             sustained = self._srows_buf[:n_sust]
         return impacts, sustained
 
+    def impact_args(self, data) -> tuple:
+        """The arguments of :func:`.fused.run_substeps` for impacts (as in :meth:`_impacts`):
+        kinematic tree, dofs, ``cdof``, restitution, masses, largest impulse and the record
+        rows buffer (:attr:`record_buffer`)."""
+        return (self._kin, self.model.nv, self._data_views(data)[3], self.restitution, self._tree_mass,
+                self._root_mass, self.max_force * 0.01, self.record_buffer)
+
     def state_args(self, data) -> tuple | None:
         """The arguments of ``_fused_kernel`` after the contacts and ``efc_force`` except
         ``nslots, t0, t1, step`` (:func:`.fused.run_substeps` keeps those itself), then the
@@ -1050,17 +1086,6 @@ class ContactReader:
                 del self._open[j]
         return self._records
 
-    def _close_banked(self, j) -> None:
-        """A new impact starts on slot ``j``: its previous record (if still listed as open)
-        takes its final values from the bank the state kernel filled at the onset."""
-        self._any_open = True
-        old = self._open.pop(j, None)
-        if old is not None:
-            old.impulse_sim = float(self._SF[SF_PRIMP, j])
-            old.steps = int(self._SI[SI_PRSTEPS, j])
-            old.duration = float(self._SF[SF_PREND, j]) - old.time
-            old.open = False
-
     def _impacts(self, data, hits, starts, slots, t0):
         """Impact events of several pairs at once: contacts ``starts[q] : starts[q + 1]`` of
         ``hits`` (k, ``H_COLS``) are the event of pair slot ``slots[q]``. Each gets its
@@ -1075,9 +1100,6 @@ class ContactReader:
         nv = m.nv
         k = len(hits)
         if nv > 0:
-            if self._kin is None:
-                self._kin = tuple(np.asarray(a, np.int64) for a in (m.body_dofnum, m.body_dofadr, m.body_parentid,
-                                                                    m.body_rootid, m.dof_parentid))
             _, scom, _, cdof = self._data_views(data)
             Jn = _normal_jacobians(hits, cdof, scom, self.geom_body, *self._kin, nv)
             MinvJt = np.empty((k, nv))
@@ -1086,21 +1108,30 @@ class ContactReader:
             Jn = MinvJt = np.zeros((k, 0))
         lam, stats, imp = _impulses_grouped(hits, Jn, MinvJt, starts, self.restitution, self._tree_mass,
                                             self._root_mass, self.geom_body, self.max_force * 0.01)
+        rows = np.empty((len(stats), REC_COLS))
+        _record_rows(hits, starts, slots, stats, t0, self._SF, self._SI, rows)
+        self.add_records(rows)
+        return lam, stats[:, 0], imp
+
+    def add_records(self, rows: np.ndarray) -> None:
+        """An :class:`ImpactRecord` for each impact event (rows of :func:`_record_rows`, in
+        order); each closes its slot's previous record with the sums banked at its onset."""
         records = self._records
-        g12 = hits[starts[:-1], H_G1:H_G2 + 1].tolist()
-        for (g1, g2), j, (eq, vmax, total, clamped) in zip(g12, slots.tolist(), stats.tolist()):
+        self._any_open = self._any_open or len(rows) > 0
+        for t0, g1, g2, vmax, total, eq, j, clamped, p_imp, p_steps, p_end in rows.tolist():
+            old = self._open.pop(int(j), None)
+            if old is not None:
+                old.impulse_sim, old.steps, old.duration, old.open = p_imp, int(p_steps), p_end - old.time, False
             rec = ImpactRecord(
                 time=t0, geom1=int(g1), geom2=int(g2), speed=vmax, impulse_pred=total, impulse_sim=0.0, restitution=eq,
                 effective_mass=total / ((1.0 + eq) * vmax) if vmax > 0 else 0.0,
             )
-            self._close_banked(j)
-            self._open[j] = rec
+            self._open[int(j)] = rec
             records.append(rec)
             if clamped:
                 self.n_clamped += 1
                 self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
                                 "reported once")
-        self.n_impacts += len(g12)
+        self.n_impacts += len(rows)
         if len(records) > self.keep_records:
             del records[: len(records) - self.keep_records]
-        return lam, stats[:, 0], imp

@@ -43,15 +43,18 @@ from llvmlite import ir
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
-from .contacts import SI_OPEN
-from .drive import read_and_drive
+from ..synth.synthesizer import MAX_AMPLITUDE
+from .contacts import I_COLS, SI_OPEN, _impulses_grouped, _normal_jacobians, _record_rows
+from .drive import follow_rows, impacts_to_synth, pose_rows, read_and_drive
 
-__all__ = ["DONE", "PYTHON_AFTER", "PYTHON_STEP", "mj_step_address", "mjdata_layout", "run_substeps", "struct_layout"]
+__all__ = ["DONE", "PYTHON_AFTER", "PYTHON_DRIVE", "PYTHON_STEP", "mj_function_address", "mjdata_layout", "run_substeps",
+           "struct_layout"]
 
 #: :func:`run_substeps` codes: every substep done; substep ``i`` stepped but not read (Python
-#: reads it: ``AudioSimulator.step``); substep ``i`` read, Python finishes it (its outputs
-#: are returned)
-DONE, PYTHON_STEP, PYTHON_AFTER = 0, 1, 2
+#: reads it: ``AudioSimulator.step``); substep ``i`` read, Python makes its impacts and the
+#: rest; substep ``i`` read and its impacts made, Python queues what could not be queued
+#: here (returned) and drives the pairs without a stream
+DONE, PYTHON_STEP, PYTHON_AFTER, PYTHON_DRIVE = 0, 1, 2, 3
 
 # layout vector L: mjData offsets, then mjContact's size and field offsets [bytes]
 L_NCON, L_NEFC, L_TIME, L_CONTACT, L_EFC_FORCE, L_CSIZE, L_CPOS, L_CFRAME, L_CGEOM, L_CDIM, L_CEFCADR = range(11)
@@ -140,17 +143,28 @@ def mjdata_layout() -> np.ndarray | None:
         return None
 
 
-@functools.lru_cache(maxsize=1)
-def mj_step_address() -> int:
-    """Address of MuJoCo's C ``mj_step`` in the ``libmujoco`` that the bindings use."""
-    import mujoco
+#: the C functions called from numba, with the parameter types they are called with
+_C_SIGNATURES = {"mj_step": ("const mjModel *", "mjData *"),
+                 "mj_solveM": ("const mjModel *", "mjData *", "mjtNum *", "const mjtNum *", "int")}
 
+
+@functools.lru_cache(maxsize=4)
+def mj_function_address(name: str) -> int:
+    """Address of MuJoCo's C function ``name`` (``mj_step``, ``mj_solveM``) in the
+    ``libmujoco`` that the bindings use, after checking its parameters against
+    ``mujoco.introspect.functions`` (a different signature raises: no fused path then)."""
+    import mujoco
+    from mujoco.introspect import functions
+
+    params = tuple(str(p.type) for p in functions.FUNCTIONS[name].parameters)
+    if params != _C_SIGNATURES[name] or str(functions.FUNCTIONS[name].return_type) != "void":
+        raise TypeError(f"{name}{params} is not {name}{_C_SIGNATURES[name]}")
     here = os.path.dirname(mujoco.__file__)
     libs = sorted(glob.glob(os.path.join(here, "libmujoco.so*")) + glob.glob(os.path.join(here, "libmujoco*.dylib"))
                   + glob.glob(os.path.join(here, "mujoco.dll")))
     if not libs:
         raise OSError(f"no libmujoco next to {here}")
-    return ctypes.cast(ctypes.CDLL(libs[0]).mj_step, ctypes.c_void_p).value
+    return ctypes.cast(getattr(ctypes.CDLL(libs[0]), name), ctypes.c_void_p).value
 
 
 @intrinsic
@@ -164,6 +178,24 @@ def _call2(typingctx, fn, a, b):
         vp = ir.IntType(8).as_pointer()
         f = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [vp, vp]).as_pointer())
         builder.call(f, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _call_solve(typingctx, fn, m, d, x, y, n):
+    """``fn(m, d, x, y, n)`` for the address ``fn`` of ``void mj_solveM(const mjModel*,
+    mjData*, mjtNum* x, const mjtNum* y, int n)`` (all addresses as integers)."""
+    if not all(isinstance(t, types.Integer) for t in (fn, m, d, x, y, n)):
+        return None
+    sig = types.void(fn, m, d, x, y, n)
+
+    def codegen(context, builder, signature, args):
+        vp, dp, i32 = ir.IntType(8).as_pointer(), ir.DoubleType().as_pointer(), ir.IntType(32)
+        f = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [vp, vp, dp, dp, i32]).as_pointer())
+        builder.call(f, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp), builder.inttoptr(args[3], dp),
+                         builder.inttoptr(args[4], dp), builder.trunc(args[5], i32)])
         return context.get_dummy_value()
 
     return sig, codegen
@@ -211,12 +243,55 @@ def _gather_contacts(cp, ncon, L, geom, pos, frame, adr, dim):
 
 
 @njit(cache=True)
-def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_rows,
+def _impact_events(fn_solve, mp, dp, hits, starts, slots, t0, n0, kin, nv, cdof, scom, gbody, e_geom, tree_mass,
+                   root_mass, jmax, CF, CI, rec, st, origin, fsi, mic_mode, mic_src, mic_rows, mic_off, mics, gxpos,
+                   gxmat, dyn_geoms, dyn_idx, ppos, pR, geom_obj, coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim,
+                   qs):
+    """A substep's impact events, as ``ContactReader._impacts`` and
+    ``AudioSimulator._queue_impacts`` make them: impulses from one ``mj_solveM``, a record row
+    each (``rec``, taken by :meth:`ContactReader.add_records` after the call), poses and
+    microphones synced, the sounding sides queued (``qs``: the queue's count, pool used, next
+    sample). Returns the impacts (columns ``I_*``) and whether they were queued (not when a
+    Hertz coefficient is still unknown or an amplitude is out of range: Python does it)."""
+    k = hits.shape[0]
+    Jn = _normal_jacobians(hits, cdof, scom, gbody, kin[0], kin[1], kin[2], kin[3], kin[4], nv)
+    MinvJt = np.empty((k, nv))
+    if nv > 0 and k > 0:
+        _call_solve(fn_solve, mp, dp, MinvJt.ctypes.data, Jn.ctypes.data, k)
+    lam, stats, imp = _impulses_grouped(hits, Jn, MinvJt, starts, e_geom, tree_mass, root_mass, gbody, jmax)
+    q = stats.shape[0]
+    _record_rows(hits, starts, slots, stats, t0, CF, CI, rec[st[3]:st[3] + q])
+    st[3] += q
+    st[1] = 1  # an impact is open
+    if mic_mode:
+        follow_rows(mic_src, mic_rows, mic_off, mics)
+    if dyn_idx.shape[0]:
+        pose_rows(gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
+    t_ev = max(t0 - origin / fsi, (n0 - origin) / fsi)
+    pts, pts_off, shk, shk_off, mode_off, wd, w, lam_m, leps = gain_data
+    c, fs, rmin, tol, rendered, grid = pts_c
+    count, used, nxt, amax, missing = impacts_to_synth(imp, geom_obj, coef_row, coef, t_ev, pts, pts_off, shk,
+                                                       shk_off, mode_off, wd, w, lam_m, leps, ppos, pR, mics, c, fs,
+                                                       rmin, tol, rendered, grid, QI, qkind, qre, qim, qs[0], qs[1])
+    if missing.shape[0] or not amax <= MAX_AMPLITUDE:
+        return imp, False
+    qs[0], qs[1] = count, used
+    qs[2] = min(qs[2], nxt)
+    st[4] += imp.shape[0]
+    return imp, True
+
+
+@njit(cache=True)
+def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
                  pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom, hkeys, hvals, CF, CI, prm, counts,
                  rows, srows, hits, onsets,
                  sidx, geom_obj, rough, length, fs, regain, rendered, slack, SF, SI, D, ring, missing,
-                 geom, pos, frame, adr, dim):
-    """``mj_step`` then read and drive, ``nstep`` times, until a substep needs Python.
+                 geom, pos, frame, adr, dim,
+                 fn_solve, kin, nv, cdof, e_geom, tree_mass, root_mass, jmax, rec,
+                 mic_mode, mic_src, mic_rows, mic_off, mics, gxmat, dyn_geoms, dyn_idx, ppos, pR,
+                 coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim, qs, q_room):
+    """``mj_step`` then read, drive and make the impacts, ``nstep`` times, until a substep
+    needs Python.
 
     Parameters
     ----------
@@ -230,36 +305,50 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_rows,
         step count ``k`` before the first substep, and the synthesizer's origin sample.
     clf : (2,) float
         ``t_start, timestep`` [s] (``data.time`` must stay within a quarter step of the count).
-    st : (3,) int64, updated
-        The reader's ``nslots``, ``any_open`` (0/1) and step counter.
-    want_rows : bool
-        Sustained rows are wanted in Python (the event log is not full): a substep with
-        some is finished there.
+    st : (5,) int64, updated
+        The reader's ``nslots``, ``any_open`` (0/1) and step counter; record rows written to
+        ``rec``; impacts queued.
+    want_log : bool
+        The event log is not full: substeps with events are finished in Python.
     pyramidal ... onsets
         The reader's arguments of ``contacts._fused_kernel`` (its state and buffers).
     sidx ... missing
         The drive's arguments of :func:`.drive.drive_rows`.
     geom, pos, frame, adr, dim : buffers of at least ``len(rows)`` contacts
+    fn_solve ... rec
+        For impacts: the address of ``mj_solveM``, the reader's kinematic tree and masses
+        (``ContactReader._impacts``), the record rows buffer (``REC_COLS`` wide).
+    mic_mode ... pR
+        ``AudioSimulator._sync_poses``: microphones (mode 0: fixed, 1: ``follow_rows`` of
+        ``mic_src``) and the moving objects' poses.
+    coef_row ... q_room
+        ``AudioSimulator._queue_impacts``: Hertz coefficients, the synthesizer's gain data
+        (9 arrays) and constants (6), its event queue arrays, ``qs`` (count, pool used, next
+        sample; updated) and ``q_room`` (rows and pool entries per impacting contact).
 
     Returns
     -------
     i : int
         Substeps finished here (``i < nstep``: substep ``i`` was stepped and needs Python).
     code : int
-        :data:`DONE`, :data:`PYTHON_STEP` (read it from the start) or :data:`PYTHON_AFTER`
-        (read here; the reader's outputs follow for Python to finish).
+        :data:`DONE`, :data:`PYTHON_STEP` (read it from the start), :data:`PYTHON_AFTER`
+        (read here; make its impacts and the rest) or :data:`PYTHON_DRIVE` (its impacts
+        made here; queue ``imp`` if not empty, drive the pairs without a stream).
     out : tuple of 9 ints
-        :func:`.drive.read_and_drive`'s outputs of substep ``i`` (:data:`PYTHON_AFTER`).
+        :func:`.drive.read_and_drive`'s outputs of substep ``i``.
+    imp : (k, I_COLS) float
+        Substep ``i``'s impacts that Python must queue (:data:`PYTHON_DRIVE`).
     """
     a0, b, den, fsi, k_start, origin = clk[0], clk[1], clk[2], clk[3], clk[4], clk[5]
     t_start, dt = clf[0], clf[1]
     none = (0, 0, 0, 0, 0, 0, 0, 0, 0)
+    no_imp = np.empty((0, I_COLS))
     cap = min(rows.shape[0], geom.shape[0])
     for i in range(nstep):
         _call2(fn_step, mp, dp)
         k = k_start + i + 1
         if abs(carray(_f64_at(dp + L[L_TIME]), 1)[0] - (t_start + k * dt)) > 0.25 * dt:
-            return i, PYTHON_STEP, none  # data.time jumped: the clock re-anchors in Python
+            return i, PYTHON_STEP, none, no_imp  # data.time jumped: the clock re-anchors in Python
         ncon = carray(_i32_at(dp + L[L_NCON]), 1)[0]
         if ncon == 0:
             st[2] += 1
@@ -269,7 +358,7 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_rows,
                 st[1] = 0
             continue
         if ncon > cap or st[0] + ncon > CF.shape[1]:
-            return i, PYTHON_STEP, none  # buffers grow in Python
+            return i, PYTHON_STEP, none, no_imp  # buffers grow in Python
         _gather_contacts(carray(_u64_at(dp + L[L_CONTACT]), 1)[0], ncon, L, geom, pos, frame, adr, dim)
         nefc = carray(_i32_at(dp + L[L_NEFC]), 1)[0]
         efc = carray(_f64_at(carray(_u64_at(dp + L[L_EFC_FORCE]), 1)[0]), max(nefc, 0))
@@ -278,12 +367,27 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_rows,
         num1 = num0 + b
         n0 = -((-num0 * fsi) // den)
         n1 = -((-num1 * fsi) // den)
+        t0 = num0 / den
         out = read_and_drive(geom[:ncon], pos[:ncon], frame[:ncon], adr[:ncon], dim[:ncon], efc, pyramidal, cvel,
-                             scom, gxpos, gbody, broot, plane, ngeom, hkeys, hvals, CF, CI, st[0], num0 / den,
-                             num1 / den, st[2], prm, counts, rows, srows, hits, onsets,
+                             scom, gxpos, gbody, broot, plane, ngeom, hkeys, hvals, CF, CI, st[0], t0, num1 / den,
+                             st[2], prm, counts, rows, srows, hits, onsets,
                              sidx, geom_obj, rough, length, fs, n0 - origin, n1 - origin, regain, rendered, slack,
                              SF, SI, D, ring, missing)
         st[0] = out[6]
-        if out[3] or out[4] or out[5] or out[7] or out[8] or (want_rows and out[1]):
-            return i, PYTHON_AFTER, out
-    return nstep, DONE, none
+        ns, nh, n_onset = out[1], out[2], out[5]
+        if out[3] or out[4] or (want_log and (ns or n_onset)):
+            return i, PYTHON_AFTER, out, no_imp  # clamped forces (a warning), or the event log
+        queued = True
+        imp = no_imp
+        if n_onset:
+            if (st[3] + n_onset > rec.shape[0] or qs[0] + q_room[0] * nh > QI.shape[1]
+                    or qs[1] + q_room[1] * nh > qre.shape[0]):
+                return i, PYTHON_AFTER, out, no_imp  # (buffers grow in Python)
+            imp, queued = _impact_events(fn_solve, mp, dp, hits[:nh], onsets[:n_onset + 1, 1], onsets[:n_onset, 0],
+                                         t0, n0, kin, nv, cdof, scom, gbody, e_geom, tree_mass, root_mass, jmax, CF,
+                                         CI, rec, st, origin, fsi, mic_mode, mic_src, mic_rows, mic_off, mics, gxpos,
+                                         gxmat, dyn_geoms, dyn_idx, ppos, pR, geom_obj, coef_row, coef, gain_data,
+                                         pts_c, QI, qkind, qre, qim, qs)
+        if not queued or out[7] or out[8]:
+            return i, PYTHON_DRIVE, out, (no_imp if queued else imp)
+    return nstep, DONE, none, no_imp

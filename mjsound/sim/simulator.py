@@ -35,7 +35,7 @@ import numpy as np
 from .contacts import (I_G1, I_G2, I_IMPULSE, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
                        ContactReader)
 from .drive import drive_rows, follow_rows, impacts_to_synth, pose_rows, read_and_drive
-from .fused import DONE, PYTHON_AFTER, PYTHON_STEP, mj_step_address, mjdata_layout, run_substeps
+from .fused import DONE, PYTHON_AFTER, PYTHON_STEP, mj_function_address, mjdata_layout, run_substeps
 from .scene import SoundScene, geom_contact_radius
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -249,8 +249,10 @@ class AudioSimulator:
         if fused and os.environ.get("MJSOUND_FUSED", "1") != "0":
             self._fused_layout = mjdata_layout()
         if self._fused_layout is not None:
-            self._fused_step = mj_step_address()
-        self._fused_state = np.zeros(3, np.int64)
+            self._fused_step, self._fused_solve = mj_function_address("mj_step"), mj_function_address("mj_solveM")
+        self._fused_ints = np.zeros(16, np.int64)  # clock (6), reader state (5), queue (3), queue room (2)
+        self._fused_floats = np.zeros(2)
+        self._fused_views = tuple(self._fused_ints[a:b] for a, b in ((0, 6), (6, 11), (11, 14), (14, 16)))
         self._no_streams = {"SF": np.zeros((0, 9)), "SI": np.zeros((0, 9), np.int64),
                             "D": np.zeros((0, self.n_channels), np.int64), "ring": np.zeros((0, 1))}
         self._fused_buf = None
@@ -347,10 +349,10 @@ class AudioSimulator:
         ``frame_skip``); the audio comes from :meth:`flush`.
 
         The substeps run in one numba call (:mod:`.fused`: ``mj_step`` called from numba,
-        the reader's and the drive's kernels after each) whenever this simulator can
-        (``fused=True``, streams exist, the clock fits 64-bit integers); a substep that
-        needs Python (an impact starts, a new sliding pair, ...) is finished here and the
-        call goes on. The result is the same as the loop in Python, bit for bit."""
+        the reader's, the drive's and the impacts' kernels after each) whenever this
+        simulator can (``fused=True``, the clock fits 64-bit integers); a substep that needs
+        Python (a new sliding pair, a Hertz coefficient not known yet, ...) is finished here
+        and the call goes on. The result is the same as the loop in Python, bit for bit."""
         done, nstep = 0, int(nstep)
         while done < nstep:
             args = self._fused_args(nstep - done)
@@ -360,14 +362,14 @@ class AudioSimulator:
                     self.step(render=False)
                 return
             tc = _time.perf_counter()
-            i, code, out = run_substeps(*args)
+            i, code, out, imp = run_substeps(*args)
             self.seconds_fused += _time.perf_counter() - tc
             self._count_fused(i)
             done += i + (code != DONE)
             if code == PYTHON_STEP:
                 self.step(render=False)
-            elif code == PYTHON_AFTER:
-                self._finish_fused(out)
+            elif code != DONE:
+                self._finish_fused(code, out, imp)
 
     def _fused_args(self, nstep: int) -> tuple | None:
         """:func:`.fused.run_substeps`'s arguments for the next ``nstep`` substeps, or None
@@ -378,23 +380,50 @@ class AudioSimulator:
         top = max(abs(c._a0), abs(c._a0 + (c.k + nstep) * c._b))
         if self._opt.timestep != c.timestep or top >= 2**53 or top * c.fs >= 2**62:
             return None  # (step times as int64 ratios, exact as in SampleClock)
-        reader_args, missing = self.reader.state_args(self.data)
+        r = self.reader
+        reader_args, missing = r.state_args(self.data)
         cap = len(reader_args[-4])
         if self._fused_buf is None or len(self._fused_buf[0]) != cap:
             self._fused_buf = (np.empty((cap, 2), np.int32), np.empty((cap, 3)), np.empty((cap, 9)),
                                np.empty(cap, np.int32), np.empty(cap, np.int32))
-        r = self.reader
-        st = self._fused_state
-        st[0], st[1], st[2] = r._nslots, r._any_open, r._step
-        clk = np.array([c._a0, c._b, c._den, c.fs, c.k, self._origin], np.int64)
+        # impacts: the voice layout up to date, room in the event queue for one substep's
+        # impacting contacts (2 sides each, every microphone; Synthesizer._impact_queue)
+        q = synth._impact_queue(cap)
+        M = synth.n_channels
+        # clock, reader state, queue state and queue room: views of one int64 vector
+        self._fused_ints[:] = [c._a0, c._b, c._den, c.fs, c.k, self._origin, r._nslots, r._any_open, r._step, 0, 0,
+                               q.count, q.pool_used, q.next_sample, 2 * M, 2 * M * synth._nmax]
+        self._fused_floats[:] = (c.t_start, c.timestep)
+        clk, st, qs, room = self._fused_views
+        g = synth._impact_data()
         return (self._fused_step, self.model._address, self.data._address, self._fused_layout, nstep, clk,
-                np.array([c.t_start, c.timestep]), st, self._n_logged < self.keep_events,
-                *reader_args, *self._stream_args(), missing, *self._fused_buf)
+                self._fused_floats, st, self._n_logged < self.keep_events,
+                *reader_args, *self._stream_args(), missing, *self._fused_buf,
+                self._fused_solve, *r.impact_args(self.data), *self._mic_args(), self._geom_xmat, self._dyn_geoms,
+                self._dyn_idx, synth._poses.pos, synth._poses.R, self._coef_row, self._coef, g[:9], g[12:],
+                q.I, q.kind, q.re, q.im, qs, room)
+
+    def _mic_args(self) -> tuple:
+        """``(mode, source, rows, offsets, mics)`` of :meth:`_update_mics` for numba (mode 0:
+        the microphones stay)."""
+        mics = self.synth._mics
+        if self._follow is not None and len(mics) == len(self._follow_rows):
+            return 1, self._xpos, self._follow_rows, self._follow[1], mics
+        if self._sites_move and len(mics) == len(self._mic_sites):
+            return 1, self._site_xpos, self._mic_sites, self._zero_offsets, mics
+        return 0, self._xpos, np.zeros(0, np.int64), self._zero_offsets, mics
 
     def _count_fused(self, m: int) -> None:
-        """Take over the state of :func:`.fused.run_substeps` after it finished ``m`` substeps."""
-        r, st = self.reader, self._fused_state
-        r._nslots, r._any_open, r._step = int(st[0]), bool(st[1]), int(st[2])
+        """Take over the state of :func:`.fused.run_substeps` after it finished ``m`` substeps
+        (and made the impacts of the next one, if it did)."""
+        r = self.reader
+        nslots, any_open, r._step, n_rec, n_imp, q_count, q_used, q_next = self._fused_ints[6:14].tolist()
+        r._nslots, r._any_open = nslots, bool(any_open)
+        if n_rec:
+            r.add_records(r.record_buffer[:n_rec])
+            self._n_impacts += n_imp
+        q = self.synth._ev
+        q.count, q.pool_used, q.next_sample = q_count, q_used, q_next
         if m:
             c = self.clock
             n0 = c.n
@@ -402,16 +431,23 @@ class AudioSimulator:
             c.n = c.sample_at(c.k)
             self._count(n0, c.n, m)
 
-    def _finish_fused(self, out) -> None:
+    def _finish_fused(self, code, out, imp) -> None:
         """Finish the substep that :func:`.fused.run_substeps` read but left to Python (its
-        kernel outputs ``out``): make its impacts, drive what needs new streams, log."""
+        kernel outputs ``out``): with ``PYTHON_AFTER`` make its impacts, with ``PYTHON_DRIVE``
+        queue the impacts ``imp`` that numba could not; then drive what needs new streams."""
         c = self.clock
         n0 = c.n
         c.k += 1
         c.n = c.sample_at(c.k)
         self._count(n0, c.n)
         t0 = c.time_at(c.k - 1)
-        impacts, rows = self.reader.kernel_outputs(out, self.data, t0)
+        r = self.reader
+        if code == PYTHON_AFTER:
+            impacts, rows = r.kernel_outputs(out, self.data, t0)
+        else:
+            r.drive_result = (r._missing_buf[: out[7]], out[8])
+            impacts = imp if len(imp) else None
+            rows = r._srows_buf[: out[1]] if out[1] else None
         self._queue_outputs(impacts, rows, t0, n0, c.n, True)
 
     def flush(self) -> np.ndarray:
