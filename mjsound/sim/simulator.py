@@ -74,6 +74,9 @@ class SampleClock:
         self._b = dt.numerator * (den // dt.denominator)
         self.k = 0
         self.n = self.sample_at(0)
+        # last step whose start time and first sample fit int64 exactly (a0 + k b < 2^53 and
+        # (a0 + k b) fs < 2^62): .fused counts steps in numba up to there
+        self.k_max_int64 = (min(2**53, 2**62 // self.fs) - abs(self._a0)) // self._b - 1
 
     def sample_at(self, k: int) -> int:
         """First sample at or after ``t_start + k * timestep``: ``ceil(t fs)``."""
@@ -250,6 +253,8 @@ class AudioSimulator:
             self._fused_layout = mjdata_layout()
         if self._fused_layout is not None:
             self._fused_step, self._fused_solve = mj_function_address("mj_step"), mj_function_address("mj_solveM")
+            self._fused_m, self._fused_d = self.model._address, self.data._address
+        self._fused_anchor = None
         self._fused_ints = np.zeros(16, np.int64)  # clock (6), reader state (5), queue (3), queue room (2)
         self._fused_floats = np.zeros(2)
         self._fused_views = tuple(self._fused_ints[a:b] for a, b in ((0, 6), (6, 11), (11, 14), (14, 16)))
@@ -377,9 +382,8 @@ class AudioSimulator:
         synth, c = self.synth, self.clock
         if self._fused_layout is None or synth is None or not self.sustained:
             return None
-        top = max(abs(c._a0), abs(c._a0 + (c.k + nstep) * c._b))
-        if self._opt.timestep != c.timestep or top >= 2**53 or top * c.fs >= 2**62:
-            return None  # (step times as int64 ratios, exact as in SampleClock)
+        if c.k + nstep > c.k_max_int64 or self._opt.timestep != c.timestep:
+            return None  # (numba counts steps in int64, exact as SampleClock)
         r = self.reader
         reader_args, missing = r.state_args(self.data)
         cap = len(reader_args[-4])
@@ -389,14 +393,19 @@ class AudioSimulator:
         # impacts: the voice layout up to date, room in the event queue for one substep's
         # impacting contacts (2 sides each, every microphone; Synthesizer._impact_queue)
         q = synth._impact_queue(cap)
-        M = synth.n_channels
-        # clock, reader state, queue state and queue room: views of one int64 vector
-        self._fused_ints[:] = [c._a0, c._b, c._den, c.fs, c.k, self._origin, r._nslots, r._any_open, r._step, 0, 0,
-                               q.count, q.pool_used, q.next_sample, 2 * M, 2 * M * synth._nmax]
-        self._fused_floats[:] = (c.t_start, c.timestep)
+        # clock, reader state, queue state and queue room: views of one int64 vector (the
+        # clock's anchor and the room change rarely: set when they do)
+        ints = self._fused_ints
+        anchor = (c._a0, c._b, c._den, c.fs, self._origin, synth.n_channels, synth._nmax, c.t_start, c.timestep)
+        if anchor != self._fused_anchor:
+            a0, b, den, fs, origin, M, nmax, t_start, dt = self._fused_anchor = anchor
+            ints[[0, 1, 2, 3, 5, 14, 15]] = (a0, b, den, fs, origin, 2 * M, 2 * M * nmax)
+            self._fused_floats[:] = (t_start, dt)
+        ints[4], ints[6], ints[7], ints[8], ints[9], ints[10] = c.k, r._nslots, r._any_open, r._step, 0, 0
+        ints[11], ints[12], ints[13] = q.count, q.pool_used, q.next_sample
         clk, st, qs, room = self._fused_views
         g = synth._impact_data()
-        return (self._fused_step, self.model._address, self.data._address, self._fused_layout, nstep, clk,
+        return (self._fused_step, self._fused_m, self._fused_d, self._fused_layout, nstep, clk,
                 self._fused_floats, st, self._n_logged < self.keep_events,
                 *reader_args, *self._stream_args(), missing, *self._fused_buf,
                 self._fused_solve, *r.impact_args(self.data), *self._mic_args(), self._geom_xmat, self._dyn_geoms,
