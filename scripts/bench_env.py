@@ -79,12 +79,14 @@ def main(argv=None) -> int:
                          "wrapped_ms": 1e3 * float(np.median(times[mode])),
                          "sounding_geoms": len(env.scene.sounding), "modes": env.scene.n_modes,
                          "contact_us_per_substep": st["contact_us_per_step"],
-                         "synth_us_per_substep": st["synth_us_per_step"]})
+                         "synth_us_per_substep": st["synth_us_per_step"],
+                         "fused_us_per_substep": st["fused_us_per_step"]})
             if not args.json:
                 r = rows[-1]
                 print(f"{env_id:<14s} {mode:<12s} bare {r['bare_ms']:.3f} ms  wrapped {r['wrapped_ms']:.3f} ms  "
                       f"ratio {r['step_ratio']:.2f}  ({r['sounding_geoms']} geoms, {r['modes']} modes; per substep "
-                      f"contacts {r['contact_us_per_substep']:.0f} us, synth {r['synth_us_per_substep']:.0f} us; "
+                      f"in numba {r['fused_us_per_substep']:.0f} us with mj_step, in Python contacts "
+                      f"{r['contact_us_per_substep']:.0f} us, synth {r['synth_us_per_substep']:.0f} us; "
                       f"CPU time, median of {args.rounds} interleaved rounds)", flush=True)
         for env in envs.values():
             env.close()

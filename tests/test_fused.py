@@ -73,23 +73,26 @@ def test_mjdata_layout_reads_what_the_bindings_read():
     assert seen > 100
 
 
-@pytest.mark.parametrize("variant", ["plain", "event_log", "follow", "tiny_buffers"])
+@pytest.mark.parametrize("variant", ["plain", "event_log", "short_log", "follow", "tiny_buffers"])
 def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     """Audio, events, impact records and the reader's state: identical with and without the
-    fused path. Variants: with an event log (substeps with events finish in Python), with a
+    fused path. Variants: with an event log (numba logs the sliding and rolling rows, impacts
+    finish in Python), with a log that fills up after 40 events, with a
     listener following the box (microphones move at each impact), with buffers too small for
     the impact records or the event queue (numba hands those substeps to Python)."""
     from mjsound.sim.contacts import REC_COLS
 
     import mjsound.sim.simulator as simulator
 
-    keep_events = 100_000 if variant == "event_log" else 0
+    keep_events = {"event_log": 100_000, "short_log": 40}.get(variant, 0)
     in_numba = []  # impact events made in numba, per call
+    logged_in_numba = []  # sustained rows logged in numba, per call
     run = simulator.run_substeps
 
     def counting(*args):
         out = run(*args)
-        in_numba.append(int(args[7][3]))  # (st: nslots, any_open, step, records, impacts)
+        in_numba.append(int(args[7][3]))  # (st: nslots, any_open, step, records, impacts, logged rows)
+        logged_in_numba.append(int(args[7][5]))
         return out
 
     monkeypatch.setattr(simulator, "run_substeps", counting)
@@ -105,8 +108,7 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
 
             def no_room(n, fused_args=fused_args):  # the event queue "has no room": impacts go to Python
                 args = fused_args(n)
-                if args is not None:
-                    args[-1][:] = 2**40
+                sim._fused_views[3][:] = 2**40  # (queue rows, pool entries) per impacting contact
                 return args
 
             sim._fused_args = no_room
@@ -122,7 +124,8 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     np.testing.assert_array_equal(a0, a1)
     assert ev0 == ev1 and rec0 == rec1 and log0 == log1 and state0 == state1
     assert (len(log0) > 0) == (keep_events > 0)
-    assert len(in_numba) > 100 and (sum(in_numba) > 0) == (variant in ("plain", "follow"))
+    assert len(in_numba) > 100 and (sum(in_numba) > 0) == (variant in ("plain", "follow", "short_log"))
+    assert (sum(logged_in_numba) > 0) == (keep_events > 0)
     if variant == "follow":
         assert not np.allclose(sim.synth._mics, [[0.5, -0.4, 0.23]])  # moved with the box
 

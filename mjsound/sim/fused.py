@@ -289,7 +289,7 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
                  geom, pos, frame, adr, dim,
                  fn_solve, kin, nv, cdof, e_geom, tree_mass, root_mass, jmax, rec,
                  mic_mode, mic_src, mic_rows, mic_off, mics, gxmat, dyn_geoms, dyn_idx, ppos, pR,
-                 coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim, qs, q_room):
+                 coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim, qs, q_room, log_rows, log_t):
     """``mj_step`` then read, drive and make the impacts, ``nstep`` times, until a substep
     needs Python.
 
@@ -305,11 +305,13 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
         step count ``k`` before the first substep, and the synthesizer's origin sample.
     clf : (2,) float
         ``t_start, timestep`` [s] (``data.time`` must stay within a quarter step of the count).
-    st : (5,) int64, updated
+    st : (6,) int64, updated
         The reader's ``nslots``, ``any_open`` (0/1) and step counter; record rows written to
-        ``rec``; impacts queued.
+        ``rec``; impacts queued; sustained rows logged.
     want_log : bool
-        The event log is not full: substeps with events are finished in Python.
+        The event log is not full: each substep's sustained rows are copied to ``log_rows``
+        (with their time in ``log_t``) for ``AudioSimulator.event_log``, and substeps with
+        impacts are finished in Python (which logs those).
     pyramidal ... onsets
         The reader's arguments of ``contacts._fused_kernel`` (its state and buffers).
     sidx ... missing
@@ -325,6 +327,8 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
         ``AudioSimulator._queue_impacts``: Hertz coefficients, the synthesizer's gain data
         (9 arrays) and constants (6), its event queue arrays, ``qs`` (count, pool used, next
         sample; updated) and ``q_room`` (rows and pool entries per impacting contact).
+    log_rows, log_t : (cap, R_COLS), (cap,) float
+        Buffers for the logged sustained rows (a substep that does not fit goes to Python).
 
     Returns
     -------
@@ -375,8 +379,13 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
                              SF, SI, D, ring, missing)
         st[0] = out[6]
         ns, nh, n_onset = out[1], out[2], out[5]
-        if out[3] or out[4] or (want_log and (ns or n_onset)):
+        if out[3] or out[4] or (want_log and (n_onset or st[5] + ns > log_rows.shape[0])):
             return i, PYTHON_AFTER, out, no_imp  # clamped forces (a warning), or the event log
+        if want_log:
+            for j in range(ns):
+                log_rows[st[5] + j] = srows[j]
+                log_t[st[5] + j] = t0
+            st[5] += ns
         queued = True
         imp = no_imp
         if n_onset:

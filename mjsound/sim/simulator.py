@@ -32,7 +32,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .contacts import (I_G1, I_G2, I_IMPULSE, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
+from .contacts import (I_G1, I_G2, I_IMPULSE, R_COLS, R_FORCE, R_G1, R_G2, R_KIND, R_NORMAL, R_POINT, R_SLOT, R_SPEED,
                        ContactReader)
 from .drive import drive_rows, follow_rows, impacts_to_synth, pose_rows, read_and_drive
 from .fused import DONE, PYTHON_AFTER, PYTHON_STEP, mj_function_address, mjdata_layout, run_substeps
@@ -255,9 +255,11 @@ class AudioSimulator:
             self._fused_step, self._fused_solve = mj_function_address("mj_step"), mj_function_address("mj_solveM")
             self._fused_m, self._fused_d = self.model._address, self.data._address
         self._fused_anchor = None
-        self._fused_ints = np.zeros(16, np.int64)  # clock (6), reader state (5), queue (3), queue room (2)
+        self._fused_ints = np.zeros(17, np.int64)  # clock (6), reader state (6), queue (3), queue room (2)
         self._fused_floats = np.zeros(2)
-        self._fused_views = tuple(self._fused_ints[a:b] for a, b in ((0, 6), (6, 11), (11, 14), (14, 16)))
+        self._fused_views = tuple(self._fused_ints[a:b] for a, b in ((0, 6), (6, 12), (12, 15), (15, 17)))
+        self._log_rows = np.zeros((256, R_COLS))  # sustained rows logged in numba, and their times
+        self._log_t = np.zeros(256)
         self._no_streams = {"SF": np.zeros((0, 9)), "SI": np.zeros((0, 9), np.int64),
                             "D": np.zeros((0, self.n_channels), np.int64), "ring": np.zeros((0, 1))}
         self._fused_buf = None
@@ -399,10 +401,10 @@ class AudioSimulator:
         anchor = (c._a0, c._b, c._den, c.fs, self._origin, synth.n_channels, synth._nmax, c.t_start, c.timestep)
         if anchor != self._fused_anchor:
             a0, b, den, fs, origin, M, nmax, t_start, dt = self._fused_anchor = anchor
-            ints[[0, 1, 2, 3, 5, 14, 15]] = (a0, b, den, fs, origin, 2 * M, 2 * M * nmax)
+            ints[[0, 1, 2, 3, 5, 15, 16]] = (a0, b, den, fs, origin, 2 * M, 2 * M * nmax)
             self._fused_floats[:] = (t_start, dt)
-        ints[4], ints[6], ints[7], ints[8], ints[9], ints[10] = c.k, r._nslots, r._any_open, r._step, 0, 0
-        ints[11], ints[12], ints[13] = q.count, q.pool_used, q.next_sample
+        ints[4], ints[6], ints[7], ints[8], ints[9], ints[10], ints[11] = c.k, r._nslots, r._any_open, r._step, 0, 0, 0
+        ints[12], ints[13], ints[14] = q.count, q.pool_used, q.next_sample
         clk, st, qs, room = self._fused_views
         g = synth._impact_data()
         return (self._fused_step, self._fused_m, self._fused_d, self._fused_layout, nstep, clk,
@@ -410,7 +412,7 @@ class AudioSimulator:
                 *reader_args, *self._stream_args(), missing, *self._fused_buf,
                 self._fused_solve, *r.impact_args(self.data), *self._mic_args(), self._geom_xmat, self._dyn_geoms,
                 self._dyn_idx, synth._poses.pos, synth._poses.R, self._coef_row, self._coef, g[:9], g[12:],
-                q.I, q.kind, q.re, q.im, qs, room)
+                q.I, q.kind, q.re, q.im, qs, room, self._log_rows, self._log_t)
 
     def _mic_args(self) -> tuple:
         """``(mode, source, rows, offsets, mics)`` of :meth:`_update_mics` for numba (mode 0:
@@ -426,11 +428,17 @@ class AudioSimulator:
         """Take over the state of :func:`.fused.run_substeps` after it finished ``m`` substeps
         (and made the impacts of the next one, if it did)."""
         r = self.reader
-        nslots, any_open, r._step, n_rec, n_imp, q_count, q_used, q_next = self._fused_ints[6:14].tolist()
+        nslots, any_open, r._step, n_rec, n_imp, n_log, q_count, q_used, q_next = self._fused_ints[6:15].tolist()
         r._nslots, r._any_open = nslots, bool(any_open)
         if n_rec:
             r.add_records(r.record_buffer[:n_rec])
             self._n_impacts += n_imp
+        if n_log:  # one event log entry per substep, as _queue_outputs makes them
+            rows, ts = self._log_rows[:n_log].copy(), self._log_t[:n_log]
+            cuts = [0, *(np.flatnonzero(np.diff(ts)) + 1).tolist(), n_log]
+            for a, b in zip(cuts[:-1], cuts[1:]):
+                self._log_pending.append((float(ts[a]), "sustained", rows[a:b]))
+            self._n_logged += n_log
         q = self.synth._ev
         q.count, q.pool_used, q.next_sample = q_count, q_used, q_next
         if m:
@@ -457,7 +465,7 @@ class AudioSimulator:
             r.drive_result = (r._missing_buf[: out[7]], out[8])
             impacts = imp if len(imp) else None
             rows = r._srows_buf[: out[1]] if out[1] else None
-        self._queue_outputs(impacts, rows, t0, n0, c.n, True)
+        self._queue_outputs(impacts, rows, t0, n0, c.n, True, logged=code != PYTHON_AFTER)
 
     def flush(self) -> np.ndarray:
         """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
@@ -535,14 +543,15 @@ class AudioSimulator:
         self._queue_outputs(impacts, rows, t0, n0, n1, drive is not None)
         self.seconds_synth += _time.perf_counter() - t_read
 
-    def _queue_outputs(self, impacts, rows, t0, n0, n1, driven: bool) -> None:
+    def _queue_outputs(self, impacts, rows, t0, n0, n1, driven: bool, logged: bool = False) -> None:
         """Queue what the reader found in a step (``driven``: its kernel drove the streams
-        it could, :attr:`ContactReader.drive_result` says what is left)."""
+        it could, :attr:`ContactReader.drive_result` says what is left; ``logged``: the rows
+        are in the event log already)."""
         reader = self.reader
         nblock = n1 - n0
         if impacts is not None:
             self._queue_impacts(impacts, t0, n0)
-        if rows is not None and self._n_logged < self.keep_events:
+        if rows is not None and not logged and self._n_logged < self.keep_events:
             self._log_pending.append((t0, "sustained", rows.copy()))  # (rows: the reader's buffer)
             self._n_logged += len(rows)
         if rows is not None and self.sustained and nblock:
@@ -738,5 +747,7 @@ class AudioSimulator:
             "events": dict(self.events),
             "contact_us_per_step": 1e6 * self.seconds_contacts / max(self.steps, 1),
             "synth_us_per_step": 1e6 * self.seconds_synth / max(self.steps, 1),
+            # substeps run in numba (.fused): mj_step, reading, driving and impacts together
+            "fused_us_per_step": 1e6 * self.seconds_fused / max(self.steps, 1),
             "clamped": self.reader.n_clamped,
         }
