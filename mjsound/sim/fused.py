@@ -333,7 +333,8 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
     Returns
     -------
     i : int
-        Substeps finished here (``i < nstep``: substep ``i`` was stepped and needs Python).
+        Substeps finished here (``i < nstep``: substep ``i`` was stepped and needs Python;
+        ``i == nstep``: the poses and microphones are synced to the last one).
     code : int
         :data:`DONE`, :data:`PYTHON_STEP` (read it from the start), :data:`PYTHON_AFTER`
         (read here; make its impacts and the rest) or :data:`PYTHON_DRIVE` (its impacts
@@ -399,4 +400,9 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
                                          pts_c, QI, qkind, qre, qim, qs)
         if not queued or out[7] or out[8]:
             return i, PYTHON_DRIVE, out, (no_imp if queued else imp)
+    # poses and microphones current for the render's stream gains (Synthesizer.poses_current)
+    if mic_mode:
+        follow_rows(mic_src, mic_rows, mic_off, mics)
+    if dyn_idx.shape[0]:
+        pose_rows(gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
     return nstep, DONE, none, no_imp

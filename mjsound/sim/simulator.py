@@ -361,6 +361,8 @@ class AudioSimulator:
         Python (a new sliding pair, a Hertz coefficient not known yet, ...) is finished here
         and the call goes on. The result is the same as the loop in Python, bit for bit."""
         done, nstep = 0, int(nstep)
+        if self.synth is not None:
+            self.synth.poses_current = False
         while done < nstep:
             args = self._fused_args(nstep - done)
             if args is None:
@@ -373,6 +375,7 @@ class AudioSimulator:
             self.seconds_fused += _time.perf_counter() - tc
             self._count_fused(i)
             done += i + (code != DONE)
+            self.synth.poses_current = code == DONE  # (run_substeps syncs them after its last substep)
             if code == PYTHON_STEP:
                 self.step(render=False)
             elif code != DONE:
@@ -477,6 +480,8 @@ class AudioSimulator:
         """Count the step of samples ``[n0, n1)`` (times ``t0, t1``: default from the clock),
         queue its sound, and render what is pending if ``render``."""
         self._count(n0, n1)
+        if self.synth is not None:
+            self.synth.poses_current = False  # (a physics step was taken)
         if self.synth is not None and not self.reader.step_if_quiet(self.data):
             self._queue(n0, n1, t0, t1)
         return self._render_pending() if render else None

@@ -696,3 +696,40 @@ def streams_gains(n, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off
             if D[j, m] > dmax:
                 dmax = D[j, m]
     return dmax
+
+
+#: :func:`render_streams` result: rendered; gains are due and ``on_regain`` must run first
+RENDERED, REGAIN_FIRST = 0, -1
+
+
+@njit(cache=True)
+def render_streams(n_st, SI, SF, D, st_gr, st_gi, ring, dmax, may_regain,
+                   pts_all, pts_off, shk_all, shk_off, mode_off, wd_all, w_all, lam_all, pos_all, R_all, mics, c,
+                   fs, rmin, tol,
+                   vbase, v_rel, v_len_bank, n_mics, width,
+                   Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, v_live,
+                   ev_ptr, ev_n, ev_kind, ev_re, ev_im,
+                   start, n, grid, cull2, floor2, out, zero):
+    """One block with persistent streams and no forcing sources, in one call: the due
+    streams' gains (:func:`streams_gains`), their rows (:func:`streams_bank_rows`) and
+    :func:`render_all`, as ``Synthesizer.render`` does them one call each.
+
+    ``dmax`` is the largest stream delay so far [samples]; ``may_regain``: the poses and
+    microphones are current (else, when gains are due, nothing is done and
+    :data:`REGAIN_FIRST` is returned: call ``on_regain`` and again). Returns ``(code, dmax)``:
+    :data:`RENDERED`, :data:`REGAIN_FIRST`, or the ring length needed (> 0; the gains are
+    computed, nothing rendered: grow the ring and call again)."""
+    if any_due(SI, n_st):
+        if not may_regain:
+            return REGAIN_FIRST, dmax
+        dmax = max(dmax, streams_gains(n_st, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off, mode_off,
+                                       wd_all, w_all, lam_all, pos_all, R_all, mics, c, fs, rmin, tol))
+        need = dmax + n + 1
+        if need > ring.shape[1]:
+            return need, dmax
+    ptr, sa, sb, gr, gi, F = streams_bank_rows(SF[:n_st], SI[:n_st], D[:n_st], st_gr[:n_st], st_gi[:n_st],
+                                               ring[:n_st], vbase, v_rel, v_len_bank, n_mics, width, start,
+                                               start + n, zero)
+    render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, v_live, ev_ptr, ev_n, ev_kind, ev_re, ev_im,
+               ptr, sa, sb, gr, gi, F, start, n, grid, cull2, floor2, out, zero)
+    return RENDERED, dmax
