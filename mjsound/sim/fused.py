@@ -25,9 +25,10 @@ How:
   clamped forces (a warning), buffers too small for the contact count, a clock that no longer
   matches ``data.time``. :func:`run_substeps` returns which substep and why.
 
-Limitation: an ``mju_error`` inside ``mj_step`` (e.g. MuJoCo's stack overflowing on a huge
-scene) cannot become a Python exception through numba and ends the process; the bindings'
-path raises ``mujoco.FatalError`` instead. ``AudioSimulator(fused=False)`` (or the
+Limitation: an ``mju_error`` inside ``mj_step`` (MuJoCo's fatal errors) cannot become a Python
+exception through numba and ends the process; the bindings' path raises
+``mujoco.FatalError`` instead. A full arena (too many contacts or constraints) is a MuJoCo
+warning, not an error: checked with a 6 KB arena and six boxes, which step on with warnings. ``AudioSimulator(fused=False)`` (or the
 environment variable ``MJSOUND_FUSED=0``) keeps every substep in Python.
 """
 
