@@ -32,6 +32,12 @@ SCENE = """
 MODELS = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0), "box": stub_model("box:0.08,0.06,0.06", "oak", 6, 700.0)}
 
 
+@pytest.fixture(autouse=True)
+def check_cached_arguments(monkeypatch):
+    """Every fused call compares its cached arguments with a fresh build (stale arrays raise)."""
+    monkeypatch.setenv("MJSOUND_FUSED_CHECK", "1")
+
+
 def make(fused_on, keep_events=0):
     model = mujoco.MjModel.from_xml_string(SCENE)
     data = mujoco.MjData(model)

@@ -101,6 +101,15 @@ def _gcd(a: int, b: int) -> int:
     return math.gcd(a, b)
 
 
+def _same_args(a, b) -> bool:
+    """Arrays the same objects, other values equal, through tuples and lists."""
+    if isinstance(a, (tuple, list)):
+        return isinstance(b, type(a)) and len(a) == len(b) and all(_same_args(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return a is b
+    return a == b
+
+
 class AudioSimulator:
     """Sound for a running MuJoCo simulation, one audio block per physics step.
 
@@ -242,6 +251,7 @@ class AudioSimulator:
         self._dyn_geoms = np.array([moving[i] for i in self._dyn_idx.tolist()], np.int64)
         self._follow = None
         self._mic_sites = np.asarray(scene.mic_site_ids, np.int64)
+        self._no_mic_rows = np.zeros(0, np.int64)
         self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
         self._zero_offsets = np.zeros((len(self._mic_sites), 3))
         # Hertz coefficient of (struck sounding geom, other geom), NaN until first needed
@@ -255,6 +265,8 @@ class AudioSimulator:
             self._fused_step, self._fused_solve = mj_function_address("mj_step"), mj_function_address("mj_solveM")
             self._fused_m, self._fused_d = self.model._address, self.data._address
         self._fused_anchor = None
+        self._fused_key = None
+        self._fused_check = os.environ.get("MJSOUND_FUSED_CHECK") == "1"
         self._fused_ints = np.zeros(17, np.int64)  # clock (6), reader state (6), queue (3), queue room (2)
         self._fused_floats = np.zeros(2)
         self._fused_views = tuple(self._fused_ints[a:b] for a, b in ((0, 6), (6, 12), (12, 15), (15, 17)))
@@ -381,23 +393,36 @@ class AudioSimulator:
             elif code != DONE:
                 self._finish_fused(code, out, imp)
 
-    def _fused_args(self, nstep: int) -> tuple | None:
+    def _fused_args(self, nstep: int) -> list | None:
         """:func:`.fused.run_substeps`'s arguments for the next ``nstep`` substeps, or None
-        when they must run in Python."""
+        when they must run in Python.
+
+        The list is built again only when an array it holds was replaced (a buffer grew, the
+        streams or the voice layout were rebuilt...: the ``key`` of their identities); else
+        only its few changing values are set (building it cost 8 us per call, 18 us in the
+        env loop where MuJoCo's step has just evicted these objects from the caches).
+        ``MJSOUND_FUSED_CHECK=1`` compares every call with a fresh build (the tests do)."""
         synth, c = self.synth, self.clock
         if self._fused_layout is None or synth is None or not self.sustained:
             return None
         if c.k + nstep > c.k_max_int64 or self._opt.timestep != c.timestep:
             return None  # (numba counts steps in int64, exact as SampleClock)
         r = self.reader
-        reader_args, missing = r.state_args(self.data)
-        cap = len(reader_args[-4])
-        if self._fused_buf is None or len(self._fused_buf[0]) != cap:
-            self._fused_buf = (np.empty((cap, 2), np.int32), np.empty((cap, 3)), np.empty((cap, 9)),
-                               np.empty(cap, np.int32), np.empty(cap, np.int32))
+        if self._sidx_epoch != synth._st_epoch:  # the synthesizer forgot its streams
+            self._reset_sidx()
         # impacts: the voice layout up to date, room in the event queue for one substep's
         # impacting contacts (2 sides each, every microphone; Synthesizer._impact_queue)
-        q = synth._impact_queue(cap)
+        q = synth._impact_queue(len(r._rows_buf))
+        key = (id(r._SF), id(r._rows_buf), id(r.sustained_steps), id(r._params), id(r.record_buffer), id(self._sidx),
+               id(synth._st), id(synth._gain_data), id(synth._poses.pos), id(synth._mics), id(q.I), id(q.re),
+               id(self._follow))
+        if key != self._fused_key:
+            self._fused_key, self._fused_list = key, self._fused_build()  # (the list keeps the ids unique)
+        args = self._fused_list
+        args[4], args[8] = nstep, self._n_logged < self.keep_events
+        args[self._fused_at_rendered] = synth.samples_rendered
+        consts = args[self._fused_at_consts]
+        args[self._fused_at_consts] = consts[:4] + (synth.samples_rendered, consts[5])
         # clock, reader state, queue state and queue room: views of one int64 vector (the
         # clock's anchor and the room change rarely: set when they do)
         ints = self._fused_ints
@@ -408,14 +433,34 @@ class AudioSimulator:
             self._fused_floats[:] = (t_start, dt)
         ints[4], ints[6], ints[7], ints[8], ints[9], ints[10], ints[11] = c.k, r._nslots, r._any_open, r._step, 0, 0, 0
         ints[12], ints[13], ints[14] = q.count, q.pool_used, q.next_sample
+        if self._fused_check:
+            fresh = self._fused_build()
+            fresh[4], fresh[8] = args[4], args[8]
+            if not _same_args(args, fresh):
+                raise AssertionError("AudioSimulator._fused_args: the cached arguments are stale")
+        return args
+
+    def _fused_build(self) -> list:
+        """The arguments of :func:`.fused.run_substeps` (``nstep`` and ``want_log`` are set by
+        :meth:`_fused_args`)."""
+        synth, r = self.synth, self.reader
+        reader_args, missing = r.state_args(self.data)
+        cap = len(reader_args[-4])
+        if self._fused_buf is None or len(self._fused_buf[0]) != cap:
+            self._fused_buf = (np.empty((cap, 2), np.int32), np.empty((cap, 3)), np.empty((cap, 9)),
+                               np.empty(cap, np.int32), np.empty(cap, np.int32))
+        q = synth._ev
         clk, st, qs, room = self._fused_views
         g = synth._impact_data()
-        return (self._fused_step, self._fused_m, self._fused_d, self._fused_layout, nstep, clk,
-                self._fused_floats, st, self._n_logged < self.keep_events,
-                *reader_args, *self._stream_args(), missing, *self._fused_buf,
-                self._fused_solve, *r.impact_args(self.data), *self._mic_args(), self._geom_xmat, self._dyn_geoms,
-                self._dyn_idx, synth._poses.pos, synth._poses.R, self._coef_row, self._coef, g[:9], g[12:],
-                q.I, q.kind, q.re, q.im, qs, room, self._log_rows, self._log_t)
+        head = [self._fused_step, self._fused_m, self._fused_d, self._fused_layout, 0, clk, self._fused_floats, st,
+                False, *reader_args]
+        stream = self._stream_args()
+        self._fused_at_rendered = len(head) + 6  # (synth.samples_rendered in _stream_args)
+        body = [*stream, missing, *self._fused_buf, self._fused_solve, *r.impact_args(self.data),
+                *self._mic_args(), self._geom_xmat, self._dyn_geoms, self._dyn_idx, synth._poses.pos, synth._poses.R,
+                self._coef_row, self._coef, g[:9]]
+        self._fused_at_consts = len(head) + len(body)  # (speed of sound ... samples rendered, grid)
+        return head + body + [g[12:], q.I, q.kind, q.re, q.im, qs, room, self._log_rows, self._log_t]
 
     def _mic_args(self) -> tuple:
         """``(mode, source, rows, offsets, mics)`` of :meth:`_update_mics` for numba (mode 0:
@@ -425,7 +470,7 @@ class AudioSimulator:
             return 1, self._xpos, self._follow_rows, self._follow[1], mics
         if self._sites_move and len(mics) == len(self._mic_sites):
             return 1, self._site_xpos, self._mic_sites, self._zero_offsets, mics
-        return 0, self._xpos, np.zeros(0, np.int64), self._zero_offsets, mics
+        return 0, self._xpos, self._no_mic_rows, self._zero_offsets, mics
 
     def _count_fused(self, m: int) -> None:
         """Take over the state of :func:`.fused.run_substeps` after it finished ``m`` substeps
