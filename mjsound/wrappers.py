@@ -3,8 +3,9 @@
 Any gymnasium environment built on MuJoCo (``env.unwrapped.model`` / ``env.unwrapped.data``)
 gets an ``"audio"`` entry in its observation: the sound the simulation made, computed from the
 contacts of *every* physics substep inside the env's ``frame_skip`` (the wrapper replaces
-``MujocoEnv._step_mujoco_simulation`` on the unwrapped instance with a loop of single
-``mj_step`` calls, each followed by :meth:`mjsound.sim.AudioSimulator.step`, then
+``MujocoEnv._step_mujoco_simulation`` on the unwrapped instance with
+:meth:`mjsound.sim.AudioSimulator.substeps`: ``frame_skip`` single ``mj_step`` calls, each
+followed by reading its contacts, run in one numba call (:mod:`mjsound.sim.fused`), then
 ``mj_rnePostConstraint`` as gymnasium does).
 
 Works unmodified on gymnasium's own Ant-v5, Humanoid-v5, HalfCheetah-v5, Pusher-v5, ...: geoms
