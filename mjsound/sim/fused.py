@@ -1,5 +1,6 @@
 r"""Several physics substeps in one numba call: ``mj_step`` called from numba, each followed
-by the reader's and the drive's kernels (:func:`.drive.read_and_drive`).
+by the reader's and the drive's kernels (:func:`.drive.read_and_drive`) and, where impacts
+start, their impulses and synthesizer events (:func:`_impact_events`).
 
 Why: a gymnasium MuJoCo env steps ``frame_skip`` times per ``env.step``, and the sound must
 read the contacts of every substep. Done from Python, each substep costs a Python loop turn,
@@ -10,9 +11,11 @@ Here one numba call runs all substeps of an env step.
 
 How:
 
-* MuJoCo's C ``mj_step`` is called through its address (``ctypes`` looks it up in the
-  ``libmujoco`` the bindings load): :func:`_call2` casts the address to a function pointer in
-  the compiled code, so nothing process-specific is frozen into numba's on-disk cache.
+* MuJoCo's C ``mj_step`` and ``mj_solveM`` are called through their addresses (``ctypes``
+  looks them up in the ``libmujoco`` the bindings load, :func:`mj_function_address` checks
+  their signatures against ``mujoco.introspect``): :func:`_call2` and :func:`_call_solve` cast
+  the address to a function pointer in the compiled code, so nothing process-specific is
+  frozen into numba's on-disk cache.
 * The step's contacts and constraint forces are read from the ``mjData`` struct itself:
   ``ncon``, ``nefc``, ``time``, the ``contact`` and ``efc_force`` pointers. Their byte offsets
   follow from MuJoCo's own description of its structs (``mujoco.introspect``) with C's
@@ -20,16 +23,19 @@ How:
   the bindings' views of a live ``MjData`` with contacts before anything uses them. If any
   differs (a MuJoCo build whose struct differs from its description) the layout is None and
   :class:`mjsound.sim.AudioSimulator` keeps its per-substep Python path.
-* A substep that needs Python stops the loop and is finished there: an impact onset (its
-  impulse needs ``mj_solveM``), a sliding pair without a stream yet, a ring buffer too short,
-  clamped forces (a warning), buffers too small for the contact count, a clock that no longer
-  matches ``data.time``. :func:`run_substeps` returns which substep and why.
+* Impact records are written as rows (``ContactReader.add_records`` makes the objects after
+  the call), and sliding / rolling rows for the event log likewise.
+* A substep that needs Python stops the loop and is finished there: a sliding pair without a
+  stream yet, a Hertz coefficient not known yet, a ring buffer too short, clamped forces (a
+  warning), buffers too small, a clock that no longer matches ``data.time``, impacts while the
+  event log fills. :func:`run_substeps` returns which substep and why.
 
 Limitation: an ``mju_error`` inside ``mj_step`` (MuJoCo's fatal errors) cannot become a Python
 exception through numba and ends the process; the bindings' path raises
 ``mujoco.FatalError`` instead. A full arena (too many contacts or constraints) is a MuJoCo
-warning, not an error: checked with a 6 KB arena and six boxes, which step on with warnings. ``AudioSimulator(fused=False)`` (or the
-environment variable ``MJSOUND_FUSED=0``) keeps every substep in Python.
+warning, not an error: checked with a 6 KB arena and six boxes, which step on with warnings.
+``AudioSimulator(fused=False)`` (or the environment variable ``MJSOUND_FUSED=0``) keeps every
+substep in Python.
 """
 
 from __future__ import annotations
