@@ -170,3 +170,19 @@ def test_streams_rendered_in_one_call_sound_as_stage_by_stage():
     peak = np.abs(out[0]).max()
     assert peak > 0
     np.testing.assert_allclose(out[1], out[0], rtol=0, atol=1e-5 * peak)
+
+
+def test_a_mujoco_build_without_the_c_functions_falls_back_to_python(monkeypatch):
+    """If libmujoco or a signature does not check out, the simulator warns once and steps
+    every substep in Python (the sound is unchanged)."""
+    import mjsound.sim.simulator as simulator
+
+    def missing(name):
+        raise OSError("no libmujoco next to the bindings")
+
+    monkeypatch.setattr(simulator, "mj_function_address", missing)
+    with pytest.warns(RuntimeWarning, match="substeps run through Python"):
+        model, data, sim = make(True)
+    assert sim._fused_layout is None
+    ref_model, ref_data, ref = make(False)
+    np.testing.assert_array_equal(play(model, data, sim, n_env=40), play(ref_model, ref_data, ref, n_env=40))

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import os
 import time as _time
+import warnings
 from fractions import Fraction
 
 import numpy as np
@@ -257,13 +258,16 @@ class AudioSimulator:
         # Hertz coefficient of (struck sounding geom, other geom), NaN until first needed
         self._coef_row = np.cumsum(self._geom_obj >= 0) - 1
         self._coef = np.full((int((self._geom_obj >= 0).sum()), model.ngeom), np.nan)
-        # substeps in one numba call (.fused) where this MuJoCo build's struct layout checks out
+        # substeps in one numba call (.fused) where this MuJoCo build's struct layout and C
+        # functions check out (else every substep runs through Python, as with fused=False)
         self._fused_layout = None
         if fused and os.environ.get("MJSOUND_FUSED", "1") != "0":
-            self._fused_layout = mjdata_layout()
-        if self._fused_layout is not None:
-            self._fused_step, self._fused_solve = mj_function_address("mj_step"), mj_function_address("mj_solveM")
-            self._fused_m, self._fused_d = self.model._address, self.data._address
+            try:
+                self._fused_step, self._fused_solve = mj_function_address("mj_step"), mj_function_address("mj_solveM")
+                self._fused_m, self._fused_d = self.model._address, self.data._address
+                self._fused_layout = mjdata_layout()
+            except (OSError, TypeError, KeyError, AttributeError) as e:
+                warnings.warn(f"mjsound: substeps run through Python ({e})", RuntimeWarning, stacklevel=2)
         self._fused_anchor = None
         self._fused_key = None
         self._fused_check = os.environ.get("MJSOUND_FUSED_CHECK") == "1"
