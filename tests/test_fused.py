@@ -186,3 +186,18 @@ def test_a_mujoco_build_without_the_c_functions_falls_back_to_python(monkeypatch
     assert sim._fused_layout is None
     ref_model, ref_data, ref = make(False)
     np.testing.assert_array_equal(play(model, data, sim, n_env=40), play(ref_model, ref_data, ref, n_env=40))
+
+
+@pytest.mark.parametrize("fused_streams", [True, False])
+def test_render_zeroes_non_finite_samples(fused_streams):
+    """A modal state gone non-finite (what an exploding simulation could leave) never reaches
+    the output: those samples are 0, the others are rendered as usual."""
+    model, data, sim = make(True)
+    sim.synth.fused_streams = fused_streams
+    play(model, data, sim, n_env=40)  # something rolls: streams exist
+    assert sim.synth._st_n > 0
+    Zr = sim.synth._flat[0]
+    Zr[:] = np.nan
+    sim.substeps(5)
+    block = sim.flush()
+    assert block.size and np.isfinite(block).all() and not block.any()

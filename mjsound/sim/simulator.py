@@ -551,9 +551,7 @@ class AudioSimulator:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:
             tc = _time.perf_counter()
-            block = self.synth.render(n)
-            if not np.isfinite(block).all():  # never hand out NaN audio
-                block = np.nan_to_num(block, nan=0.0, posinf=0.0, neginf=0.0)
+            block = self.synth.render(n)  # (never NaN: the synthesizer zeroes non-finite samples)
             self.seconds_synth += _time.perf_counter() - tc
         if self.on_block is not None:
             self.on_block(self, block, n0)

@@ -698,8 +698,9 @@ def streams_gains(n, SI, SF, D, st_gr, st_gi, pts_all, pts_off, shk_all, shk_off
     return dmax
 
 
-#: :func:`render_streams` result: rendered; gains are due and ``on_regain`` must run first
-RENDERED, REGAIN_FIRST = 0, -1
+#: :func:`render_streams` results: rendered; gains are due and ``on_regain`` must run first;
+#: rendered, but some sample is NaN or infinite (an exploding simulation)
+RENDERED, REGAIN_FIRST, RENDERED_NONFINITE = 0, -1, -2
 
 
 @njit(cache=True)
@@ -717,8 +718,9 @@ def render_streams(n_st, SI, SF, D, st_gr, st_gi, ring, dmax, may_regain,
     ``dmax`` is the largest stream delay so far [samples]; ``may_regain``: the poses and
     microphones are current (else, when gains are due, nothing is done and
     :data:`REGAIN_FIRST` is returned: call ``on_regain`` and again). Returns ``(code, dmax)``:
-    :data:`RENDERED`, :data:`REGAIN_FIRST`, or the ring length needed (> 0; the gains are
-    computed, nothing rendered: grow the ring and call again)."""
+    :data:`RENDERED`, :data:`RENDERED_NONFINITE` (``out`` holds a NaN or infinity),
+    :data:`REGAIN_FIRST`, or the ring length needed (> 0; the gains are computed, nothing
+    rendered: grow the ring and call again)."""
     if any_due(SI, n_st):
         if not may_regain:
             return REGAIN_FIRST, dmax
@@ -732,4 +734,8 @@ def render_streams(n_st, SI, SF, D, st_gr, st_gi, ring, dmax, may_regain,
                                                start + n, zero)
     render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic, v_live, ev_ptr, ev_n, ev_kind, ev_re, ev_im,
                ptr, sa, sb, gr, gi, F, start, n, grid, cull2, floor2, out, zero)
+    for c in range(out.shape[0]):
+        for k in range(out.shape[1]):
+            if not np.isfinite(out[c, k]):
+                return RENDERED_NONFINITE, dmax
     return RENDERED, dmax

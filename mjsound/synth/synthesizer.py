@@ -144,6 +144,14 @@ class _Object:
         self.poses.R[self.index] = R
 
 
+def _finite(block: np.ndarray, finite: bool | None = None) -> np.ndarray:
+    """``block`` with NaN and infinities set to 0 (an exploding simulation must not hand out
+    NaN audio); ``finite=True`` when that is known already."""
+    if finite is None:
+        finite = bool(np.isfinite(block).all())
+    return block if finite else np.nan_to_num(block, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+
+
 class Synthesizer:
     """Real-time modal synthesizer for any number of objects and microphones.
 
@@ -798,10 +806,11 @@ class Synthesizer:
             if need > st["ring"].shape[1]:
                 self._streams_grow_ring(need)
 
-    def _render_streams(self, ev, start, n, out) -> None:
+    def _render_streams(self, ev, start, n, out) -> bool:
         """Render a block with streams and no forcing sources in one numba call
         (:func:`.kernels.render_streams`: due gains, stream rows, :func:`.kernels.render_all`);
-        the same samples as :meth:`_streams_bank_rows` then ``render_all``."""
+        the same samples as :meth:`_streams_bank_rows` then ``render_all``. Returns whether
+        every sample is finite."""
         st, g = self._st, self._gain_data
         may_regain = self.on_regain is None or self.poses_current
         while True:
@@ -813,8 +822,8 @@ class Synthesizer:
                 *self._flat[:8], self._mic_start, self._mic_len, self._mic_ids, self._live, *ev,
                 start, n, GRID, self._cull2, FLOOR_PA**2, out, self.dtype.type(0))
             self._st_dmax = int(dmax)
-            if code == kernels.RENDERED:
-                return
+            if code == kernels.RENDERED or code == kernels.RENDERED_NONFINITE:
+                return code == kernels.RENDERED
             if code == kernels.REGAIN_FIRST:
                 self.on_regain()
                 may_regain = True
@@ -955,7 +964,8 @@ class Synthesizer:
         Returns
         -------
         (n_channels, n_samples) float32 array of sound pressure [Pa] at the microphones,
-        for times ``time .. time + (n_samples - 1) / fs``.
+        for times ``time .. time + (n_samples - 1) / fs`` (never NaN: non-finite samples, from
+        an exploding simulation, are set to 0).
         """
         try:
             n = int(n_samples)
@@ -985,9 +995,9 @@ class Synthesizer:
             # and grouped by microphone (src_ptr)
             srcs = [s for s in self._src if s[2] < end and s[3] > start] if self._src else ()
             if streams and not srcs and self.fused_streams:  # (the common case while something slides or rolls)
-                self._render_streams((ev_ptr, ev_n, ev_kind, ev_re, ev_im), start, n, out)
+                finite = self._render_streams((ev_ptr, ev_n, ev_kind, ev_re, ev_im), start, n, out)
                 self.samples_rendered = end
-                return out.astype(np.float32, copy=False)
+                return _finite(out.astype(np.float32, copy=False), finite)
             if srcs:
                 src_ptr, src_a, src_b, gr, gi, F = self._source_rows(srcs, start, end)
                 self._src = [s for s in self._src if s[3] > end]
@@ -1015,7 +1025,7 @@ class Synthesizer:
                                src_ptr, src_a, src_b, gr, gi, F,
                                start, n, GRID, self._cull2, FLOOR_PA**2, out, dt.type(0))
         self.samples_rendered = end
-        return out.astype(np.float32, copy=False)
+        return _finite(out.astype(np.float32, copy=False))
 
     def reset(self) -> None:
         """Silence everything and restart time at 0 (objects, poses and microphones stay;
