@@ -612,3 +612,18 @@ def test_a_contact_that_slides_then_rolls_keeps_one_stream():
     assert ev["slide"] > 0 and ev["roll"] > 0, ev
     assert list(sim.synth._st_keys) == [(0, 1, 1)]  # (floor, ball, struck geom): one stream
     assert np.isfinite(audio).all() and np.abs(audio).max() > 0
+
+
+def test_reader_keeps_the_last_keep_records_impacts():
+    """``keep_records`` bounds the record list (the oldest drop out), in order; the count of
+    impact events stays complete."""
+    model = mujoco.MjModel.from_xml_string(drop_xml(h=0.3))
+    data = mujoco.MjData(model)
+    full, short = ContactReader(model), ContactReader(model, keep_records=2)
+    for _ in range(1500):
+        mujoco.mj_step(model, data)
+        for r in (full, short):
+            r.events_fast(data, data.time - model.opt.timestep, data.time)
+    assert full.n_impacts >= 3 and short.n_impacts == full.n_impacts
+    key = [(r.time, r.impulse_pred, r.impulse_sim, r.open) for r in full.impacts]
+    assert [(r.time, r.impulse_pred, r.impulse_sim, r.open) for r in short.impacts] == key[-2:]

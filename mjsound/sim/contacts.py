@@ -58,6 +58,7 @@ NaN/Inf or huge (> ``max_force`` N) contact forces and NaN velocities are clampe
 from __future__ import annotations
 
 import warnings
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -799,7 +800,7 @@ class ContactReader:
                                                             model.body_rootid, model.dof_parentid))  # for _normal_jacobians
         self._views_of = None  # MjData whose fixed-size views (cvel, subtree_com, geom_xpos) are cached
         self._warned = set()
-        self._records: list[ImpactRecord] = []
+        self._records: deque[ImpactRecord] = deque(maxlen=self.keep_records)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -819,7 +820,7 @@ class ContactReader:
         self._open: dict[int, ImpactRecord] = {}
         self._any_open = False  # an impact may be open: quiet steps must close it
         self._step = 0
-        self._records = []
+        self._records = deque(maxlen=self.keep_records)  # (the oldest drop out in O(1))
         self.n_impacts = 0
         self.n_clamped = 0
         self._prev_cvel = None
@@ -1088,7 +1089,7 @@ class ContactReader:
             if not SI[SI_OPEN, j]:
                 rec.open = False
                 del self._open[j]
-        return self._records
+        return list(self._records)
 
     def _impacts(self, data, hits, starts, slots, t0):
         """Impact events of several pairs at once: contacts ``starts[q] : starts[q + 1]`` of
@@ -1137,5 +1138,3 @@ class ContactReader:
                 self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
                                 "reported once")
         self.n_impacts += len(rows)
-        if len(records) > self.keep_records:
-            del records[: len(records) - self.keep_records]
