@@ -795,7 +795,6 @@ class ContactReader:
         self._pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
         #: record rows of impacts made in numba (:mod:`.fused`), taken by :meth:`add_records`
         self.record_buffer = np.zeros((64, REC_COLS))
-        self._impact_args_of = None
         self._kin = tuple(np.asarray(a, np.int64) for a in (model.body_dofnum, model.body_dofadr, model.body_parentid,
                                                             model.body_rootid, model.dof_parentid))  # for _normal_jacobians
         self._views_of = None  # MjData whose fixed-size views (cvel, subtree_com, geom_xpos) are cached
@@ -1049,13 +1048,10 @@ class ContactReader:
         """The arguments of :func:`.fused.run_substeps` for impacts (as in :meth:`_impacts`):
         kinematic tree, dofs, ``cdof``, restitution, masses, largest impulse and the record
         rows buffer (:attr:`record_buffer`)."""
-        if self._impact_args_of is not data or self._impact_args[-1] is not self.record_buffer:
-            self._impact_args = (self._kin, self.model.nv, self._data_views(data)[3], self.restitution,
-                                 self._tree_mass, self._root_mass, self.max_force * 0.01, self.record_buffer)
-            self._impact_args_of = data
-        return self._impact_args
+        return (self._kin, self.model.nv, self._data_views(data)[3], self.restitution, self._tree_mass,
+                self._root_mass, self.max_force * 0.01, self.record_buffer)
 
-    def state_args(self, data) -> tuple | None:
+    def state_args(self, data) -> tuple:
         """The arguments of ``_fused_kernel`` after the contacts and ``efc_force`` except
         ``nslots, t0, t1, step`` (:func:`.fused.run_substeps` keeps those itself), then the
         drive's ``missing`` buffer."""

@@ -250,6 +250,16 @@ def _gather_contacts(cp, ncon, L, geom, pos, frame, adr, dim):
 
 
 @njit(cache=True)
+def _sync_poses(mic_mode, mic_src, mic_rows, mic_off, mics, gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR):
+    """``AudioSimulator._sync_poses`` in numba: the microphones (``AudioSimulator._mic_args``)
+    and the moving objects' poses to where they are now."""
+    if mic_mode:
+        follow_rows(mic_src, mic_rows, mic_off, mics)
+    if dyn_idx.shape[0]:
+        pose_rows(gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
+
+
+@njit(cache=True)
 def _impact_events(fn_solve, mp, dp, hits, starts, slots, t0, n0, kin, nv, cdof, scom, gbody, e_geom, tree_mass,
                    root_mass, jmax, CF, CI, rec, st, origin, fsi, mic_mode, mic_src, mic_rows, mic_off, mics, gxpos,
                    gxmat, dyn_geoms, dyn_idx, ppos, pR, geom_obj, coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim,
@@ -270,10 +280,7 @@ def _impact_events(fn_solve, mp, dp, hits, starts, slots, t0, n0, kin, nv, cdof,
     _record_rows(hits, starts, slots, stats, t0, CF, CI, rec[st[3]:st[3] + q])
     st[3] += q
     st[1] = 1  # an impact is open
-    if mic_mode:
-        follow_rows(mic_src, mic_rows, mic_off, mics)
-    if dyn_idx.shape[0]:
-        pose_rows(gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
+    _sync_poses(mic_mode, mic_src, mic_rows, mic_off, mics, gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
     t_ev = max(t0 - origin / fsi, (n0 - origin) / fsi)
     pts, pts_off, shk, shk_off, mode_off, wd, w, lam_m, leps = gain_data
     c, fs, rmin, tol, rendered, grid = pts_c
@@ -408,8 +415,5 @@ def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
         if not queued or out[7] or out[8]:
             return i, PYTHON_DRIVE, out, (no_imp if queued else imp)
     # poses and microphones current for the render's stream gains (Synthesizer.poses_current)
-    if mic_mode:
-        follow_rows(mic_src, mic_rows, mic_off, mics)
-    if dyn_idx.shape[0]:
-        pose_rows(gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
+    _sync_poses(mic_mode, mic_src, mic_rows, mic_off, mics, gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
     return nstep, DONE, none, no_imp

@@ -88,10 +88,10 @@ class SampleClock:
         """``t_start + k * timestep`` [s] (float, for reporting)."""
         return (self._a0 + k * self._b) / self._den  # int / int: correctly rounded, as float(Fraction)
 
-    def advance(self) -> tuple[int, int]:
-        """Step once; returns ``(n0, n1)``, the step's samples ``n0 <= n < n1``."""
+    def advance(self, steps: int = 1) -> tuple[int, int]:
+        """Count ``steps`` steps; returns ``(n0, n1)``, their samples ``n0 <= n < n1``."""
         n0 = self.n
-        self.k += 1
+        self.k += steps
         self.n = self.sample_at(self.k)
         return n0, self.n
 
@@ -467,11 +467,12 @@ class AudioSimulator:
         return head + body + [g[12:], q.I, q.kind, q.re, q.im, qs, room, self._log_rows, self._log_t]
 
     def _mic_args(self) -> tuple:
-        """``(mode, source, rows, offsets, mics)`` of :meth:`_update_mics` for numba (mode 0:
-        the microphones stay)."""
+        """Where the microphones are synced from, ``(mode, source, rows, offsets, mics)``:
+        ``mics[m] = source[rows[m]] + offsets[m]`` (:func:`.drive.follow_rows`, here and in
+        numba) when ``mode`` is 1; mode 0: they stay."""
         mics = self.synth._mics
-        if self._follow is not None and len(mics) == len(self._follow_rows):
-            return 1, self._xpos, self._follow_rows, self._follow[1], mics
+        if self._follow is not None:
+            return int(len(mics) == len(self._follow_rows)), self._xpos, self._follow_rows, self._follow[1], mics
         if self._sites_move and len(mics) == len(self._mic_sites):
             return 1, self._site_xpos, self._mic_sites, self._zero_offsets, mics
         return 0, self._xpos, self._no_mic_rows, self._zero_offsets, mics
@@ -494,21 +495,15 @@ class AudioSimulator:
         q = self.synth._ev
         q.count, q.pool_used, q.next_sample = q_count, q_used, q_next
         if m:
-            c = self.clock
-            n0 = c.n
-            c.k += m
-            c.n = c.sample_at(c.k)
-            self._count(n0, c.n, m)
+            self._count(*self.clock.advance(m), m)
 
     def _finish_fused(self, code, out, imp) -> None:
         """Finish the substep that :func:`.fused.run_substeps` read but left to Python (its
         kernel outputs ``out``): with ``PYTHON_AFTER`` make its impacts, with ``PYTHON_DRIVE``
         queue the impacts ``imp`` that numba could not; then drive what needs new streams."""
         c = self.clock
-        n0 = c.n
-        c.k += 1
-        c.n = c.sample_at(c.k)
-        self._count(n0, c.n)
+        n0, n1 = c.advance()
+        self._count(n0, n1)
         t0 = c.time_at(c.k - 1)
         r = self.reader
         if code == PYTHON_AFTER:
@@ -517,7 +512,7 @@ class AudioSimulator:
             r.drive_result = (r._missing_buf[: out[7]], out[8])
             impacts = imp if len(imp) else None
             rows = r._srows_buf[: out[1]] if out[1] else None
-        self._queue_outputs(impacts, rows, t0, n0, c.n, True, logged=code != PYTHON_AFTER)
+        self._queue_outputs(impacts, rows, t0, n0, n1, True, logged=code != PYTHON_AFTER)
 
     def flush(self) -> np.ndarray:
         """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
@@ -531,8 +526,8 @@ class AudioSimulator:
         self._count(n0, n1)
         if self.synth is not None:
             self.synth.poses_current = False  # (a physics step was taken)
-        if self.synth is not None and not self.reader.step_if_quiet(self.data):
-            self._queue(n0, n1, t0, t1)
+            if not self.reader.step_if_quiet(self.data):
+                self._queue(n0, n1, t0, t1)
         return self._render_pending() if render else None
 
     def _count(self, n0: int, n1: int, steps: int = 1) -> None:
@@ -560,12 +555,9 @@ class AudioSimulator:
     def _update_mics(self) -> None:
         """Microphones to where their sites / the followed body are now (nothing when they
         cannot move)."""
-        mics = self.synth._mics  # updated in place (same channels; a non-finite position keeps the last)
-        if self._follow is not None:
-            if len(mics) == len(self._follow_rows):
-                follow_rows(self._xpos, self._follow_rows, self._follow[1], mics)
-        elif self._sites_move and len(mics) == len(self._mic_sites):
-            follow_rows(self._site_xpos, self._mic_sites, self._zero_offsets, mics)
+        mode, source, rows, offsets, mics = self._mic_args()
+        if mode:  # (mics updated in place; a non-finite position keeps the last)
+            follow_rows(source, rows, offsets, mics)
 
     def _sync_poses(self) -> None:
         """Microphones and every moving sounding object to where they are now, before an
@@ -742,16 +734,16 @@ class AudioSimulator:
         blocks = []
         if self._pending:
             blocks.append(self.flush())
-        if callback is None:  # render_block_s of substeps at a time (one numba call each: .fused)
-            for i in range(0, nsteps, every):
-                self.substeps(min(every, nsteps - i))
-                blocks.append(self.flush())
-        for i in range(nsteps if callback is not None else 0):
-            callback(self.model, self.data)
-            self._mj.mj_step(self.model, self.data)
-            b = self.step(render=(i + 1) % every == 0 or i == nsteps - 1)
-            if b is not None:
-                blocks.append(b)
+        for i in range(0, nsteps, every):  # render_block_s of steps at a time
+            m = min(every, nsteps - i)
+            if callback is None:
+                self.substeps(m)  # (one numba call: .fused)
+            else:
+                for _ in range(m):
+                    callback(self.model, self.data)
+                    self._mj.mj_step(self.model, self.data)
+                    self.step(render=False)
+            blocks.append(self.flush())
         if not blocks:
             return np.zeros((self.n_channels, 0), np.float32)
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
