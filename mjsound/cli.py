@@ -33,7 +33,7 @@ def _add_analyze(sub):
     p.add_argument("--resolution", type=int, default=None, help="N elements along the longest side (overrides --quality)")
     p.add_argument("--f-max", type=float, default=None, help="highest frequency in Hz (default min(20 kHz, 0.45*sample rate))")
     p.add_argument("--sample-rate", type=float, default=None, help="output sample rate in Hz (bounds f-max below Nyquist)")
-    p.add_argument("--order", type=int, choices=[1, 2], default=2, help="element order: hex 2 = 27-node cells (default), 1 = 8-node; tet 2 = 10-node (default), 1 = 4-node")
+    p.add_argument("--order", type=int, choices=[1, 2], default=2, help="element order: hex 2 = 20-node cells (default), 1 = 8-node; tet 2 = 10-node (default), 1 = 4-node")
     p.add_argument("--thickness", type=float, default=None, help="wall thickness in m (open meshes, shell method)")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the model cache")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")

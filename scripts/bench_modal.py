@@ -56,7 +56,7 @@ def _one(name, quality, baseline, queue):
         tm = A.load_mesh(mesh)
         material = A.parse_material(mat)
         # the analysis' own element size (element_size's default order=1 would give 1.5x
-        # smaller elements than the 27-node analysis used: another, 3x larger problem)
+        # smaller elements than the quadratic analysis used: another, 3x larger problem)
         h = model.info["h_target"]
         pts, _ = A.surface_samples(tm)
         disc = A._discretize("hex", tm, material, h, pts, quality, None, 2, None)

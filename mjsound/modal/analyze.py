@@ -67,7 +67,7 @@ AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
 QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
 MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
-MODEL_VERSION = 9  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 10  # bump when discretization or model contents change (invalidates cache)
 
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
@@ -259,7 +259,7 @@ def analyze(
     thickness : float, optional
         Wall thickness [m] for open surfaces (hex) and the shell model.
     order : {1, 2}
-        Element order for hex (27-node triquadratic cells by default; 1 = 8-node cells with
+        Element order for hex (20-node serendipity cells by default; 1 = 8-node cells with
         condensed bubbles) and tet (10-node by default; 1 = 4-node, which locks).
     refine : int, optional
         Hex fine cells per coarse cell per axis (default from ``quality``).

@@ -14,6 +14,8 @@ Strategy (chosen by measurement, see ``scripts/bench_modal.py``):
     vector in blocks of 12 against 15..60 ms one at a time), and it stops when exactly
     ``n_target`` Ritz values lie below the band top, all converged: complete by Sylvester,
     whatever the multiplicities. Eigenvalues are the Rayleigh quotients of the vectors.
+    Once the count is done, the second core factors a copy of ``K - sigma M`` and takes
+    half of every later block solve (:class:`_SplitSolve`; same result bit for bit).
   - **spectrum slicing** otherwise (or if the block solve does not converge in its basis
     budget): shift-invert Lanczos (ARPACK). Each
     slice factors ``K - sigma M`` once (SuperLU with minimum-degree ordering on ``A + A^T`` and
@@ -378,25 +380,38 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     scale = max(float(lam_min), 1e-6 * float(lam_max), 1.0)
     sigma0 = -max(0.5 * scale, 1e-3 * float(lam_max))
     used = backend or (backend_name() if n >= PARDISO_MIN_DOFS else "superlu")
+    pool = None
     if used == "pardiso":
         # the count (indefinite) and the first, definite factorization are independent:
         # PARDISO releases the GIL, so they run side by side on two cores
         from concurrent.futures import ThreadPoolExecutor
 
-        with ThreadPoolExecutor(1) as pool:
-            counting = pool.submit(count_below, K, M, lam_max, backend)
-            solve0 = factorize(K - sigma0 * M, backend, definite=True)
-            n_target = counting.result()
+        pool = ThreadPoolExecutor(1)
+        counting = pool.submit(count_below, K, M, lam_max, backend)
+        solve0 = factorize(K - sigma0 * M, backend, definite=True)
+        n_target = counting.result()
     else:
         n_target = count_below(K, M, lam_max, backend)
         solve0 = None
-    if n_target is not None and 0 < n_target <= BLOCK_MAX_MODES and n_target < n // 4 and (
-            max_modes is None or n_target <= 2 * max_modes + 12):
-        # The whole band from one definite factorization, by block Lanczos (its solves run
-        # as BLAS-3 on blocks of vectors), complete by the Sylvester count.
-        if solve0 is None:
-            solve0 = factorize(K - sigma0 * M, backend, definite=True)
-        res = _block_band(K, M, sigma0, lam_max, n_target, solve0)
+    try:
+        block = n_target is not None and 0 < n_target <= BLOCK_MAX_MODES and n_target < n // 4 and (
+            max_modes is None or n_target <= 2 * max_modes + 12)
+        if block:
+            # The whole band from one definite factorization, by block Lanczos (its solves
+            # run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
+            if solve0 is None:
+                solve = factorize(K - sigma0 * M, backend, definite=True)
+            elif n >= SPLIT_MIN_DOFS:
+                # the second core, idle once the count is done, factors a second copy and
+                # then takes half of every block solve
+                solve = _SplitSolve(solve0, pool, pool.submit(factorize, K - sigma0 * M, backend, definite=True))
+            else:
+                solve = solve0
+            res = _block_band(K, M, sigma0, lam_max, n_target, solve)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    if block:
         if res is not None:
             w, V = res
             n_below = int(np.sum(w < lam_min))
@@ -477,22 +492,70 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     return BandSolution(w, _mass_normalise(V, M), n_below, time.perf_counter() - t0, n_slices, used)
 
 
+#: from this size on, block Lanczos solves on two PARDISO factorizations at once
+SPLIT_MIN_DOFS = 10000
+
+
+class _SplitSolve:
+    """``solve(B)`` for blocks, on two copies of one factorization once the second is ready.
+
+    A block of ``m >= 8`` columns is cut in two: the first half is solved here, the second
+    on the worker thread with the second copy (PARDISO releases the GIL). One thread
+    solves 8 columns in 32 ms and 16 in 47 ms on a 20 cm bowl, so a Lanczos step's solve
+    takes about two thirds of the time. PARDISO solves each column of a block of two or
+    more with the same operations whatever the others are, and the two copies factor the
+    same matrix identically, so the result is the same bit for bit whether or when the
+    second copy joins in (test). ``second`` is a future of the second ``solve``.
+    """
+
+    def __init__(self, first, pool, second):
+        self.first, self.pool, self.second = first, pool, second
+
+    def __call__(self, B: np.ndarray) -> np.ndarray:
+        m = B.shape[1] if B.ndim == 2 else 1
+        if m < 8 or not self.second.done() or self.second.exception() is not None:
+            return self.first(B)
+        h = m // 2
+        other = self.pool.submit(self.second.result(), B[:, h:])
+        X = self.first(B[:, :h])
+        return np.hstack([X, other.result()])
+
+
 #: most eigenvalues :func:`_block_band` is asked for in one go (else: ARPACK slices)
 BLOCK_MAX_MODES = 400
 #: Ritz residual ||T y - mu y||_M / mu at which a pair is accepted. The eigenvalues are
-#: Rayleigh quotients, whose error goes as the residual squared: on a 20 cm bowl (120
-#: eigenvalues) 1e-7 gave them to 3e-12 of the 1e-9 ones (1e-6: 8e-11, 1e-5: 5e-9) in a
-#: basis of 336 vectors instead of 372; mode shapes agreed to 1e-7.
-BLOCK_TOL = 1e-7
+#: Rayleigh quotients, whose error goes as the residual squared. On a 20 cm bowl (19 908
+#: dofs, 120 eigenvalues, blocks of 16) against 1e-7 (basis 368): 1e-6 -> basis 352,
+#: eigenvalues within 1.4e-11; 1e-5 -> 336, 1.3e-9 (2e-6 cent), mode shapes spanning the
+#: same subspaces to 1e-11 (1 - |cos|); 1e-4 -> 320, 6e-8. Each step saved is a block
+#: solve and a Gram-Schmidt pass (0.1..0.15 s for 1e-5).
+BLOCK_TOL = 1e-5
 #: block Krylov basis memory cap [bytes] (basis and its M-image, float64)
 BLOCK_MAX_BYTES = 1.5e9
 
 
+def _tol_scale(lam, lam_max):
+    """Per-pair factor on the Ritz tolerance: ``sqrt(lam / lam_max)``, at least 1e-3.
+
+    What a Ritz vector keeps of the modes near the top of the spectrum raises its
+    Rayleigh quotient by about ``(residual)^2 lam_max``, which is a relative error of
+    ``tol^2 lam_max / lam``: low modes need a tighter residual for the same relative
+    accuracy, and the rigid modes (``lam ~ 0``) one that keeps them below any audible band
+    (a 2 mm steel bead with one tolerance for all got a rigid mode at 37.8 Hz). They
+    converge first, so it costs no step on the bowl. The floor 1e-3 is the 20 Hz / 20 kHz
+    band ratio.
+    """
+    return np.sqrt(np.clip(np.asarray(lam) / lam_max, 1e-6, 1.0))
+
+
 def _block_size(n_target: int) -> int:
     """Block width: wide blocks make each PARDISO solve cheaper per vector (its
-    forward/backward substitution runs as BLAS-3), narrow ones converge in a smaller basis
-    (measured on the bowl: 8 -> basis 312, 16 -> 384, 32 -> 576 for 120 eigenvalues)."""
-    return int(np.clip(n_target // 10, 4, 16))
+    forward/backward substitution runs as BLAS-3: 13.7 ms for one vector, 41 ms for 12, 47
+    for 16, 60 for 24 on a 20 cm bowl's 19 908 dofs), narrow ones converge in a smaller
+    basis (same bowl, 120 eigenvalues: 8 -> basis 304, 12 -> 336, 16 -> 368, 20 -> 400).
+    16 was the fastest there with the solves split over two factorizations
+    (:class:`_SplitSolve`; medians of 4 alternated solves 2.55 s against 2.78 s for 12)."""
+    return int(np.clip(n_target // 7, 4, 16))
 
 
 _LAST = {}
@@ -529,7 +592,8 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
 
     Ritz values of the largest ``mu`` never exceed the true ones (Cauchy interlacing), so
     at most ``n_target`` Ritz values can lie below ``lam_max``; the solve stops when exactly
-    ``n_target`` do and all have ``||T y - mu y||_M <= tol mu``: every eigenvalue below
+    ``n_target`` do and all have ``||T y - mu y||_M <= tol mu`` (tighter for low modes,
+    :func:`_tol_scale`): every eigenvalue below
     ``lam_max`` is then found exactly once (Sylvester). ``solve`` takes blocks (n, b);
     ``apply_M(X) = (M X^T)^T`` for rows ``X`` (default :func:`.node_mass.mass_rows`).
     Returns ``(w, V)`` ascending, or None if the basis would outgrow ``max_dim``.
@@ -625,7 +689,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
             mu, S = mu[want], S[:, want]
         if ok:
             est = np.linalg.norm(R @ S[d0:d], axis=0)
-            if np.all(est <= tol * mu):
+            if np.all(est <= tol * mu * _tol_scale(sigma + 1.0 / mu, lam_max)):
                 _LAST["dim"] = d
                 Y = S.T @ Q[:d]  # Ritz vectors as rows
                 # Eigenvalues as Rayleigh quotients of the vectors (error ~ residual^2): the

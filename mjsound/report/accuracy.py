@@ -358,6 +358,12 @@ def _modal_point(shape, method, kw):
     from ..modal.analyze import analyze
 
     f_max = kw.pop("f_max", SHAPES[shape]["f_max"])
+    if "serendipity" in kw:  # 20- or 27-node hex cells (a forked child: patching is local)
+        import functools
+
+        from ..modal import hex as hexmod
+
+        hexmod.discretize_hex = functools.partial(hexmod.discretize_hex, serendipity=kw.pop("serendipity"))
     mesh = _mesh_for(shape)
     t0 = time.perf_counter()
     m = analyze(mesh, ALU, method=method, f_max=f_max, error_estimate=False, cache=False, **kw)
@@ -436,6 +442,9 @@ def modal_plan(quick: bool):
         ("rod", "hex res=80", "hex", {"resolution": 80, "quality": "high"}),
         ("bowl", "hex res=30", "hex", {"resolution": 30, "quality": "high"}),
         ("bowl", "hex res=45", "hex", {"resolution": 45, "quality": "high"}),
+        ("beam", "hex27 default", "hex", {"quality": "default", "serendipity": False}),
+        ("sphere", "hex27 default", "hex", {"quality": "default", "serendipity": False}),
+        ("bowl", "hex27 default", "hex", {"quality": "default", "serendipity": False}),
         ("beam", "tet4 h=10mm", "tet", {"order": 1, "resolution": 50}),
         ("beam", "tet4 h=5mm", "tet", {"order": 1, "resolution": 100}),
         ("beam", "tet10 h=20mm", "tet", {"order": 2, "resolution": 25}),
