@@ -381,22 +381,22 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     sigma0 = -max(0.5 * scale, 1e-3 * float(lam_max))
     used = backend or (backend_name() if n >= PARDISO_MIN_DOFS else "superlu")
     pool = None
-    if used == "pardiso":
-        # the count (indefinite) and the first, definite factorization are independent:
-        # PARDISO releases the GIL, so they run side by side on two cores
-        from concurrent.futures import ThreadPoolExecutor
-
-        pool = ThreadPoolExecutor(1)
-        counting = pool.submit(count_below, K, M, lam_max, backend)
-        solve0 = factorize(K - sigma0 * M, backend, definite=True)
-        n_target = counting.result()
-    else:
-        n_target = count_below(K, M, lam_max, backend)
-        solve0 = None
+    res = None
     try:
-        block = n_target is not None and 0 < n_target <= BLOCK_MAX_MODES and n_target < n // 4 and (
-            max_modes is None or n_target <= 2 * max_modes + 12)
-        if block:
+        if used == "pardiso":
+            # the count (indefinite) and the first, definite factorization are independent:
+            # PARDISO releases the GIL, so they run side by side on two cores
+            from concurrent.futures import ThreadPoolExecutor
+
+            pool = ThreadPoolExecutor(1)
+            counting = pool.submit(count_below, K, M, lam_max, backend)
+            solve0 = factorize(K - sigma0 * M, backend, definite=True)
+            n_target = counting.result()
+        else:
+            n_target = count_below(K, M, lam_max, backend)
+            solve0 = None
+        if n_target is not None and 0 < n_target <= BLOCK_MAX_MODES and n_target < n // 4 and (
+                max_modes is None or n_target <= 2 * max_modes + 12):
             # The whole band from one definite factorization, by block Lanczos (its solves
             # run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
             if solve0 is None:
@@ -411,17 +411,16 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
-    if block:
-        if res is not None:
-            w, V = res
-            n_below = int(np.sum(w < lam_min))
-            sel = w >= lam_min
-            w, V = w[sel], V[:, sel]
-            if max_modes is not None:
-                w, V = w[:max_modes], V[:, :max_modes]
-            if progress:
-                progress(1.0)
-            return BandSolution(w, V, n_below, time.perf_counter() - t0, 1, f"block-lanczos+{used}")
+    if res is not None:
+        w, V = res
+        n_below = int(np.sum(w < lam_min))
+        sel = w >= lam_min
+        w, V = w[sel], V[:, sel]
+        if max_modes is not None:
+            w, V = w[:max_modes], V[:, :max_modes]
+        if progress:
+            progress(1.0)
+        return BandSolution(w, V, n_below, time.perf_counter() - t0, 1, f"block-lanczos+{used}")
     k_max = 2 * int(slice_modes)
     vals, vecs = [], []
     n_below = 0
