@@ -130,6 +130,34 @@ def test_split_solve_halves_equal_one_solve(cube):
     assert np.linalg.norm(A_ @ X - B) < 1e-8 * np.linalg.norm(B)
 
 
+def test_project_out_halves_on_two_threads_match_in_turn():
+    """The Gram-Schmidt pass cut in halves gives the same bits on one thread or two, and
+    leaves F M-orthogonal to the basis."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(2)
+    n, k = 500, 80
+    Mdiag = rng.uniform(1.0, 2.0, n)
+    Q = np.linalg.qr(rng.standard_normal((n, k)) / np.sqrt(Mdiag)[:, None])[0].T
+    # M-orthonormal rows: Q M Q^T = I
+    L = np.linalg.cholesky((Q * Mdiag) @ Q.T)
+    Q = np.linalg.solve(L, Q)
+    MQ = Q * Mdiag
+    F0 = rng.standard_normal((6, n))
+    F1, F2 = F0.copy(), F0.copy()
+    C1 = E._project_out(F1, Q, MQ)
+    with ThreadPoolExecutor(1) as pool:
+        def both(f, g):
+            other = pool.submit(g)
+            return f(), other.result()
+
+        C2 = E._project_out(F2, Q, MQ, both)
+    assert k >= E.PROJECT_SPLIT_MIN
+    assert np.array_equal(C1, C2) and np.array_equal(F1, F2)
+    assert np.abs(MQ @ F1.T).max() < 1e-12 * np.abs(F0).max()
+    np.testing.assert_allclose(C1, MQ @ F0.T, rtol=1e-12, atol=1e-12)
+
+
 def test_sum_blocks_adds_equal_keys():
     key = np.array([5, 1, 5, 3, 1, 5])
     a = np.arange(12.0).reshape(6, 2)

@@ -407,7 +407,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
                 solve = _SplitSolve(solve0, pool, pool.submit(factorize, K - sigma0 * M, backend, definite=True))
             else:
                 solve = solve0
-            res = _block_band(K, M, sigma0, lam_max, n_target, solve)
+            res = _block_band(K, M, sigma0, lam_max, n_target, solve, both=getattr(solve, "both", None))
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -510,9 +510,19 @@ class _SplitSolve:
     def __init__(self, first, pool, second):
         self.first, self.pool, self.second = first, pool, second
 
+    def _ready(self) -> bool:
+        return self.second.done() and self.second.exception() is None
+
+    def both(self, f, g):
+        """``(f(), g())``, g on the worker thread once the second copy is done."""
+        if not self._ready():
+            return f(), g()
+        other = self.pool.submit(g)
+        return f(), other.result()
+
     def __call__(self, B: np.ndarray) -> np.ndarray:
         m = B.shape[1] if B.ndim == 2 else 1
-        if m < 8 or not self.second.done() or self.second.exception() is not None:
+        if m < 8 or not self._ready():
             return self.first(B)
         h = m // 2
         other = self.pool.submit(self.second.result(), B[:, h:])
@@ -531,6 +541,41 @@ BLOCK_MAX_MODES = 400
 BLOCK_TOL = 1e-5
 #: block Krylov basis memory cap [bytes] (basis and its M-image, float64)
 BLOCK_MAX_BYTES = 1.5e9
+
+
+def _in_turn(f, g):
+    return f(), g()
+
+
+#: a Gram-Schmidt pass over at least this many basis vectors is cut in two halves
+PROJECT_SPLIT_MIN = 64
+
+
+def _project_out(F, Q, MQ, both=_in_turn):
+    """``C = MQ F^T`` and ``F -= C^T Q`` (in place): F's rows M-orthogonalised against Q's.
+
+    Over a long basis each product is cut in two, C by rows and F by columns, and
+    ``both`` may run the halves on two cores (on the bowl's 19 908 dofs and 300 vectors:
+    24 ms on one core, 14 on two). The cut depends only on the sizes, never on whether
+    the second core is free, so the result is the same bit for bit either way. Returns C.
+    """
+    k = Q.shape[0]
+    if k < PROJECT_SPLIT_MIN:
+        C = MQ @ F.T
+        F -= C.T @ Q
+        return C
+    h, m = k // 2, F.shape[1] // 2
+    C = np.vstack(both(lambda: MQ[:h] @ F.T, lambda: MQ[h:] @ F.T))
+    Ct = C.T
+
+    def left():
+        F[:, :m] -= Ct @ Q[:, :m]
+
+    def right():
+        F[:, m:] -= Ct @ Q[:, m:]
+
+    both(left, right)
+    return C
 
 
 def _tol_scale(lam, lam_max):
@@ -575,7 +620,8 @@ def _full_pass(step: int) -> bool:
     return step % 2 == 0
 
 
-def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None):
+def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
+                both=None):
     """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
 
     Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
@@ -594,10 +640,14 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
     ``n_target`` do and all have ``||T y - mu y||_M <= tol mu`` (tighter for low modes,
     :func:`_tol_scale`): every eigenvalue below
     ``lam_max`` is then found exactly once (Sylvester). ``solve`` takes blocks (n, b);
-    ``apply_M(X) = (M X^T)^T`` for rows ``X`` (default :func:`.node_mass.mass_rows`).
-    Returns ``(w, V)`` ascending, or None if the basis would outgrow ``max_dim``.
+    ``apply_M(X) = (M X^T)^T`` for rows ``X`` (default :func:`.node_mass.mass_rows`);
+    ``both(f, g)`` returns ``(f(), g())`` and may run them side by side
+    (:meth:`_SplitSolve.both`). Returns ``(w, V)`` ascending, or None if the basis would
+    outgrow ``max_dim``.
     """
     n = K.shape[0]
+    if both is None:
+        both = _in_turn
     if apply_M is None:
         apply_M = mass_rows(M)
     if tol is None:
@@ -642,8 +692,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         lo = 0 if _full_pass(steps) else dl
         C = MQ[dl:d] @ P.T
         F = P - C.T @ Q[dl:d]
-        C2 = MQ[lo:d] @ F.T
-        F -= C2.T @ Q[lo:d]
+        C2 = _project_out(F, Q[lo:d], MQ[lo:d], both)
         C2[dl - lo:d - lo] += C
         Hjj = C2[d0 - lo:d - lo]
         H[d0:d, d0:d] = 0.5 * (Hjj + Hjj.T)
