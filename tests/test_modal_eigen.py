@@ -88,29 +88,45 @@ def test_pardiso_block_solve_matches_vector_solves(cube):
     assert np.linalg.norm(A_ @ X - B) < 1e-8 * np.linalg.norm(B)
 
 
-def test_split_block_solves_give_the_same_band_bit_for_bit(cube, monkeypatch):
-    """Block solves shared between two factorization copies (the second core) change no
-    bit of the result, whether the second copy is used from the first step or never."""
+def test_early_start_and_split_solves_give_the_band_bit_for_bit(cube, monkeypatch):
+    """With two cores, block Lanczos starts before the count is known and shares its solves
+    and Gram-Schmidt passes with a second factorization once that is ready: the band is
+    right, and the same bit for bit whether the second copy joins in early or never."""
     if E.backend_name() != "pardiso":
         pytest.skip("pypardiso not installed")
     d, w = cube
     lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 66)
-    calls = []
+    monkeypatch.setattr(E, "SPLIT_MIN_DOFS", 0)
+    split_calls = []
     split_call = E._SplitSolve.__call__
 
-    def counting(self, B):
-        calls.append(self.second.done() and B.shape[1] >= 8)
+    def spy(self, B):
+        split_calls.append(self._ready() and B.shape[1] >= 8)
         return split_call(self, B)
 
-    monkeypatch.setattr(E._SplitSolve, "__call__", counting)
-    monkeypatch.setattr(E, "SPLIT_MIN_DOFS", 10**9)
-    whole = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
-    assert calls == []
+    monkeypatch.setattr(E._SplitSolve, "__call__", spy)
+    joined = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
+    assert sum(split_calls) > 0  # some block solves really were shared
+    assert len(joined.eigenvalues) == len(_band(w, lo, hi)) and joined.n_below == 6
+    assert np.allclose(joined.eigenvalues, _band(w, lo, hi), rtol=1e-9)
+    monkeypatch.setattr(E._SplitSolve, "_ready", lambda self: False)
+    alone = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
+    assert np.array_equal(joined.eigenvalues, alone.eigenvalues)
+    assert np.array_equal(joined.vectors, alone.vectors)
+
+
+def test_early_start_gives_up_when_the_count_is_too_large(cube, monkeypatch):
+    """A count above BLOCK_MAX_MODES, known only after the early start, hands the band to
+    spectrum slicing, which finds it all."""
+    if E.backend_name() != "pardiso":
+        pytest.skip("pypardiso not installed")
+    d, w = cube
+    lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 40)
     monkeypatch.setattr(E, "SPLIT_MIN_DOFS", 0)
-    split = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
-    assert sum(calls) > 0  # some block solves really were split
-    assert np.array_equal(whole.eigenvalues, split.eigenvalues)
-    assert np.array_equal(whole.vectors, split.vectors)
+    monkeypatch.setattr(E, "BLOCK_MAX_MODES", 10)
+    sol = E.solve_band(d.K, d.M, lo, hi, dense_max=10, slice_modes=20, backend="pardiso")
+    assert not sol.backend.startswith("block")
+    assert np.allclose(sol.eigenvalues, _band(w, lo, hi), rtol=1e-8)
 
 
 def test_split_solve_halves_equal_one_solve(cube):

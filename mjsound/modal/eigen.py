@@ -37,6 +37,7 @@ from __future__ import annotations
 import os
 import time
 import warnings
+from functools import partial
 
 import numpy as np
 import scipy.linalg as sla
@@ -380,34 +381,48 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     scale = max(float(lam_min), 1e-6 * float(lam_max), 1.0)
     sigma0 = -max(0.5 * scale, 1e-3 * float(lam_max))
     used = backend or (backend_name() if n >= PARDISO_MIN_DOFS else "superlu")
+    def block_fits(count):
+        return count is not None and 0 < count <= BLOCK_MAX_MODES and count < n // 4 and (
+            max_modes is None or count <= 2 * max_modes + 12)
+
     pool = None
     res = None
+    n_target = None
     try:
-        if used == "pardiso":
-            # the count (indefinite) and the first, definite factorization are independent:
-            # PARDISO releases the GIL, so they run side by side on two cores
+        if used == "pardiso" and n >= SPLIT_MIN_DOFS:
+            # Two cores: the worker counts (indefinite LDL^T) and then factors a second copy
+            # of K - sigma0 M while this thread factors the first and starts block Lanczos
+            # at once; the count is waited for only when the basis could hold the band, and
+            # the copy takes half of every block solve from when it is ready. PARDISO
+            # releases the GIL.
             from concurrent.futures import ThreadPoolExecutor
 
             pool = ThreadPoolExecutor(1)
+            A0 = K - sigma0 * M
             counting = pool.submit(count_below, K, M, lam_max, backend)
-            solve0 = factorize(K - sigma0 * M, backend, definite=True)
+            second = pool.submit(factorize, A0, backend, definite=True)
+            solve0 = factorize(A0, backend, definite=True)
+            res = _block_band(K, M, sigma0, lam_max, counting, _SplitSolve(solve0, pool, second),
+                              fits=block_fits)
             n_target = counting.result()
         else:
-            n_target = count_below(K, M, lam_max, backend)
-            solve0 = None
-        if n_target is not None and 0 < n_target <= BLOCK_MAX_MODES and n_target < n // 4 and (
-                max_modes is None or n_target <= 2 * max_modes + 12):
-            # The whole band from one definite factorization, by block Lanczos (its solves
-            # run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
-            if solve0 is None:
-                solve = factorize(K - sigma0 * M, backend, definite=True)
-            elif n >= SPLIT_MIN_DOFS:
-                # the second core, idle once the count is done, factors a second copy and
-                # then takes half of every block solve
-                solve = _SplitSolve(solve0, pool, pool.submit(factorize, K - sigma0 * M, backend, definite=True))
+            if used == "pardiso":
+                # the count and the definite factorization side by side on two cores
+                from concurrent.futures import ThreadPoolExecutor
+
+                pool = ThreadPoolExecutor(1)
+                counting = pool.submit(count_below, K, M, lam_max, backend)
+                solve0 = factorize(K - sigma0 * M, backend, definite=True)
+                n_target = counting.result()
             else:
-                solve = solve0
-            res = _block_band(K, M, sigma0, lam_max, n_target, solve, both=getattr(solve, "both", None))
+                n_target = count_below(K, M, lam_max, backend)
+                solve0 = None
+            if block_fits(n_target):
+                # The whole band from one definite factorization, by block Lanczos (its
+                # solves run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
+                if solve0 is None:
+                    solve0 = factorize(K - sigma0 * M, backend, definite=True)
+                res = _block_band(K, M, sigma0, lam_max, n_target, solve0)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -592,6 +607,12 @@ def _tol_scale(lam, lam_max):
     return np.sqrt(np.clip(np.asarray(lam) / lam_max, 1e-6, 1.0))
 
 
+#: widest block; also the width when block Lanczos starts before the count is known
+BLOCK_MAX_WIDTH = 16
+#: with the count still under way, no convergence test before the basis has this many vectors
+EARLY_MIN_DIM = 128
+
+
 def _block_size(n_target: int) -> int:
     """Block width: wide blocks make each PARDISO solve cheaper per vector (its
     forward/backward substitution runs as BLAS-3: 13.7 ms for one vector, 41 ms for 12, 47
@@ -599,7 +620,7 @@ def _block_size(n_target: int) -> int:
     basis (same bowl, 120 eigenvalues: 8 -> basis 304, 12 -> 336, 16 -> 368, 20 -> 400).
     16 was the fastest there with the solves split over two factorizations
     (:class:`_SplitSolve`; medians of 4 alternated solves 2.55 s against 2.78 s for 12)."""
-    return int(np.clip(n_target // 7, 4, 16))
+    return int(np.clip(n_target // 7, 4, BLOCK_MAX_WIDTH))
 
 
 _LAST = {}
@@ -621,7 +642,7 @@ def _full_pass(step: int) -> bool:
 
 
 def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
-                both=None):
+                both=None, fits=None):
     """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
 
     Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
@@ -641,20 +662,35 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
     :func:`_tol_scale`): every eigenvalue below
     ``lam_max`` is then found exactly once (Sylvester). ``solve`` takes blocks (n, b);
     ``apply_M(X) = (M X^T)^T`` for rows ``X`` (default :func:`.node_mass.mass_rows`);
-    ``both(f, g)`` returns ``(f(), g())`` and may run them side by side
-    (:meth:`_SplitSolve.both`). Returns ``(w, V)`` ascending, or None if the basis would
-    outgrow ``max_dim``.
+    ``both(f, g)`` returns ``(f(), g())`` and may run them side by side (default: the
+    ``both`` of ``solve``, :meth:`_SplitSolve.both`, if it has one).
+
+    ``n_target`` may also be a future of the count (it is then waited for once the basis
+    has :data:`EARLY_MIN_DIM` vectors, and no convergence test runs before that: the
+    result does not depend on when the count arrives); blocks are then
+    :data:`BLOCK_MAX_WIDTH` wide, and ``fits(count)`` says whether the block solve should
+    go on with that many. Returns ``(w, V)`` ascending, or None if the basis would outgrow
+    ``max_dim`` or ``fits`` said no.
     """
     n = K.shape[0]
     if both is None:
-        both = _in_turn
+        both = getattr(solve, "both", _in_turn)
+    early = not isinstance(n_target, (int, np.integer))  # a future: the count is under way
+    count = None if early else int(n_target)
     if apply_M is None:
         apply_M = mass_rows(M)
     if tol is None:
         tol = BLOCK_TOL
-    b = _block_size(n_target)
-    if max_dim is None:
-        max_dim = int(min(n - b, max(4 * n_target + 8 * b, 64), BLOCK_MAX_BYTES / (16 * n)))
+    b = _block_size(count) if count is not None else BLOCK_MAX_WIDTH
+    dim_cap = max_dim
+
+    def dim_limit(count):
+        if dim_cap is not None:
+            return int(dim_cap)
+        room = min(n - b, BLOCK_MAX_BYTES / (16 * n))
+        return int(room if count is None else min(room, max(4 * count + 8 * b, 64)))
+
+    max_dim = dim_limit(count)
     rng = np.random.default_rng(seed)
     # storage for the largest basis at once: np.empty/zeros only reserve address space, the
     # pages are touched as the basis grows (growing by copies cost 0.2 s on the bowl)
@@ -723,23 +759,36 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
                     Z -= (Z @ MW.T) @ W
             Z, MZ, _ = orthonormal(Z, apply_M(Z))
             W, MW = np.vstack([W, Z]), np.vstack([MW, MZ])
-        if d < 2 * n_target:  # no basis this small held all of them (bowl 3.1 n, beam 2.4 n)
+        if count is None:
+            if d < EARLY_MIN_DIM and d + W.shape[0] <= max_dim:
+                continue
+            count = n_target.result()
+            if fits is not None and not fits(count):
+                return None
+            max_dim = dim_limit(count)
+        if d < max(2 * count, EARLY_MIN_DIM if early else 0):
+            # no basis this small held all of them (bowl 3.1 n, beam 2.4 n)
+            if d + W.shape[0] > max_dim:
+                return None
             continue
         # the count first, from the eigenvalues alone (LAPACK syev without vectors: 10 ms
         # at d = 372 against 47 for selected pairs by syevr); the pairs (syevd, 22 ms) only
         # when the count is complete
         mu = sla.eigh(H[:d, :d], eigvals_only=True, driver="ev")
-        ok = np.sum(mu > mu_cut) == n_target
+        ok = np.sum(mu > mu_cut) == count
         if ok:
             mu, S = sla.eigh(H[:d, :d], driver="evd")
             want = mu > mu_cut
-            ok = np.sum(want) == n_target
+            ok = np.sum(want) == count
             mu, S = mu[want], S[:, want]
         if ok:
             est = np.linalg.norm(R @ S[d0:d], axis=0)
             if np.all(est <= tol * mu * _tol_scale(sigma + 1.0 / mu, lam_max)):
                 _LAST["dim"] = d
-                Y = S.T @ Q[:d]  # Ritz vectors as rows
+                # Ritz vectors as rows, in two halves (the cut depends on the count only)
+                h = S.shape[1] // 2
+                Qd = Q[:d]
+                Y = np.vstack(both(partial(np.matmul, S[:, :h].T, Qd), partial(np.matmul, S[:, h:].T, Qd)))
                 # Eigenvalues as Rayleigh quotients of the vectors (error ~ residual^2): the
                 # Ritz values sigma + 1/mu carry rounding of order eps * mu_max / mu, and
                 # mu_max (rigid modes, 1/|sigma|) is ~1e6 x the mu at the top of the band:
