@@ -14,8 +14,10 @@ Strategy (chosen by measurement, see ``scripts/bench_modal.py``):
     vector in blocks of 12 against 15..60 ms one at a time), and it stops when exactly
     ``n_target`` Ritz values lie below the band top, all converged: complete by Sylvester,
     whatever the multiplicities. Eigenvalues are the Rayleigh quotients of the vectors.
-    Once the count is done, the second core factors a copy of ``K - sigma M`` and takes
-    half of every later block solve (:class:`_SplitSolve`; same result bit for bit).
+    From :data:`SPLIT_MIN_DOFS` on, the Lanczos run starts right after the definite
+    factorization while the second core counts and then factors a copy of ``K - sigma M``,
+    which takes half of every later block solve and long Gram-Schmidt pass
+    (:class:`_SplitSolve`, :func:`_project_out`; same result bit for bit).
   - **spectrum slicing** otherwise (or if the block solve does not converge in its basis
     budget): shift-invert Lanczos (ARPACK). Each
     slice factors ``K - sigma M`` once (SuperLU with minimum-degree ordering on ``A + A^T`` and
