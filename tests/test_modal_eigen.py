@@ -114,8 +114,12 @@ def test_early_start_and_split_solves_give_the_band_bit_for_bit(cube, monkeypatc
         return split_call(self, B)
 
     monkeypatch.setattr(E._SplitSolve, "__call__", spy)
-    joined = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
+    fractions = []
+    joined = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso", progress=fractions.append)
     assert sum(split_calls) > 0  # some block solves really were shared
+    # the progress bar moves with the basis and ends full
+    assert len(fractions) > 3 and fractions[-1] == 1.0 and np.all(np.diff(fractions) >= 0)
+    assert max(fractions[:-1]) <= 0.95
     assert len(joined.eigenvalues) == len(_band(w, lo, hi)) and joined.n_below == 6
     assert np.allclose(joined.eigenvalues, _band(w, lo, hi), rtol=1e-9)
     monkeypatch.setattr(E._SplitSolve, "_ready", lambda self: False)

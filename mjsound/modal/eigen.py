@@ -405,7 +405,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             second = pool.submit(factorize, A0, backend, definite=True)
             solve0 = factorize(A0, backend, definite=True)
             res = _block_band(K, M, sigma0, lam_max, counting, _SplitSolve(solve0, pool, second),
-                              fits=block_fits)
+                              fits=block_fits, progress=progress)
             n_target = counting.result()
         else:
             if used == "pardiso":
@@ -424,7 +424,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
                 # solves run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
                 if solve0 is None:
                     solve0 = factorize(K - sigma0 * M, backend, definite=True)
-                res = _block_band(K, M, sigma0, lam_max, n_target, solve0)
+                res = _block_band(K, M, sigma0, lam_max, n_target, solve0, progress=progress)
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -644,7 +644,7 @@ def _full_pass(step: int) -> bool:
 
 
 def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
-                both=None, fits=None):
+                both=None, fits=None, progress=None):
     """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
 
     Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
@@ -671,8 +671,9 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
     has :data:`EARLY_MIN_DIM` vectors, and no convergence test runs before that: the
     result does not depend on when the count arrives); blocks are then
     :data:`BLOCK_MAX_WIDTH` wide, and ``fits(count)`` says whether the block solve should
-    go on with that many. Returns ``(w, V)`` ascending, or None if the basis would outgrow
-    ``max_dim`` or ``fits`` said no.
+    go on with that many. ``progress(fraction)`` hears the basis size against three times
+    the count (what the bowl needed), at most 0.95 before convergence. Returns ``(w, V)``
+    ascending, or None if the basis would outgrow ``max_dim`` or ``fits`` said no.
     """
     n = K.shape[0]
     if both is None:
@@ -768,6 +769,8 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
             if fits is not None and not fits(count):
                 return None
             max_dim = dim_limit(count)
+        if progress is not None:
+            progress(min(0.95, d / (3.0 * max(count, 1))))
         if d < max(2 * count, EARLY_MIN_DIM if early else 0):
             # no basis this small held all of them (bowl 3.1 n, beam 2.4 n)
             if d + W.shape[0] > max_dim:
