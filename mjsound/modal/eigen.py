@@ -383,6 +383,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     scale = max(float(lam_min), 1e-6 * float(lam_max), 1.0)
     sigma0 = -max(0.5 * scale, 1e-3 * float(lam_max))
     used = backend or (backend_name() if n >= PARDISO_MIN_DOFS else "superlu")
+
     def block_fits(count):
         return count is not None and 0 < count <= BLOCK_MAX_MODES and count < n // 4 and (
             max_modes is None or count <= 2 * max_modes + 12)
