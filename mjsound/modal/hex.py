@@ -345,6 +345,61 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
     return occ
 
 
+def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bool, serendipity: bool):
+    """The coarse cell's matrices as functions of its children's occupancies (cells, r^3).
+
+    Returns ``cell_K(occ)`` (cells, (3m)^2) in node-block order (:func:`_node_block_order`)
+    and ``cell_M(occ)`` (cells, m^2), the scalar node mass, for m parent nodes; ``hf`` is
+    the fine cell size [m].
+    """
+    Kf, Mf = hex_element_matrices(hf, material, incompatible=incompatible)
+    if order == 1:
+        L = _child_interpolations(r)
+        Lu = L[:, :, :24]
+        AK = _congruence(L if incompatible else Lu, Kf).reshape(r**3, -1)
+        AS = (hex_strain_integral(hf) @ L).reshape(r**3, 6 * 33)
+        D = _elasticity_matrix(material)
+        V_f = float(np.prod(hf))
+
+        def cell_K(ch):
+            if not incompatible:
+                return (ch @ AK)[:, _node_block_order(8)]
+            K33 = (ch @ AK).reshape(-1, 33, 33)
+            G = (ch @ AS).reshape(-1, 6, 33)
+            K33 = _taylor_correction(K33, G, ch.sum(axis=1) * V_f, D)
+            return _condense(K33).reshape(len(ch), -1)[:, _node_block_order(8)]
+
+        def mass_weight(ch):
+            return ch
+    else:
+        # Quadratic (20- or 27-node) parents follow curved thin walls without bubbles. Their
+        # nodes are not all pinned by the corners of a few filled children, so the empty
+        # children get a "stiff void": stiffness VOID_K and mass VOID_M of a full cell, which
+        # removes the null space and puts the void's own modes far above any audible band.
+        Lu = _child_interpolations_lagrange(r, order + 1)
+        if serendipity:
+            Lu = Lu @ np.kron(_serendipity_embedding(), np.eye(3))
+        AK = _SymmetricSum(_congruence(Lu, Kf), columns=_node_block_order(Lu.shape[2] // 3))
+
+        def cell_K(ch):
+            return AK(ch + VOID_K * (1.0 - ch))
+
+        def mass_weight(ch):
+            return ch + VOID_M * (1.0 - ch)
+
+    # Mass from the compatible field only, as for Wilson's element. The consistent mass of
+    # an isotropic field is (scalar node mass) x I3: M_f = m_f (x) I3 and L_c = W_c (x) I3,
+    # so L_c^T M_f L_c = (W_c^T m_f W_c) (x) I3 and only the scalar part is summed (9x
+    # fewer entries), and M = kron(M_node, I3) holds exactly (the eigensolver's fast mass
+    # product relies on it).
+    AM = _SymmetricSum(_congruence(Lu[:, 0::3, 0::3], Mf[0::3, 0::3]))
+
+    def cell_M(ch):
+        return AM(mass_weight(ch))
+
+    return cell_K, cell_M
+
+
 def discretize_hex(
     mesh: trimesh.Trimesh,
     material: Material,
@@ -411,6 +466,8 @@ def discretize_hex(
             f"hex grid of {tuple(nfine)} fine cells is too large; lower the quality or --resolution"
         )
     occ = _occupancy(mesh, lo, nfine, hc / r, supersample, thickness)
+    cell_K, cell_M = _cell_operators(hc / r, r, material, order, incompatible, serendipity)
+    q = int(order) + 1  # parent nodes per axis
     # (NX, r, NY, r, NZ, r) -> (cells, children) with child index a r^2 + b r + c
     child = occ.reshape(n[0], r, n[1], r, n[2], r).transpose(0, 2, 4, 1, 3, 5).reshape(-1, r**3)
     fill = child.mean(axis=1)
@@ -418,49 +475,6 @@ def discretize_hex(
     if len(active) == 0:
         raise ValueError("hex: the mesh fills no voxel; it is degenerate (zero volume and no area) or far too small")
     child = child[active].astype(np.float64)
-
-    Kf, Mf = hex_element_matrices(hc / r, material, incompatible=incompatible)
-    q = int(order) + 1  # parent nodes per axis
-    if order == 1:
-        L = _child_interpolations(r)
-        Lu = L[:, :, :24]
-        AK = _congruence(L if incompatible else Lu, Kf).reshape(r**3, -1)
-        AS = (hex_strain_integral(hc / r) @ L).reshape(r**3, 6 * 33)
-        D = _elasticity_matrix(material)
-        V_f = float(np.prod(hc / r))
-
-        def cell_K(ch):  # (cells, 24 x 24) in node-block order (_node_block_order)
-            if not incompatible:
-                return (ch @ AK)[:, _node_block_order(8)]
-            K33 = (ch @ AK).reshape(-1, 33, 33)
-            G = (ch @ AS).reshape(-1, 6, 33)
-            K33 = _taylor_correction(K33, G, ch.sum(axis=1) * V_f, D)
-            return _condense(K33).reshape(len(ch), -1)[:, _node_block_order(8)]
-
-        mass_weight = child
-    else:
-        # Quadratic (20- or 27-node) parents follow curved thin walls without bubbles. Their
-        # nodes are not all pinned by the corners of a few filled children, so the empty
-        # children get a "stiff void": stiffness VOID_K and mass VOID_M of a full cell, which
-        # removes the null space and puts the void's own modes far above any audible band.
-        Lu = _child_interpolations_lagrange(r, q)
-        if serendipity:
-            Lu = Lu @ np.kron(_serendipity_embedding(), np.eye(3))
-        AK = _SymmetricSum(_congruence(Lu, Kf), columns=_node_block_order(Lu.shape[2] // 3))
-        stiff_weight = child + VOID_K * (1.0 - child)
-        mass_weight = child + VOID_M * (1.0 - child)
-
-        def cell_K(ch, w=None):
-            return AK(ch)
-
-        child = stiff_weight
-
-    # Mass from the compatible field only, as for Wilson's element. The consistent mass of
-    # an isotropic field is (scalar node mass) x I3: M_f = m_f (x) I3 and L_c = W_c (x) I3,
-    # so L_c^T M_f L_c = (W_c^T m_f W_c) (x) I3 and only the scalar q^3 x q^3 part is summed
-    # (9x fewer entries), and M = kron(M_node, I3) holds exactly (the eigensolver's fast
-    # mass product relies on it).
-    AM = _SymmetricSum(_congruence(Lu[:, 0::3, 0::3], Mf[0::3, 0::3]))
 
     # cell (i, j, k) local node (a, b, c) -> lattice node ((q-1) i + a, ...)
     ci, cj, ck = np.unravel_index(active, tuple(n))
@@ -484,7 +498,7 @@ def discretize_hex(
         nd_c = node[s0:s0 + chunk]
         key = (nd_c[:, :, None].astype(np.int64) * nn + nd_c[:, None, :]).ravel()
         Kc = cell_K(child[s0:s0 + chunk]).reshape(-1, 9)
-        Mc = AM(mass_weight[s0:s0 + chunk]).reshape(-1, 1)
+        Mc = cell_M(child[s0:s0 + chunk]).reshape(-1, 1)
         key, Kc, Mc = _sum_blocks(key, Kc, Mc)
         keys.append(key)
         kb.append(Kc)
