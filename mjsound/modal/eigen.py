@@ -613,7 +613,7 @@ def _tol_scale(lam, lam_max):
 #: widest block; also the width when block Lanczos starts before the count is known
 BLOCK_MAX_WIDTH = 16
 #: with the count still under way, no convergence test before the basis has this many vectors
-EARLY_MIN_DIM = 128
+EARLY_MIN_DIM = 64
 
 
 def _block_size(n_target: int) -> int:
