@@ -390,36 +390,28 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
 
     pool = None
     res = None
-    n_target = None
     try:
-        if used == "pardiso" and n >= SPLIT_MIN_DOFS:
-            # Two cores: the worker counts (indefinite LDL^T) and then factors a second copy
-            # of K - sigma0 M while this thread factors the first and starts block Lanczos
-            # at once; the count is waited for only when the basis could hold the band, and
-            # the copy takes half of every block solve from when it is ready. PARDISO
-            # releases the GIL.
+        if used == "pardiso":
+            # PARDISO releases the GIL: the worker counts (indefinite LDL^T) while this
+            # thread factors the definite K - sigma0 M
             from concurrent.futures import ThreadPoolExecutor
 
             pool = ThreadPoolExecutor(1)
-            A0 = K - sigma0 * M
             counting = pool.submit(count_below, K, M, lam_max, backend)
+        if used == "pardiso" and n >= SPLIT_MIN_DOFS:
+            # Two cores for the whole solve: the worker then factors a second copy, this
+            # thread starts block Lanczos at once; the count is waited for only when the
+            # basis could hold the band, and the copy takes half of every block solve from
+            # when it is ready.
+            A0 = K - sigma0 * M
             second = pool.submit(factorize, A0, backend, definite=True)
             solve0 = factorize(A0, backend, definite=True)
             res = _block_band(K, M, sigma0, lam_max, counting, _SplitSolve(solve0, pool, second),
                               fits=block_fits, progress=progress)
             n_target = counting.result()
         else:
-            if used == "pardiso":
-                # the count and the definite factorization side by side on two cores
-                from concurrent.futures import ThreadPoolExecutor
-
-                pool = ThreadPoolExecutor(1)
-                counting = pool.submit(count_below, K, M, lam_max, backend)
-                solve0 = factorize(K - sigma0 * M, backend, definite=True)
-                n_target = counting.result()
-            else:
-                n_target = count_below(K, M, lam_max, backend)
-                solve0 = None
+            solve0 = factorize(K - sigma0 * M, backend, definite=True) if used == "pardiso" else None
+            n_target = counting.result() if used == "pardiso" else count_below(K, M, lam_max, backend)
             if block_fits(n_target):
                 # The whole band from one definite factorization, by block Lanczos (its
                 # solves run as BLAS-3 on blocks of vectors), complete by the Sylvester count.

@@ -345,12 +345,13 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
     return occ
 
 
-def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bool, serendipity: bool):
+def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bool, embed=None):
     """The coarse cell's matrices as functions of its children's occupancies (cells, r^3).
 
     Returns ``cell_K(occ)`` (cells, (3m)^2) in node-block order (:func:`_node_block_order`)
     and ``cell_M(occ)`` (cells, m^2), the scalar node mass, for m parent nodes; ``hf`` is
-    the fine cell size [m].
+    the fine cell size [m], ``embed`` the quadratic cell's 27-node values from its own
+    nodes (:func:`_serendipity_embedding`; None: all 27 nodes).
     """
     Kf, Mf = hex_element_matrices(hf, material, incompatible=incompatible)
     if order == 1:
@@ -377,8 +378,8 @@ def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bo
         # children get a "stiff void": stiffness VOID_K and mass VOID_M of a full cell, which
         # removes the null space and puts the void's own modes far above any audible band.
         Lu = _child_interpolations_lagrange(r, order + 1)
-        if serendipity:
-            Lu = Lu @ np.kron(_serendipity_embedding(), np.eye(3))
+        if embed is not None:
+            Lu = Lu @ np.kron(embed, np.eye(3))
         AK = _SymmetricSum(_congruence(Lu, Kf), columns=_node_block_order(Lu.shape[2] // 3))
 
         def cell_K(ch):
@@ -466,7 +467,8 @@ def discretize_hex(
             f"hex grid of {tuple(nfine)} fine cells is too large; lower the quality or --resolution"
         )
     occ = _occupancy(mesh, lo, nfine, hc / r, supersample, thickness)
-    cell_K, cell_M = _cell_operators(hc / r, r, material, order, incompatible, serendipity)
+    embed = _serendipity_embedding() if order == 2 and serendipity else None
+    cell_K, cell_M = _cell_operators(hc / r, r, material, order, incompatible, embed)
     q = int(order) + 1  # parent nodes per axis
     # (NX, r, NY, r, NZ, r) -> (cells, children) with child index a r^2 + b r + c
     child = occ.reshape(n[0], r, n[1], r, n[2], r).transpose(0, 2, 4, 1, 3, 5).reshape(-1, r**3)
@@ -479,11 +481,11 @@ def discretize_hex(
     # cell (i, j, k) local node (a, b, c) -> lattice node ((q-1) i + a, ...)
     ci, cj, ck = np.unravel_index(active, tuple(n))
     loc = np.array([[a, b, c] for c in range(q) for b in range(q) for a in range(q)])  # x fastest
-    if order == 2 and serendipity:
+    if embed is not None:
         loc = loc[_serendipity_nodes()]
     gnode = np.ravel_multi_index(
         ((q - 1) * ci[:, None] + loc[None, :, 0], (q - 1) * cj[:, None] + loc[None, :, 1],
-         (q - 1) * ck[:, None] + loc[None, :, 2]), tuple((q - 1) * n + 1))  # (cells, q^3)
+         (q - 1) * ck[:, None] + loc[None, :, 2]), tuple((q - 1) * n + 1))  # (cells, nodes per cell)
     used, node = np.unique(gnode, return_inverse=True)
     node = node.reshape(gnode.shape)
     ndof = 3 * len(used)
@@ -511,10 +513,9 @@ def discretize_hex(
     M_node = sp.csr_matrix((Mb[:, 0], bcol, indptr), shape=(nn, nn))
     M = sp.kron(M_node, sp.identity(3), format="csr")
 
-    interp = _point_interpolation(points, lo, n, hc, active, node, q,
-                                  _serendipity_embedding() if order == 2 and serendipity else None)
+    interp = _point_interpolation(points, lo, n, hc, active, node, q, embed)
     info = {
-        "element": ("hex20" if serendipity else "hex27") if order == 2 else ("hex8-incompatible" if incompatible else "hex8"),
+        "element": ("hex20" if embed is not None else "hex27") if order == 2 else ("hex8-incompatible" if incompatible else "hex8"),
         "h": hc.tolist(),
         "grid": n.tolist(),
         "refine": r,

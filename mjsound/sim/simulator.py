@@ -362,10 +362,8 @@ class AudioSimulator:
         dt = c.timestep
         if self._opt.timestep != dt or abs(self.data.time - (c.t_start + (c.k + 1) * dt)) > 0.25 * dt:
             self._reanchor_clock()
-        n0 = c.n
-        c.k += 1
-        c.n = c.sample_at(c.k)
-        return self._process(n0, c.n, render=render)
+        n0, n1 = c.advance()
+        return self._process(n0, n1, render=render)
 
     def substeps(self, nstep: int) -> None:
         """``mj_step`` then :meth:`step` ``(render=False)``, ``nstep`` times (a gymnasium env's

@@ -794,7 +794,7 @@ class Synthesizer:
         st = self._st
         SI, SF = st["SI"], st["SF"]
         if kernels.any_due(SI, self._st_n):
-            if self.on_regain is not None:
+            if self.on_regain is not None and not self.poses_current:
                 self.on_regain()
             g = self._gain_data
             dmax = kernels.streams_gains(self._st_n, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
