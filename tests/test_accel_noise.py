@@ -1,0 +1,227 @@
+"""Acceleration noise (rigid-body clicks) against the closed forms of a rigid sphere and an
+ellipsoid, and the band-limited pulse renderer against plain references."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import spherical_jn, spherical_yn
+
+from mjsound.synth import accel_noise as an
+from mjsound.synth import bandlimited as bl
+
+FS = 48000
+RHO, C = an.RHO_AIR, an.SPEED_OF_SOUND
+
+
+def _half_sine_accel(w, tau, dv):
+    """Spectrum of a(t) = dv pi/(2 tau) sin(pi t / tau) on [0, tau], written out directly."""
+    wp = math.pi / tau
+    w = np.asarray(w, dtype=np.float64)
+    num = dv * wp * wp * (1.0 + np.exp(-1j * w * tau))
+    den = 2.0 * (wp * wp - w * w)
+    near = np.abs(den) < 1e-9 * wp * wp
+    out = num / np.where(near, 1.0, den)
+    return np.where(near, -1j * dv * math.pi / 4.0, out)
+
+
+def _hankel_sphere(w, a, r, cos_theta, accel):
+    """Rigid sphere, e^{jwt}: p = -j rho c U cos(theta) h1(kr) / h1'(ka), U = A / (j w),
+    h1 = j1 - j y1 (Morse & Ingard sec. 7.2), from scipy's spherical Bessel functions."""
+    w = np.asarray(w, dtype=np.float64)
+    k = w / C
+    h = spherical_jn(1, k * r) - 1j * spherical_yn(1, k * r)
+    hd = spherical_jn(1, k * a, derivative=True) - 1j * spherical_yn(1, k * a, derivative=True)
+    return -1j * RHO * C * (accel / (1j * w)) * cos_theta * h / hd
+
+
+def _lowpass(f_over_fs):
+    x = np.clip((f_over_fs - bl.PASS_FRACTION) / (0.5 - bl.PASS_FRACTION), 0.0, 1.0)
+    return np.where(f_over_fs >= 0.5, 0.0, 0.5 * (1.0 + np.cos(np.pi * x)))
+
+
+def _render(pulses, dv, n, fs=FS):
+    track = bl.PulseTrack(int(pulses["channel"].max()) + 1, fs)
+    track.add(pulses, dv)
+    return track.take(n)
+
+
+def _reference_samples(spectrum, times, fs=FS, n_w=40000):
+    """p_n = (1/pi) int_0^{pi fs} Re(P(w) G(w) e^{j w t_n}) dw by the trapezoid rule."""
+    w = np.linspace(1e-3, math.pi * fs, n_w)
+    pw = spectrum(w) * _lowpass(w / (2 * math.pi * fs))
+    ph = np.exp(1j * np.outer(times, w))
+    return np.trapezoid((pw[None, :] * ph).real, w, axis=1) / math.pi
+
+
+def test_rigid_sphere_matches_hankel_closed_form_level_and_spectrum():
+    a, r, theta, tau, dv = 0.05, 0.7, math.radians(40.0), 30e-6, 1.0  # ka = 17 at 19 kHz
+    mic = np.array([[r * math.sin(theta), 0.0, 0.3 + r * math.cos(theta)]])
+    t_e = 0.0102
+    pulses = an.click_pulses([0, 0, 0.3], np.eye(3), [a, a, a], [0, 0, 1], mic, t_e, tau)
+    n = 1024
+    got = _render(pulses, dv, n)[0]
+    times = np.arange(n) / FS
+
+    def spectrum(w):
+        return _hankel_sphere(w, a, r, math.cos(theta), _half_sine_accel(w, tau, dv)) * np.exp(-1j * w * t_e)
+
+    ref = _reference_samples(spectrum, times)
+    peak = np.abs(ref).max()
+    assert peak > 1.0  # a 10 cm sphere stopped by 1 m/s in 30 us: pascals at 0.7 m
+    assert np.abs(got - ref).max() < 2e-3 * peak
+    level = 20 * math.log10(np.sqrt(np.mean(got**2)) / np.sqrt(np.mean(ref**2)))
+    assert abs(level) < 1.0
+    # spectrum shape: the rendered click's spectrum against |P| of the closed form in band
+    f = np.fft.rfftfreq(n, 1 / FS)
+    spec = np.abs(np.fft.rfft(got)) / FS
+    band = (f > 100) & (f < 0.38 * FS)
+    want = np.abs(spectrum(2 * math.pi * f[band]))
+    err_db = 20 * np.log10(spec[band] / want)
+    assert np.abs(err_db).max() < 0.1
+    # and the closed form has the shape the physics says: the compact dipole (near field and
+    # the jerk-following far field) well below c / (2 pi a) = 1.1 kHz, rho c |U| a cos / r far above
+    f_lo, f_hi = 60.0, 9000.0
+    w_lo, w_hi = 2 * math.pi * f_lo, 2 * math.pi * f_hi
+    acc = np.abs(_half_sine_accel(np.array([w_lo, w_hi]), tau, dv))
+    compact = RHO * a**3 * math.cos(theta) / (2 * r * r) * abs(1 + 1j * w_lo * r / C) * acc[0]
+    rigid_piston = RHO * C * a * math.cos(theta) / r * acc[1] / w_hi
+    assert 20 * math.log10(abs(spectrum(w_lo)) / compact) == pytest.approx(0.0, abs=0.1)
+    assert 20 * math.log10(abs(spectrum(w_hi)) / rigid_piston) == pytest.approx(0.0, abs=0.5)
+
+def test_compact_sphere_time_domain_closed_form():
+    """ka << 1: p(t) = rho a^3 cos(theta) / (2 r^2) (a(t') + (r/c) da/dt(t')), t' = t - r/c."""
+    a, r, tau, dv = 0.005, 0.3, 2e-3, 0.8
+    t_e = 0.0051
+    for theta in (0.0, math.radians(60.0), math.pi):
+        mic = np.array([[r * math.sin(theta), 0.0, r * math.cos(theta)]])
+        pulses = an.click_pulses([0, 0, 0], np.eye(3), [a, a, a], [0, 0, 1], mic, t_e, tau)
+        got = _render(pulses, dv, 800)[0]
+        t = np.arange(800) / FS - t_e - r / C
+        on = (t >= 0) & (t <= tau)
+        acc = np.where(on, dv * math.pi / (2 * tau) * np.sin(math.pi * t / tau), 0.0)
+        jerk = np.where(on, dv * math.pi**2 / (2 * tau**2) * np.cos(math.pi * t / tau), 0.0)
+        want = RHO * a**3 * math.cos(theta) / (2 * r * r) * (acc + r / C * jerk)
+        peak = np.abs(want).max()
+        away = (np.abs(t) > 4 / FS) & (np.abs(t - tau) > 4 / FS)  # Gibbs ringing at the jerk's jumps
+        if abs(math.cos(theta)) < 1e-12:
+            continue
+        assert np.abs(got - want)[away].max() < 0.02 * peak
+        assert 20 * math.log10(np.abs(got).max() / peak) == pytest.approx(0.0, abs=1.0)
+        assert np.sign(got[np.argmax(np.abs(want))]) == np.sign(math.cos(theta))
+
+
+def test_click_direction_angle_and_clamped_distance():
+    a = 0.02
+    mics = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, 0, -0.5], [0, 0, 0.001]])
+    p = an.click_pulses([0, 0, 0], np.eye(3), [a, a, a], [0, 0, 2.0], mics, 0.5, 1e-4)
+    k = RHO * a**3 / 2  # 2 pi rho a^3 / (4 pi) per m/s^2
+    assert p["b0"][0] == pytest.approx(k / 1.0)
+    assert p["b1"][0] == pytest.approx(k / C)
+    assert p["b0"][1] == pytest.approx(0.0, abs=1e-15)
+    assert p["b0"][2] == pytest.approx(-k / 0.25)
+    assert p["b0"][3] == pytest.approx(k / a**2)  # inside the body: at its surface
+    assert p["time_s"][:3] == pytest.approx(0.5 + (np.array([1.0, 1.0, 0.5]) - a) / C)
+    assert p["d1"][0] == pytest.approx(a / C) and p["d2"][0] == pytest.approx(a * a / (2 * C * C))
+    with pytest.raises(ValueError, match="direction"):
+        an.click_pulses([0, 0, 0], np.eye(3), [a, a, a], [0, 0, 0], mics, 0.0, 1e-4)
+
+
+def test_ellipsoid_added_mass_against_lamb():
+    assert an.ellipsoid_alphas([0.1, 0.1, 0.1]) == pytest.approx([2 / 3] * 3)
+    vol = 4 / 3 * math.pi * 0.1**3
+    assert an.dipole_masses([0.1, 0.1, 0.1]) == pytest.approx([1.5 * RHO * vol] * 3)
+    # prolate spheroid a > b = c, eccentricity e: alpha_a = 2 (1 - e^2)/e^3 (atanh e - e) (Lamb sec. 115)
+    aa, b = 0.3, 0.1
+    e = math.sqrt(1 - (b / aa) ** 2)
+    alpha0 = 2 * (1 - e * e) / e**3 * (math.atanh(e) - e)
+    al = an.ellipsoid_alphas([aa, b, b])
+    assert al[0] == pytest.approx(alpha0, rel=1e-10)
+    assert al.sum() == pytest.approx(2.0)
+    assert al[1] == pytest.approx((2 - alpha0) / 2)
+    # thin rod: along it only the displaced air moves, across it twice that
+    m = an.dipole_masses([1.0, 1e-3, 1e-3])
+    v = 4 / 3 * math.pi * 1e-6
+    assert m[0] == pytest.approx(RHO * v, rel=1e-3) and m[1] == pytest.approx(2 * RHO * v, rel=1e-3)
+    assert an.equivalent_radius([0.3, 0.1, 0.1]) == pytest.approx((0.3 * 0.01) ** (1 / 3))
+
+
+def test_equivalent_ellipsoid_from_inertia():
+    mass, axes = 2.0, np.array([0.3, 0.1, 0.05])
+    inertia = mass / 5 * np.array([axes[1] ** 2 + axes[2] ** 2, axes[0] ** 2 + axes[2] ** 2, axes[0] ** 2 + axes[1] ** 2])
+    assert an.ellipsoid_from_inertia(mass, inertia) == pytest.approx(axes)
+    # a 5 cm cube: I = m s^2 / 6 about every axis -> a = sqrt(5/3) s / 2
+    s = 0.05
+    assert an.ellipsoid_from_inertia(0.13, [0.13 * s * s / 6] * 3) == pytest.approx([math.sqrt(5 / 3) * s / 2] * 3)
+    rod = an.ellipsoid_from_inertia(1.0, [0.0, 0.1, 0.1])
+    assert rod[1] == pytest.approx(1e-3 * rod[0])
+    for bad_m, bad_i in ((0.0, [1, 1, 1]), (float("nan"), [1, 1, 1]), (1.0, [0, 0, 0]), (1.0, [1, -1, 1])):
+        with pytest.raises(ValueError):
+            an.ellipsoid_from_inertia(bad_m, bad_i)
+    with pytest.raises(ValueError, match="semi_axes"):
+        an.ellipsoid_alphas([0.1, 0.0, 0.1])
+
+
+def test_fft_matches_numpy():
+    rng = np.random.default_rng(0)
+    for n in (2, 64, 512):
+        x = rng.standard_normal(n) + 1j * rng.standard_normal(n)
+        y = x.copy()
+        bl.fft_inplace(y, False)
+        assert np.abs(y - np.fft.fft(x)).max() < 1e-12 * n
+        y = x.copy()
+        bl.fft_inplace(y, True)
+        assert np.abs(y - np.fft.ifft(x)).max() < 1e-14 * n
+
+
+def _accel_pulse(t, tau, channel=0, b0=1.0):
+    p = np.zeros(1, bl.PULSE_DTYPE)
+    p["time_s"], p["tau_s"], p["b0"], p["channel"] = t, tau, b0, channel
+    return p
+
+
+def test_pulse_track_integral_blocks_and_nothing_pending():
+    track = bl.PulseTrack(2, FS)
+    assert track.take(480) is None  # nothing pending: no work, nothing to add
+    track.add(_accel_pulse(0.0201, 5e-6, channel=1), 2.5)
+    whole = bl.PulseTrack(2, FS)
+    whole.reset(480)
+    whole.add(_accel_pulse(0.0201, 5e-6, channel=1), 2.5)
+    ref = whole.take(2000)
+    sizes = (400, 300, 1300)
+    parts = [track.take(k) for k in sizes]
+    assert parts[0] is None  # samples 480..879: the pulse's window starts at 932
+    got = np.concatenate([np.zeros((2, k)) if b is None else b for b, k in zip(parts, sizes)], axis=1)
+    assert np.array_equal(got, ref)
+    assert ref[0].max() == 0.0
+    assert ref[1].sum() / FS == pytest.approx(2.5, rel=1e-9)  # the acceleration integrates to dv
+    assert track.take(10) is None
+    # a pulse longer than a window can hold is counted, not rendered
+    track.add(_accel_pulse(0.05, 5.0), 1.0)
+    assert track.dropped == 1 and track.take(10) is None
+
+
+def test_pulse_track_drops_only_pre_ringing_before_handed_out_audio():
+    tau, t0 = 2e-5, 100 / FS  # on a sample boundary
+    full = bl.PulseTrack(1, FS)
+    full.add(_accel_pulse(t0, tau), 1.0)
+    ref = full.take(400)[0]
+    late = bl.PulseTrack(1, FS)
+    assert late.take(100) is None
+    late.add(_accel_pulse(t0, tau), 1.0)
+    got = late.take(300)[0]
+    assert np.array_equal(got, ref[100:])
+    lost_db = 10 * math.log10(np.sum(got**2) / np.sum(ref**2))
+    assert -0.3 < lost_db < 0.0
+
+
+def test_pulse_track_rejects_bad_input():
+    track = bl.PulseTrack(1, FS)
+    with pytest.raises(ValueError, match="finite"):
+        track.add(_accel_pulse(float("nan"), 1e-4), 1.0)
+    with pytest.raises(ValueError, match="channel"):
+        track.add(_accel_pulse(0.0, 1e-4, channel=3), 1.0)
+    with pytest.raises(ValueError, match="tau_s"):
+        track.add(_accel_pulse(0.0, -1e-4), 1.0)
+    with pytest.raises(ValueError, match="sample_rate"):
+        bl.PulseTrack(1, 0)
