@@ -51,7 +51,7 @@ import sys
 import time as _time
 import traceback
 
-__all__ = ["sonify_batch", "find_rollouts", "output_is_complete", "register_cli", "SIDECAR_FORMAT"]
+__all__ = ["sonify_batch", "find_rollouts", "output_is_complete", "SIDECAR_FORMAT"]
 
 #: ``format`` field of the sidecar JSON; a sidecar of another format is never trusted.
 SIDECAR_FORMAT = "mjsound-batch/1"
@@ -176,8 +176,39 @@ def _canonical(obj):
 _WORKER_MODELS = None  # set by the local pool's initializer
 
 
-def _init_local_worker(models) -> None:
+def _die_with_parent(parent_pid: int) -> None:
+    """End this worker when the driver process ends, however it ends (a SIGKILL or the OOM
+    killer included): on Linux the kernel sends SIGKILL when the parent dies
+    (``prctl(PR_SET_PDEATHSIG)``); everywhere a daemon thread also polls the parent's pid
+    once a second and exits when the worker has been re-parented."""
+    import threading
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            PR_SET_PDEATHSIG = 1
+            libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no libc prctl: the thread below
+            pass
+    if os.getppid() != parent_pid:  # the driver died before the call above
+        os._exit(1)
+
+    def watch():
+        while True:
+            _time.sleep(1.0)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="mjsound-parent-watch", daemon=True).start()
+
+
+def _init_local_worker(models, parent_pid=None) -> None:
     global _WORKER_MODELS
+    if parent_pid is not None:
+        _die_with_parent(parent_pid)
     _WORKER_MODELS = models
 
 
@@ -207,7 +238,7 @@ def _run_job(job, models) -> dict:
         from .sim.rollout import sonify
 
         kwargs = dict(job["sonify"])
-        kwargs.update(rollout=job["rollout"], out=job["wav"], progress=False)
+        kwargs.update(rollout=job["rollout"], out=job["wav"], progress=False, keep_audio=False)
         if os.path.exists(job["sidecar"]):  # about to replace the WAV: the old sidecar is void
             os.unlink(job["sidecar"])
         kwargs["models"] = models  # computed once by the driver
@@ -271,7 +302,7 @@ def _run_pool(jobs, models, workers, max_retries, on_result) -> dict:
     restarts = 0
     while queue or solo:
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_local_worker,
-                                 initargs=(models,)) as ex:
+                                 initargs=(models, os.getpid())) as ex:
             inflight = {}  # at most `workers`: a dead worker implicates only these
             dead = []
             while (queue or solo or inflight) and not dead:
@@ -436,7 +467,8 @@ def sonify_batch(
     import mujoco
 
     from . import __version__
-    from .sim.rollout import _load_materials
+    from .limits import check_duration, check_sample_rate, check_timestep
+    from .sim.rollout import load_materials
 
     t_start = _time.perf_counter()
     if mode not in ("auto", "resim", "replay"):
@@ -445,6 +477,14 @@ def sonify_batch(
         raise ValueError(f"workers={workers} must be >= 1")
     scene_xml = os.path.abspath(os.fspath(scene_xml))
     outdir = os.path.abspath(os.fspath(outdir))
+    if os.path.exists(outdir) and not os.path.isdir(outdir):
+        raise ValueError(f"output directory {outdir!r} is a file: give a directory (created if missing) for "
+                         "<stem>.wav and <stem>.json")
+    sample_rate = check_sample_rate(sample_rate)
+    if timestep is not None:
+        timestep = check_timestep(timestep)
+    if duration is not None:
+        duration = check_duration(duration)
     paths = [os.path.abspath(p) for p in find_rollouts(rollouts)]
     seen = {}
     for p in paths:
@@ -457,10 +497,8 @@ def sonify_batch(
 
     model = mujoco.MjModel.from_xml_path(scene_xml)
     if timestep is not None:
-        if not (timestep > 0 and timestep == timestep and timestep != float("inf")):
-            raise ValueError(f"timestep={timestep} must be a positive number of seconds")
         model.opt.timestep = float(timestep)
-    mats = _load_materials(materials)
+    mats = load_materials(materials)
     scene_sha = _scene_hash(scene_xml, model)
     sonify_kwargs = dict(duration=duration, timestep=timestep, sample_rate=int(sample_rate), materials=mats,
                          mode=mode, quality=quality, budget_modes=budget_modes, full_scale_pa=full_scale_pa,
@@ -558,59 +596,3 @@ def sonify_batch(
         "outdir": outdir,
         **info,
     }
-
-
-# ---------------------------------------------------------------------- CLI
-def register_cli(subparsers) -> None:
-    """Add the ``sonify-batch`` subcommand to an argparse ``subparsers``."""
-    p = subparsers.add_parser(
-        "sonify-batch",
-        help="sonify many rollouts of one scene (local process pool, or Ray with --address)",
-        description="Sonify every rollout .npz (files or directories of them) of SCENE into OUTDIR/<stem>.wav, "
-        "each identical to `mjsound sonify SCENE --rollout R`. Modal models are computed once and shared with the "
-        "workers. Reruns skip finished outputs (checked against a <stem>.json sidecar); a failing rollout is "
-        "reported and the others go on (exit status 1 if any failed).",
-    )
-    p.add_argument("rollouts", nargs="+", help="rollout .npz files or directories of them")
-    p.add_argument("--scene", required=True, help="MJCF scene file")
-    p.add_argument("-o", "--outdir", required=True, help="output directory")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: all CPUs); on Ray: tasks in flight")
-    p.add_argument("--address", default=None,
-                   help="run on Ray: 'auto' (running cluster), a Ray address, or 'local' (private instance)")
-    p.add_argument("--rrd", action="store_true", help="also write a rerun recording <stem>.rrd per rollout")
-    p.add_argument("--duration", type=float, default=None, help="simulated seconds per rollout (default: all)")
-    from .sim.rollout import add_sonify_options
-
-    add_sonify_options(p)
-    p.add_argument("--force", action="store_true", help="redo every rollout (do not skip finished outputs)")
-    p.add_argument("--retries", type=int, default=2, help="retries of a task whose worker process died (default 2)")
-    p.add_argument("--json", action="store_true", help="print one JSON summary object")
-    p.set_defaults(func=_run_cli)
-
-
-def _run_cli(args) -> int:
-    try:
-        s = sonify_batch(
-            args.rollouts, args.scene, args.outdir, workers=args.workers, address=args.address,
-            duration=args.duration, timestep=args.timestep, sample_rate=args.sample_rate, materials=args.materials,
-            mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
-            full_scale_pa=args.full_scale_pa, normalize=args.normalize, rrd=args.rrd, resume=not args.force,
-            max_retries=args.retries, progress=not args.json and sys.stderr.isatty(),
-        )
-    except (ImportError, ConnectionError) as exc:
-        print(f"mjsound sonify-batch: error: {exc}", file=sys.stderr)
-        return 2
-    if args.json:
-        out = dict(s)
-        out["failed"] = [{k: v for k, v in f.items() if k != "traceback"} for f in s["failed"]]
-        print(json.dumps(out, default=_json_default))
-    else:
-        print(f"rollouts   {s['n_rollouts']}: {len(s['done'])} sonified, {len(s['skipped'])} skipped (complete), "
-              f"{len(s['failed'])} failed")
-        print(f"backend    {s['backend']}, {s['workers']} worker(s); modal analysis {s['analysis_seconds']:.1f} s (once)")
-        print(f"throughput {s['audio_seconds']:.1f} s of audio in {s['wall_seconds']:.1f} s wall = "
-              f"{s['throughput']:.2f} audio-s/s")
-        for f in s["failed"]:
-            print(f"  FAILED {f['rollout']}: {f['error']}", file=sys.stderr)
-        print(f"outputs    {s['outdir']}")
-    return 1 if s["failed"] else 0

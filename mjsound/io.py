@@ -1,22 +1,80 @@
-"""Small file helpers shared by every writer: atomic replacement with normal permissions."""
+"""Small file helpers shared by every writer: atomic replacement with normal permissions,
+temporary files that never outlive their run, and output-path checks.
+
+Temporary files are named ``.mjsound-tmp-<host>-<pid>-<random><suffix>`` in the directory of
+the final file. A run that is killed (SIGKILL, OOM) cannot remove its own; the next run that
+writes into the same directory removes every such file of this host whose process is gone
+(:func:`remove_stale_temps`).
+"""
 
 from __future__ import annotations
 
 import os
+import socket
 import tempfile
 
-__all__ = ["temp_beside", "commit_temp"]
+__all__ = ["temp_beside", "commit_temp", "discard_temp", "remove_stale_temps", "check_output_file", "TEMP_PREFIX"]
+
+#: Prefix of every temporary file mjsound writes.
+TEMP_PREFIX = ".mjsound-tmp-"
+_swept: set = set()
+
+
+def _host() -> str:
+    return "".join(c if c.isalnum() else "_" for c in socket.gethostname())[:40] or "host"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, another user's
+        return True
+    return True
+
+
+def remove_stale_temps(directory) -> list:
+    """Delete this host's mjsound temporary files in ``directory`` whose process has ended.
+
+    Returns the removed paths. Files of other hosts (a shared file system) and of running
+    processes are left alone.
+    """
+    d = os.fspath(directory)
+    head = f"{TEMP_PREFIX}{_host()}-"
+    removed = []
+    try:
+        names = os.listdir(d)
+    except OSError:
+        return removed
+    for name in names:
+        if not name.startswith(head):
+            continue
+        pid_text = name[len(head):].split("-", 1)[0]
+        if not pid_text.isdigit() or int(pid_text) == os.getpid() or _alive(int(pid_text)):
+            continue
+        path = os.path.join(d, name)
+        try:
+            os.unlink(path)
+            removed.append(path)
+        except OSError:
+            pass
+    return removed
 
 
 def temp_beside(path, suffix: str = "") -> tuple[int, str]:
     """A temporary file in the directory of ``path`` (created if needed): ``(fd, tmp_path)``.
 
     Writing there and then :func:`commit_temp` makes the final file appear whole or not
-    at all (``os.replace`` is atomic within one file system).
+    at all (``os.replace`` is atomic within one file system). The first call per directory
+    and process removes stale temporary files left by killed runs.
     """
     d = os.path.dirname(os.path.abspath(os.fspath(path))) or "."
     os.makedirs(d, exist_ok=True)
-    return tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix)
+    if d not in _swept:
+        _swept.add(d)
+        remove_stale_temps(d)
+    return tempfile.mkstemp(dir=d, prefix=f"{TEMP_PREFIX}{_host()}-{os.getpid()}-", suffix=suffix)
 
 
 def commit_temp(tmp: str, path) -> None:
@@ -26,3 +84,37 @@ def commit_temp(tmp: str, path) -> None:
     os.umask(mask)
     os.chmod(tmp, 0o666 & ~mask)
     os.replace(tmp, os.fspath(path))
+
+
+def discard_temp(tmp) -> None:
+    """Remove a temporary file if it is still there (never raises)."""
+    try:
+        os.unlink(tmp)
+    except OSError:
+        pass
+
+
+def check_output_file(path, suffixes, option: str = "output") -> str:
+    """Check an output path before any work: not a directory, a known suffix, a parent that
+    is (or can become) a directory. Returns the path; raises ``ValueError`` naming ``option``.
+
+    Parameters
+    ----------
+    suffixes : tuple of str
+        Accepted suffixes, lower case with the dot (``(".wav", ".flac")``).
+    """
+    p = os.fspath(path)
+    if not p:
+        raise ValueError(f"{option}: empty file name")
+    if os.path.isdir(p):
+        raise ValueError(f"{option} {p!r} is a directory: give a file name, e.g. {os.path.join(p, 'out' + suffixes[0])}")
+    ext = os.path.splitext(p)[1].lower()
+    if ext not in suffixes:
+        raise ValueError(f"{option} {p!r}: the file type {ext or '(none)'!r} is not supported; "
+                         f"use {' or '.join(suffixes)}")
+    parent = os.path.dirname(os.path.abspath(p))
+    while parent and not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if parent and not os.path.isdir(parent):
+        raise ValueError(f"{option} {p!r}: {parent!r} is a file, not a directory")
+    return p

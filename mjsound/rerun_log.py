@@ -84,7 +84,11 @@ class RerunLogger:
     Parameters
     ----------
     path : str | os.PathLike
-        The ``.rrd`` file to write.
+        The ``.rrd`` file to write. The recording goes to a temporary file beside it that
+        :meth:`close` renames into place, so an earlier recording of the same name survives
+        an interrupted run (:meth:`abort`, or an exception inside ``with``) untouched. The
+        take's audio is held in memory until :meth:`close` (it is logged as one waveform,
+        spectrogram and WAV asset): about 4 bytes per sample and microphone.
     model : mujoco.MjModel
     sim : AudioSimulator, optional
         Its ``scene`` names the microphones, its ``event_log`` gives the impact texts and its
@@ -127,10 +131,12 @@ class RerunLogger:
         self.force_scale = float(force_scale)
         self.full_scale_pa = full_scale_pa
         self.n_fft, self.hop = int(n_fft), int(hop)
+        from .io import temp_beside
+
         self.rec = rr.RecordingStream(application_id)
-        d = os.path.dirname(os.path.abspath(self.path))
-        os.makedirs(d, exist_ok=True)
-        self.rec.save(self.path)
+        fd, self._tmp = temp_beside(self.path, ".rrd")
+        os.close(fd)
+        self.rec.save(self._tmp)
         self._blocks = []
         self._n_start = None  # absolute sample index of the first logged sample
         self._n_next = None
@@ -319,10 +325,22 @@ class RerunLogger:
         return (20 * np.log10(np.maximum(spec, 2e-5 * 1e-3) / 2e-5)).T.astype(np.float32), hop  # (freq, time)
 
     def close(self) -> None:
-        """Log the waveforms, spectrograms, the audio asset and the blueprint; finish the file."""
+        """Log the waveforms, spectrograms, the audio asset and the blueprint; finish the file
+        and move it into place (atomic)."""
         if self._closed:
             return
         self._closed = True
+        from .io import commit_temp, discard_temp
+
+        try:
+            self._log_take()
+            self._finish_stream()
+            commit_temp(self._tmp, self.path)
+        except BaseException:
+            discard_temp(self._tmp)
+            raise
+
+    def _log_take(self) -> None:
         rr = self._rr
         import rerun.blueprint as rrb
 
@@ -360,17 +378,34 @@ class RerunLogger:
             ),
         )
         rec.send_blueprint(blueprint)
-        rec.flush()
+
+    def _finish_stream(self) -> None:
+        self.rec.flush()
         try:
-            rec.disconnect()
+            self.rec.disconnect()
         except Exception:  # pragma: no cover - older/newer SDKs
             pass
+
+    def abort(self) -> None:
+        """Stop recording and discard the temporary file; ``path`` is left as it was."""
+        if self._closed:
+            return
+        self._closed = True
+        from .io import discard_temp
+
+        try:
+            self._finish_stream()
+        finally:
+            discard_temp(self._tmp)
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, *exc):
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
         return False
 
 
@@ -393,8 +428,11 @@ def log_sonify(rrd, scene_xml, **sonify_kwargs) -> dict:
 
     try:
         summary = sonify(scene_xml, on_block=on_block, **sonify_kwargs)
-    finally:
+    except BaseException:
         if "log" in holder:
-            holder["log"].close()
+            holder["log"].abort()
+        raise
+    if "log" in holder:
+        holder["log"].close()
     summary["rrd"] = os.fspath(rrd)
     return summary

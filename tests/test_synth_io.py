@@ -9,7 +9,8 @@ import pytest
 import soundfile as sf
 
 from mjsound import ModalModel, get_material
-from mjsound.synth.events import EVENTS_HELP, register_cli, render_events, validate_events
+from mjsound.cli.events import register as register_cli
+from mjsound.synth.events import EVENTS_HELP, render_events, validate_events
 from mjsound.synth.output import AudioWriter, to_full_scale, write_audio
 
 

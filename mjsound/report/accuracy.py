@@ -47,7 +47,6 @@ factor (simulated seconds per wall-clock second, physics and sound together).
 
 from __future__ import annotations
 
-import argparse
 import datetime as _dt
 import json
 import math
@@ -59,7 +58,7 @@ import traceback
 
 import numpy as np
 
-__all__ = ["main", "lamb_sphere", "machine_info", "measure", "BOWL_REFERENCE", "cents"]
+__all__ = ["run_report", "lamb_sphere", "machine_info", "measure", "BOWL_REFERENCE", "cents"]
 
 ALU = "aluminium"
 
@@ -977,32 +976,28 @@ def _knobs(modal, fmax, synth, e2e):
 
 
 # ---------------------------------------------------------------------------- main
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="mjsound report accuracy", description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("-o", "--output", default="reports")
-    ap.add_argument("--no-plots", action="store_true")
-    ap.add_argument("--sections", default="modal,fmax,synth,e2e", help="comma list of sections to run")
-    ap.add_argument("--json", default=None, help="also dump every measured number to this JSON file")
-    ap.add_argument("--from-json", default=None, help="rewrite the Markdown and plots from a --json dump (no runs)")
-    args = ap.parse_args(argv)
+def run_report(output="reports", quick: bool = False, plots: bool = True, sections="modal,fmax,synth,e2e",
+               json_path=None, from_json=None) -> int:
+    """Run the measurements (``sections``: comma list of modal, fmax, synth, e2e) and write
+    ``output/accuracy.md`` with PNG plots; ``json_path`` also dumps every number,
+    ``from_json`` rewrites the Markdown and plots from such a dump without running anything."""
     t_start = time.perf_counter()
-    os.makedirs(args.output, exist_ok=True)
-    if args.from_json:
-        with open(args.from_json) as fh:
+    os.makedirs(output, exist_ok=True)
+    if from_json:
+        with open(from_json) as fh:
             d = json.load(fh)
-        plots = [] if args.no_plots else _plots(args.output, d["modal"], d["synth"], d["e2e"], d["f_max"])
-        write_markdown(os.path.join(args.output, "accuracy.md"), d["machine"], d["command"], d["modal"], d["f_max"],
+        plots = [] if not plots else _plots(output, d["modal"], d["synth"], d["e2e"], d["f_max"])
+        write_markdown(os.path.join(output, "accuracy.md"), d["machine"], d["command"], d["modal"], d["f_max"],
                        d["synth"], d["e2e"], plots, "--quick" in d["command"], d["seconds"])
         return 0
-    command = "mjsound report accuracy" + (" --quick" if args.quick else "") + f" -o {args.output}"
-    sections = set(args.sections.split(","))
+    command = "mjsound report accuracy" + (" --quick" if quick else "") + f" -o {output}"
+    sections = set(sections.split(","))
 
     def log(msg):
         print(msg, file=sys.stderr, flush=True)
 
     info = machine_info()
-    log(f"mjsound report accuracy{' --quick' if args.quick else ''}: {info['cpus']} CPUs, load {info['load_start']}")
+    log(f"mjsound report accuracy{' --quick' if quick else ''}: {info['cpus']} CPUs, load {info['load_start']}")
     # warm up in the parent (numba caches, imports) so children time the work, not the set-up
     from ..modal.analyze import analyze
 
@@ -1014,23 +1009,20 @@ def main(argv=None) -> int:
         import skfem  # noqa: F401
     except Exception:
         pass
-    modal = run_modal(args.quick, log) if "modal" in sections else []
-    fmax = run_fmax(args.quick, log) if "fmax" in sections else []
-    synth = run_synth(args.quick, log) if "synth" in sections else None
-    e2e = run_e2e(args.quick, log) if "e2e" in sections else None
+    modal = run_modal(quick, log) if "modal" in sections else []
+    fmax = run_fmax(quick, log) if "fmax" in sections else []
+    synth = run_synth(quick, log) if "synth" in sections else None
+    e2e = run_e2e(quick, log) if "e2e" in sections else None
     info["load_end"] = [round(x, 2) for x in os.getloadavg()]
-    plots = [] if args.no_plots else _plots(args.output, modal, synth, e2e, fmax)
+    plots = [] if not plots else _plots(output, modal, synth, e2e, fmax)
     seconds = time.perf_counter() - t_start
-    path = os.path.join(args.output, "accuracy.md")
-    write_markdown(path, info, command, modal, fmax, synth, e2e, plots, args.quick, seconds)
-    if args.json:
-        with open(args.json, "w") as fh:
+    path = os.path.join(output, "accuracy.md")
+    write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, seconds)
+    if json_path:
+        with open(json_path, "w") as fh:
             json.dump({"machine": info, "command": command, "seconds": seconds, "modal": modal, "f_max": fmax,
                        "synth": synth, "e2e": e2e}, fh,
                       default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o), indent=1)
     log(f"wrote {path} ({seconds:.0f} s)")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -28,47 +28,92 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import time as _time
+import zipfile
 
 import numpy as np
 
-__all__ = ["load_rollout", "sonify", "register_cli"]
+from ..limits import check_array_bytes, check_duration, check_sample_rate, check_steps, check_timestep
+
+__all__ = ["load_rollout", "sonify", "write_spectrogram_png", "load_materials"]
 
 _KEYS = ("time", "qpos", "qvel", "ctrl", "act", "mocap_pos", "mocap_quat")
+#: Simulated seconds written per block when streaming a take to its file.
+STREAM_BLOCK_S = 1.0
+
+
+def _npz_shapes(path) -> dict:
+    """``{key: (shape, dtype)}`` of the rollout arrays from the ``.npy`` headers inside the
+    ``.npz`` (nothing is decompressed beyond the headers)."""
+    shapes = {}
+    with zipfile.ZipFile(os.fspath(path)) as zf:
+        for info in zf.infolist():
+            key = info.filename[:-4] if info.filename.endswith(".npy") else None
+            if key not in _KEYS:
+                continue
+            with zf.open(info) as fh:
+                fmt = np.lib.format
+                read = fmt.read_array_header_1_0 if fmt.read_magic(fh) == (1, 0) else fmt.read_array_header_2_0
+                shape, _, dtype = read(fh)
+            shapes[key] = (tuple(int(n) for n in shape), dtype)
+    return shapes
+
+
+def _check_header(path, model) -> None:
+    """Shapes and total size of a rollout, checked before anything is loaded."""
+    try:
+        shapes = _npz_shapes(path)
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise ValueError(f"rollout {path}: cannot read ({type(exc).__name__}: {exc}); give a .npz of time, qpos, qvel") from exc
+    for k in ("time", "qpos", "qvel"):
+        if k not in shapes:
+            raise ValueError(f"rollout {path}: missing array {k!r} (needs time, qpos, qvel)")
+    tshape = shapes["time"][0]
+    if len(tshape) != 1 or tshape[0] < 2:
+        raise ValueError(f"rollout {path}: 'time' must be a 1-D array of at least 2 frames, has shape {tshape}")
+    T = tshape[0]
+    width = {"qpos": "nq", "qvel": "nv", "ctrl": "nu", "act": "na"}
+    total = 0
+    for k, (shape, dtype) in shapes.items():
+        if dtype.kind not in "fiub":
+            raise ValueError(f"rollout {path}: {k!r} has dtype {dtype}, not numbers")
+        if not shape or shape[0] != T:
+            raise ValueError(f"rollout {path}: {k!r} has shape {shape}, 'time' has {T} frames (needs ({T}, ...))")
+        if k in width and len(shape) != 2 and not (len(shape) == 1 and k == "time"):
+            raise ValueError(f"rollout {path}: {k!r} has shape {shape}; give ({T}, model.{width[k]})")
+        if model is not None and k in width and shape[1] != getattr(model, width[k]):
+            raise ValueError(f"rollout {path}: {k!r} has width {shape[1]}, the model needs "
+                             f"{getattr(model, width[k])} (model.{width[k]})")
+        total += int(np.prod(shape, dtype=np.float64)) * 8
+    check_array_bytes(total, f"rollout {path} ({T} frames)", "split the rollout into shorter files")
 
 
 def load_rollout(path, model=None) -> dict:
     """Read and check a rollout ``.npz`` (see the module docstring).
 
+    Shapes and the total size are checked from the file's array headers before any array is
+    loaded, so a small file that would inflate to gigabytes is refused up front.
+
     Raises
     ------
     ValueError
-        Missing ``time``/``qpos``/``qvel``, wrong shapes, non-increasing time, NaN.
+        Missing ``time``/``qpos``/``qvel``, wrong shapes, non-increasing time, NaN, a time
+        span beyond :data:`mjsound.limits.MAX_DURATION_S`, over the memory budget.
     """
+    _check_header(path, model)
     try:
         with np.load(os.fspath(path), allow_pickle=False) as z:
             r = {k: np.asarray(z[k], dtype=np.float64) for k in _KEYS if k in z.files}
     except Exception as exc:
         raise ValueError(f"rollout {path}: cannot read ({type(exc).__name__}: {exc})") from exc
-    for k in ("time", "qpos", "qvel"):
-        if k not in r:
-            raise ValueError(f"rollout {path}: missing array {k!r} (needs time, qpos, qvel)")
     T = len(r["time"])
-    if T < 2 or r["time"].ndim != 1:
-        raise ValueError(f"rollout {path}: 'time' must be a 1-D array of at least 2 frames")
     if np.any(np.diff(r["time"]) <= 0) or not np.isfinite(r["time"]).all():
         raise ValueError(f"rollout {path}: 'time' must be finite and strictly increasing")
+    check_duration(r["time"][-1] - r["time"][0], f"rollout {path}: time span")
     for k, v in r.items():
-        if len(v) != T:
-            raise ValueError(f"rollout {path}: {k!r} has {len(v)} frames, 'time' has {T}")
         if not np.isfinite(v).all():
             raise ValueError(f"rollout {path}: {k!r} contains NaN or Inf")
     if model is not None:
-        dims = {"qpos": model.nq, "qvel": model.nv, "ctrl": model.nu, "act": model.na}
-        for k, n in dims.items():
-            if k in r and r[k].reshape(T, -1).shape[1] != n:
-                raise ValueError(f"rollout {path}: {k!r} has width {r[k].reshape(T, -1).shape[1]}, the model needs {n}")
         for k, w in (("mocap_pos", 3), ("mocap_quat", 4)):
             if k in r and r[k].reshape(T, -1).shape[1] != model.nmocap * w:
                 raise ValueError(f"rollout {path}: {k!r} does not match the model's {model.nmocap} mocap bodies")
@@ -89,17 +134,60 @@ def _set_frame(model, data, r, i, state=True):
         data.mocap_quat[:] = r["mocap_quat"][i].reshape(-1, 4)
 
 
-def _load_materials(materials):
+def load_materials(materials, name: str = "--materials"):
+    """A ``{geom_or_body: material}`` dict from a dict, a JSON file or JSON text (``None`` stays)."""
     if materials is None or isinstance(materials, dict):
         return materials
     text = os.fspath(materials)
-    if os.path.exists(text):
-        with open(text) as fh:
-            return json.load(fh)
     try:
-        return json.loads(text)
+        if os.path.exists(text):
+            try:
+                with open(text, encoding="utf-8") as fh:
+                    obj = json.load(fh)
+            except UnicodeDecodeError as exc:
+                raise ValueError(f"{name}: {text} is not a UTF-8 JSON file ({exc.reason})") from None
+            where = text
+        else:
+            obj = json.loads(text)
+            where = "the text"
     except json.JSONDecodeError as exc:
-        raise ValueError(f"--materials: {text!r} is neither a JSON file nor a JSON object ({exc})") from None
+        raise ValueError(f"{name}: {text[:200]!r} is neither a JSON file nor a JSON object ({exc})") from None
+    except RecursionError:
+        raise ValueError(f"{name}: {text[:200]!r} is nested too deeply to be a material mapping") from None
+    if not isinstance(obj, dict) or not all(isinstance(k, str) for k in obj):
+        raise ValueError(f"{name}: {where} holds a JSON {type(obj).__name__}; give an object "
+                         '{"geom_or_body": "material", ...}, e.g. {"bowl": "porcelain"}')
+    return obj
+
+
+_load_materials = load_materials  # the batch driver's name for it
+
+
+class _Take:
+    """Where the audio of a take goes: the file (streamed, block by block) and/or memory."""
+
+    def __init__(self, writer, keep: bool, channels: int):
+        self.writer, self.keep, self.channels = writer, keep, channels
+        self.blocks = []
+        self.samples = 0
+        self.peak = 0.0
+
+    def add(self, block) -> None:
+        if block is None or not block.shape[1]:
+            return
+        if self.writer is not None:
+            self.writer.write(block)
+        if self.keep:
+            self.blocks.append(block)
+        self.samples += block.shape[1]
+        self.peak = max(self.peak, float(np.abs(block).max()))
+
+    def audio(self):
+        if not self.keep:
+            return None
+        if not self.blocks:
+            return np.zeros((self.channels, 0), np.float32)
+        return self.blocks[0] if len(self.blocks) == 1 else np.concatenate(self.blocks, axis=1)
 
 
 def sonify(
@@ -119,8 +207,15 @@ def sonify(
     normalize: bool = False,
     on_block=None,
     models: dict | None = None,
+    keep_audio: bool = True,
 ) -> dict:
     """Simulate (or replay) a scene with sound and optionally write the audio.
+
+    Every input is checked before the scene is analysed or anything is allocated (ranges in
+    :mod:`mjsound.limits`). The audio is written to ``out`` block by block as it is rendered
+    (``STREAM_BLOCK_S`` of simulation at a time) into a temporary file renamed into place at
+    the end, so with ``keep_audio=False`` memory does not grow with the duration, and an
+    exception or Ctrl-C leaves ``out`` as it was.
 
     Parameters
     ----------
@@ -133,11 +228,11 @@ def sonify(
     timestep : float, optional
         Override the model's physics timestep [s] (no rollout, or ``resim``).
     sample_rate : int
-        Audio sample rate [Hz].
+        Audio sample rate [Hz], 1000..768000.
     materials : dict | str, optional
         ``{geom_or_body: material}`` or a JSON file / JSON text of one.
     out : str | os.PathLike, optional
-        WAV/FLAC path, written atomically (``mjsound.synth.output.write_audio``).
+        ``.wav`` (float) or ``.flac`` (24-bit) path (``mjsound.synth.output.AudioWriter``).
     mode : {'auto', 'resim', 'replay'}
         How to use a rollout (module docstring); auto = resim when it has ``ctrl``.
     quality, budget_modes, progress
@@ -145,48 +240,80 @@ def sonify(
     full_scale_pa : float, optional
         Pressure written as full scale [Pa] (default ``DEFAULT_FULL_SCALE_PA`` = 20 Pa).
     normalize : bool
-        Peak-normalise the file to -1 dBFS instead (absolute level lost).
+        Peak-normalise the file to -1 dBFS instead (absolute level lost; a second pass over
+        a raw temporary file, still streamed).
     on_block : callable, optional
         ``on_block(sim, block, n0)`` after every step (see ``AudioSimulator.on_block``).
     models : dict, optional
         Precomputed ``{geom_name: ModalModel}`` (skips their analysis; batch workers).
+    keep_audio : bool
+        Also return the whole take as ``audio`` (memory grows with the duration and is checked
+        against the budget up front); ``False`` returns ``audio=None``.
 
     Returns
     -------
     dict
         ``scene`` (SoundScene.summary()), ``events``, ``impacts``, ``sim_seconds``,
         ``wall_seconds``, ``observer_seconds`` (spent in ``on_block``), ``analysis_seconds``,
-        ``realtime_factor`` (simulated seconds per wall second, analysis and ``on_block``
-        excluded), ``samples``, ``channels``, ``peak_pa``, ``clipped``,
-        ``out``, ``mode``, ``max_qpos_error`` (resim of a rollout), and ``audio`` (the
-        (channels, n) float32 pressure array [Pa]).
+        ``warmup_seconds`` (wall time of the first rendered block, which includes the numba
+        compilation of a fresh process), ``realtime_factor`` (simulated seconds per wall
+        second after the first block, analysis and ``on_block`` excluded), ``samples``,
+        ``channels``, ``peak_pa``, ``clipped``, ``out``, ``mode``, ``max_qpos_error`` (resim
+        of a rollout), and ``audio`` (the (channels, n) float32 pressure array [Pa], or None).
     """
     import mujoco
 
-    from .scene import SoundScene
-    from .simulator import AudioSimulator
+    from ..synth.output import AUDIO_SUFFIXES, DEFAULT_FULL_SCALE_PA, AudioWriter
 
+    sample_rate = check_sample_rate(sample_rate)
+    if duration is not None:
+        duration = check_duration(duration)
+    if timestep is not None:
+        timestep = check_timestep(timestep)
+    if mode not in ("auto", "resim", "replay"):
+        raise ValueError(f"mode={mode!r}: choose 'auto', 'resim' or 'replay'")
+    if out is not None:
+        from ..io import check_output_file
+
+        check_output_file(out, AUDIO_SUFFIXES, "out")
+    fsp = DEFAULT_FULL_SCALE_PA if full_scale_pa is None else float(full_scale_pa)
+    if not normalize and not (np.isfinite(fsp) and fsp > 0):
+        raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure in Pa (e.g. 20)")
+    mats = load_materials(materials)
     model = mujoco.MjModel.from_xml_path(os.fspath(scene_xml))
     if timestep is not None:
-        if not (timestep > 0 and np.isfinite(timestep)):
-            raise ValueError(f"timestep={timestep} must be a positive number of seconds")
-        model.opt.timestep = float(timestep)
-    data = mujoco.MjData(model)
-    scene = SoundScene.from_model(
-        model, materials=_load_materials(materials), sample_rate=sample_rate, quality=quality,
-        budget_modes=budget_modes, progress=progress, models=models,
-    )
+        model.opt.timestep = timestep
+    check_timestep(model.opt.timestep, f"{os.fspath(scene_xml)}: <option timestep>")
     r = None
     if rollout is not None:
         r = rollout if isinstance(rollout, dict) else load_rollout(rollout, model)
         if mode == "auto":
             mode = "resim" if "ctrl" in r else "replay"
+        times = r["time"]
+        t_end = times[-1] if duration is None else min(times[-1], times[0] + duration)
+        last = int(np.searchsorted(times, t_end - 1e-12, side="left"))
+        span = float(times[last] - times[0])
     else:
         mode = "simulate"
-        if model.nkey > 0:
-            mujoco.mj_resetDataKeyframe(model, data, 0)
-    if mode not in ("simulate", "resim", "replay"):
-        raise ValueError(f"mode={mode!r}: choose 'auto', 'resim' or 'replay'")
+        span = 3.0 if duration is None else duration
+    dt = float(model.opt.timestep)
+    if mode != "replay":
+        check_steps(span / dt, f"{span:g} s at timestep {dt:g} s")
+    n_ch_max = max(1, sum(1 for s in range(model.nsite) if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "").startswith("mic")))
+    if keep_audio:
+        check_array_bytes(4.0 * n_ch_max * span * sample_rate, f"keeping {span:g} s of audio in memory",
+                          "pass keep_audio=False (the file is streamed) or shorten the take")
+
+    from .scene import SoundScene
+    from .simulator import AudioSimulator
+
+    data = mujoco.MjData(model)
+    scene = SoundScene.from_model(
+        model, materials=mats, sample_rate=sample_rate, quality=quality,
+        budget_modes=budget_modes, progress=progress, models=models,
+    )
+    if r is None and model.nkey > 0:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
     if r is not None:
         data.time = float(r["time"][0])
         _set_frame(model, data, r, 0)
@@ -200,18 +327,32 @@ def sonify(
             t_obs[0] += _time.perf_counter() - t
 
         sim.on_block = timed_on_block
-    blocks = []
+    writer = None
+    if out is not None:
+        writer = AudioWriter(out, sample_rate, sim.n_channels, full_scale_pa=None if normalize else fsp,
+                             normalize=bool(normalize))
+    take = _Take(writer, keep_audio, sim.n_channels)
+    warm = {}  # wall time and samples of the first rendered block (numba compiles there)
     max_err = None
     t_wall = _time.perf_counter()
-    if mode == "simulate":
-        blocks.append(sim.run(3.0 if duration is None else float(duration)))
-    else:
-        times = r["time"]
-        t_end = times[-1] if duration is None else min(times[-1], times[0] + float(duration))
-        last = int(np.searchsorted(times, t_end - 1e-12, side="left"))
-        if mode == "resim":
+
+    def first_block_done():
+        if not warm and take.samples:
+            warm.update(wall=_time.perf_counter() - t_wall, samples=take.samples, obs=t_obs[0])
+
+    try:
+        if mode == "simulate":
+            every = sim._render_every()
+            total = int(round(span / dt))
+            chunk = max(every, int(round(STREAM_BLOCK_S / dt)) // every * every)
+            done = 0
+            while done < total:
+                m = min(every if done == 0 else chunk, total - done)
+                take.add(sim.run(m * dt, nsteps=m))
+                done += m
+                first_block_done()
+        elif mode == "resim":
             max_err = 0.0
-            dt = float(model.opt.timestep)
             every = sim._render_every()
             k = 0
             for i in range(last):
@@ -222,12 +363,11 @@ def sonify(
                 for _ in range(n):
                     mujoco.mj_step(model, data)
                     k += 1
-                    b = sim.step(render=k % every == 0)
-                    if b is not None:
-                        blocks.append(b)
-            blocks.append(sim.flush())
+                    take.add(sim.step(render=k % every == 0))
+                    first_block_done()
+            take.add(sim.flush())
         else:  # replay
-            fs = int(sample_rate)
+            fs = sample_rate
             n_prev = int(np.ceil(times[0] * fs - 1e-6))
             base = n_prev
             sim.reset()
@@ -237,18 +377,22 @@ def sonify(
                 mujoco.mj_forward(model, data)
                 n1 = int(np.ceil(times[i + 1] * fs - 1e-6))
                 sim._origin = base
-                blocks.append(sim._process(n_prev, n1, float(times[i]), float(times[i + 1])))
+                take.add(sim._process(n_prev, n1, float(times[i]), float(times[i + 1])))
+                first_block_done()
                 n_prev = n1
-    wall = _time.perf_counter() - t_wall
-    audio = np.concatenate(blocks, axis=1) if blocks else np.zeros((sim.n_channels, 0), np.float32)
-    sim_seconds = audio.shape[1] / float(sample_rate)
-    clipped = 0
-    if out is not None:
-        from ..synth.output import DEFAULT_FULL_SCALE_PA, write_audio
-
-        fsp = DEFAULT_FULL_SCALE_PA if full_scale_pa is None else float(full_scale_pa)
-        clipped = write_audio(out, audio, sample_rate, full_scale_pa=None if normalize else fsp, normalize=normalize)
-    peak = float(np.abs(audio).max()) if audio.size else 0.0
+        wall = _time.perf_counter() - t_wall
+        if writer is not None:
+            writer.close()
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    sim_seconds = take.samples / float(sample_rate)
+    w0, s0, o0 = warm.get("wall", 0.0), warm.get("samples", 0), warm.get("obs", 0.0)
+    timed_wall = (wall - w0) - (t_obs[0] - o0)
+    timed_sim = (take.samples - s0) / float(sample_rate)
+    if timed_sim <= 0:  # one block only: nothing after the warm-up to time
+        timed_wall, timed_sim = wall - t_obs[0], sim_seconds
     return {
         "scene": scene.summary(),
         "mode": mode,
@@ -258,136 +402,23 @@ def sonify(
         "wall_seconds": wall,
         "observer_seconds": t_obs[0],
         "analysis_seconds": scene.analysis_seconds,
-        "realtime_factor": sim_seconds / (wall - t_obs[0]) if wall > t_obs[0] else float("inf"),
-        "samples": int(audio.shape[1]),
-        "channels": int(audio.shape[0]),
-        "peak_pa": peak,
-        "clipped": int(clipped),
+        "warmup_seconds": w0 if timed_sim < sim_seconds else 0.0,
+        "realtime_factor": timed_sim / timed_wall if timed_wall > 0 else float("inf"),
+        "samples": int(take.samples),
+        "channels": int(sim.n_channels),
+        "peak_pa": take.peak,
+        "clipped": int(writer.n_clipped) if writer is not None else 0,
         "out": None if out is None else os.fspath(out),
         "max_qpos_error": max_err,
         "stats": sim.stats(),
-        "audio": audio,
+        "audio": take.audio(),
     }
-
-
-# ---------------------------------------------------------------------- CLI
-def add_sonify_options(p) -> None:
-    """The options ``sonify`` and ``sonify-batch`` share (they map onto :func:`sonify`)."""
-    p.add_argument("--replay", action="store_true", help="replay recorded states instead of re-simulating")
-    p.add_argument("--timestep", type=float, default=None, help="physics timestep in s (overrides the MJCF)")
-    p.add_argument("--sample-rate", type=int, default=48000, help="audio sample rate in Hz (default 48000)")
-    p.add_argument("--materials", default=None, help="JSON file or text {geom_or_body: material}")
-    p.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="modal analysis quality")
-    p.add_argument("--budget-modes", type=int, default=None, help="total modes for the scene (shared by importance)")
-    p.add_argument("--full-scale-pa", type=float, default=None, help="pressure written as full scale (default 20 Pa)")
-    p.add_argument("--normalize", action="store_true", help="peak-normalise each file (absolute level lost)")
-
-
-def register_cli(subparsers) -> None:
-    """Add the ``sonify`` and ``demo`` subcommands to an argparse ``subparsers``."""
-    p = subparsers.add_parser(
-        "sonify",
-        help="simulate an MJCF scene (or a recorded rollout) with sound and write a WAV",
-        description="Simulate SCENE.xml with contact sound, or sonify a recorded rollout (.npz with "
-        "time, qpos, qvel [, ctrl, act, mocap_pos, mocap_quat]): re-simulated from its controls "
-        "(exact) or replayed state by state (--replay).",
-    )
-    p.add_argument("scene", help="MJCF scene file")
-    p.add_argument("-o", "--output", default="out.wav", help="audio file to write (default out.wav)")
-    p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: 3, or the whole rollout)")
-    p.add_argument("--rollout", default=None, help="rollout .npz to sonify")
-    add_sonify_options(p)
-    p.add_argument("--json", action="store_true", help="print one JSON summary object")
-    p.add_argument("--rrd", default=None, help="also write a rerun recording (.rrd) of the take")
-    p.set_defaults(func=_run_sonify)
-
-    d = subparsers.add_parser(
-        "demo",
-        help="run the built-in demo scene (bowl, bar, disc, ball, box on an oak table) and write demo.wav",
-    )
-    d.add_argument("-o", "--output", default="demo.wav", help="audio file to write (default demo.wav)")
-    d.add_argument("--duration", type=float, default=4.0, help="simulated seconds (default 4)")
-    d.add_argument("--sample-rate", type=int, default=48000, help="audio sample rate in Hz (default 48000)")
-    d.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="modal analysis quality")
-    d.add_argument("--no-normalize", action="store_true", help="write absolute pressure (20 Pa full scale)")
-    d.add_argument("--json", action="store_true", help="print one JSON summary object")
-    d.add_argument("--rrd", default="demo.rrd", help="rerun recording to write (default demo.rrd; '' for none)")
-    d.add_argument("--png", default="demo.png", help="spectrogram picture to write (default demo.png; '' for none; needs matplotlib)")
-    d.set_defaults(func=_run_demo)
-
-
-def _report(summary, args) -> int:
-    s = dict(summary)
-    s.pop("audio", None)
-    if args.json:
-        print(json.dumps(s, default=float))
-        return 0
-    sc = s["scene"]
-    print(f"scene      {args.scene if hasattr(args, 'scene') else 'demo'}  ({s['mode']})")
-    print(f"sounding   {len(sc['sounding'])} geom(s), {sc['n_modes']} modes, analysis {s['analysis_seconds']:.1f} s")
-    for g in sc["sounding"]:
-        extra = f" of {g['n_modes_analysed']}" if g["n_modes"] != g["n_modes_analysed"] else ""
-        rng = f"{g['f_min_hz']:.0f}-{g['f_max_hz']:.0f} Hz" if g["f_min_hz"] else "-"
-        print(f"  {g['geom']:<16s} {g['material']:<12s} {g['n_modes']:4d}{extra} modes  {rng}")
-    for name, why in sc["silent"].items():
-        print(f"  silent {name}: {why}")
-    for note in sc["budget_notes"]:
-        print(f"  budget: {note}")
-    ev = s["events"]
-    print(f"events     {ev.get('impact', 0)} impacts, {ev.get('slide', 0)} slide steps, {ev.get('roll', 0)} roll steps")
-    print(f"audio      {s['samples']} samples x {s['channels']} ch ({s['sim_seconds']:.2f} s), peak {s['peak_pa']:.3g} Pa"
-          + (f", {s['clipped']} clipped" if s["clipped"] else ""))
-    obs = s.get("observer_seconds", 0.0)
-    extra = f"; rerun logging {obs:.2f} s more" if obs > 0 else ""
-    print(f"speed      {s['realtime_factor']:.1f}x real time ({s['wall_seconds'] - obs:.2f} s wall for simulation and "
-          f"audio, analysis excluded{extra})")
-    if s["max_qpos_error"] is not None:
-        print(f"resim      max |qpos - recorded| = {s['max_qpos_error']:.3g}")
-    if s["out"]:
-        print(f"wrote      {s['out']}")
-    if s.get("rrd"):
-        print(f"wrote      {s['rrd']}")
-    if s.get("png"):
-        print(f"wrote      {s['png']}")
-    return 0
-
-
-def _sonify_maybe_logged(args, scene, **kw) -> dict:
-    if args.rrd:
-        from ..rerun_log import log_sonify
-
-        return log_sonify(args.rrd, scene, **kw)
-    return sonify(scene, **kw)
-
-
-def _run_sonify(args) -> int:
-    summary = _sonify_maybe_logged(
-        args, args.scene, duration=args.duration, rollout=args.rollout, timestep=args.timestep,
-        sample_rate=args.sample_rate, materials=args.materials, out=args.output,
-        mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
-        progress=not args.json and sys.stderr.isatty(), full_scale_pa=args.full_scale_pa, normalize=args.normalize,
-    )
-    return _report(summary, args)
-
-
-def _run_demo(args) -> int:
-    from .demo import find_demo_scene
-
-    scene = find_demo_scene()
-    args.scene = scene
-    summary = _sonify_maybe_logged(
-        args, scene, duration=args.duration, sample_rate=args.sample_rate, out=args.output, quality=args.quality,
-        progress=not args.json and sys.stderr.isatty(), normalize=not args.no_normalize,
-    )
-    if args.png:
-        summary["png"] = write_spectrogram_png(args.png, summary["audio"], args.sample_rate)
-    return _report(summary, args)
 
 
 def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str | None:
     """Save a log-magnitude spectrogram of each channel (matplotlib, optional) atomically.
 
-    Returns the path, or None (with a message on stderr) when matplotlib is missing.
+    Returns the path, or None (with a warning) when matplotlib is missing.
     """
     try:
         import matplotlib
@@ -395,10 +426,12 @@ def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        print("mjsound: matplotlib not installed; no spectrogram picture (pip install 'mjsound[report]')",
-              file=sys.stderr)
+        import warnings
+
+        warnings.warn("matplotlib not installed; no spectrogram picture (pip install 'mjsound[report]')",
+                      stacklevel=2)
         return None
-    from ..io import commit_temp, temp_beside
+    from ..io import commit_temp, discard_temp, temp_beside
 
     audio = np.atleast_2d(audio)
     fig, axes = plt.subplots(len(audio), 1, figsize=(9, 2.4 * len(audio)), sharex=True, squeeze=False)
@@ -411,7 +444,12 @@ def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str
     fig.tight_layout()
     fd, tmp = temp_beside(path, ".png")
     os.close(fd)
-    fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    commit_temp(tmp, path)
+    try:
+        fig.savefig(tmp, dpi=90, format="png")
+        commit_temp(tmp, path)
+    except BaseException:
+        discard_temp(tmp)
+        raise
+    finally:
+        plt.close(fig)
     return os.fspath(path)

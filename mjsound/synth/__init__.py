@@ -9,7 +9,7 @@ Attributes are imported lazily so that ``import mjsound.synth.output`` does not 
 """
 
 __all__ = ["Synthesizer", "hertz_contact_time", "half_sine_spectrum", "to_full_scale", "AudioWriter",
-           "write_audio", "render_events", "register_cli"]
+           "write_audio", "render_events"]
 
 _WHERE = {
     "Synthesizer": "synthesizer",
@@ -19,7 +19,6 @@ _WHERE = {
     "AudioWriter": "output",
     "write_audio": "output",
     "render_events": "events",
-    "register_cli": "events",
 }
 
 

@@ -5,7 +5,6 @@ See :data:`EVENTS_HELP` for the file format (it is also the command's ``--help``
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -13,7 +12,9 @@ from dataclasses import replace
 
 import numpy as np
 
-__all__ = ["EVENTS_HELP", "load_events", "validate_events", "render_events", "register_cli", "main"]
+from ..limits import check_array_bytes, check_duration, check_sample_rate
+
+__all__ = ["EVENTS_HELP", "load_events", "validate_events", "render_events"]
 
 EVENTS_HELP = """\
 Render a list of timed excitation events on modal objects to an audio file, without a
@@ -22,7 +23,7 @@ all quantities SI (s, N, N s, m/s, kg, Pa). Relative paths are relative to the J
 
 Top level
   sample_rate   int, Hz (default 48000; 1000..768000)
-  duration      float, seconds of audio to render (required, > 0)
+  duration      float, seconds of audio to render (required, > 0, at most one day)
   microphones   list of [x, y, z] positions, one output channel each
                 (default [[0, 0, 1]]: one listener 1 m above the origin)
   objects       list of objects (required, at least one), see below
@@ -114,10 +115,14 @@ def validate_events(spec: dict) -> dict:
     if unknown:
         raise _err("top level", f"unknown field(s) {sorted(unknown)}; known: {sorted(_TOP)}")
     out = dict(spec)
-    out["sample_rate"] = int(_num(spec.get("sample_rate", 48000), "sample_rate", positive=True))
-    if "duration" not in spec:
-        raise _err("duration", "missing: give the length of the audio in seconds")
-    out["duration"] = _num(spec["duration"], "duration", positive=True)
+    try:
+        out["sample_rate"] = check_sample_rate(_num(spec.get("sample_rate", 48000), "sample_rate"), "sample_rate")
+        if "duration" not in spec:
+            raise _err("duration", "missing: give the length of the audio in seconds")
+        out["duration"] = check_duration(_num(spec["duration"], "duration"), "duration")
+    except ValueError as exc:
+        msg = str(exc)
+        raise (exc if msg.startswith("events file") else _err("top level", msg)) from None
     mics = spec.get("microphones", [[0.0, 0.0, 1.0]])
     if not isinstance(mics, list) or not mics:
         raise _err("microphones", "expected a non-empty list of [x, y, z]")
@@ -179,6 +184,13 @@ def validate_events(spec: dict) -> dict:
         for k in ("time", "start", "end"):
             if k in e:
                 ne[k] = _num(e[k], f"{w}.{k}", nonneg=True)
+        for k in ("time", "start"):
+            if k in ne and ne[k] > out["duration"]:
+                raise _err(f"{w}.{k}", f"{ne[k]!r} s is after the end of the audio (duration {out['duration']:g} s): "
+                                       "give times in seconds from the start, or lengthen duration")
+        if typ in ("slide", "roll") and not any(ne["normal"]):
+            raise _err(f"{w}.normal", "is [0, 0, 0]: give the contact normal, a nonzero vector pointing out of "
+                                      "the object's surface (e.g. [0, 0, 1])")
         for k in ("normal_force", "speed", "pulse_s", "roughness"):
             if k in e and e[k] is not None:
                 ne[k] = _num(e[k], f"{w}.{k}", nonneg=True)
@@ -200,10 +212,16 @@ def load_events(path) -> dict:
     """Read and validate an EVENTS.json file; relative paths are resolved against its folder."""
     path = os.fspath(path)
     try:
-        with open(path) as fh:
+        with open(path, encoding="utf-8") as fh:
             spec = json.load(fh)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a text (UTF-8) JSON file ({exc.reason} at byte {exc.start}); give an "
+                         "EVENTS.json file (format: mjsound render-events --help)") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise ValueError(f"{path}: JSON nested too deeply to be an events file (format: mjsound render-events "
+                         "--help)") from None
     spec = validate_events(spec)
     spec["_base_dir"] = os.path.dirname(os.path.abspath(path))
     return spec
@@ -248,13 +266,15 @@ def render_events(spec: dict, base_dir=None):
     base = base_dir if base_dir is not None else spec.get("_base_dir")
     spec = validate_events({k: v for k, v in spec.items() if k != "_base_dir"})
     fs = spec["sample_rate"]
+    n = int(round(spec["duration"] * fs))
+    check_array_bytes(8.0 * n * len(spec["microphones"]), f"{spec['duration']:g} s of audio at {fs} Hz",
+                      "shorten duration or render in pieces")
     syn = Synthesizer(fs, microphones=spec["microphones"], dtype=spec.get("dtype", "float32"),
                       cull_db=spec.get("cull_db", -100.0), radiation=spec.get("radiation", True),
                       speed_of_sound=spec.get("speed_of_sound", 343.0), seed=spec.get("seed", 0),
                       f_max=spec.get("f_max"))
     for o in spec["objects"]:
         syn.add_object(o["name"], _load_model(o, base, fs), o["position"], np.array(o["rotation"]))
-    n = int(round(spec["duration"] * fs))
     for i, e in enumerate(sorted(spec["events"], key=lambda e: e.get("time", e.get("start", 0.0)))):
         try:
             t = e["type"]
@@ -274,56 +294,3 @@ def render_events(spec: dict, base_dir=None):
         except ValueError as exc:
             raise ValueError(f"events file: {t} event on {e['object']!r}: {exc}") from None
     return syn.render(n), fs
-
-
-def _handler(args) -> int:
-    from .output import DEFAULT_FULL_SCALE_PA, write_audio
-
-    spec = load_events(args.events)
-    if args.sample_rate is not None:
-        spec["sample_rate"] = args.sample_rate
-    audio, fs = render_events(spec)
-    out = args.output or os.path.splitext(args.events)[0] + ".wav"
-    fsp = args.full_scale_pa if args.full_scale_pa is not None else spec.get("full_scale_pa", DEFAULT_FULL_SCALE_PA)
-    normalize = args.normalize or bool(spec.get("normalize", False))
-    n_clipped = write_audio(out, audio, fs, full_scale_pa=fsp, normalize=normalize)
-    peak = float(np.abs(audio).max()) if audio.size else 0.0
-    msg = f"wrote {out}: {audio.shape[0]} channel(s), {audio.shape[1]} samples at {fs} Hz, peak {peak:.3g} Pa"
-    if not normalize:
-        msg += f", full scale {fsp:g} Pa, {n_clipped} clipped sample(s)"
-    print(msg)
-    return 0
-
-
-def register_cli(subparsers) -> argparse.ArgumentParser:
-    """Add the ``render-events`` subcommand to an argparse ``subparsers`` object.
-
-    The handler is stored as ``func`` (``args.func(args)`` returns the exit code).
-    """
-    p = subparsers.add_parser(
-        "render-events",
-        help="render a JSON list of timed impacts/slides/rolls to a WAV/FLAC file",
-        description=EVENTS_HELP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("events", help="EVENTS.json (format above)")
-    p.add_argument("-o", "--output", help="output .wav or .flac (default: EVENTS.wav next to the JSON)")
-    p.add_argument("--full-scale-pa", type=float, default=None,
-                   help="pressure [Pa] mapped to full scale (default: the file's full_scale_pa or 20)")
-    p.add_argument("--normalize", action="store_true", help="peak-normalise to -1 dBFS (loses the level)")
-    p.add_argument("--sample-rate", type=int, default=None, help="override the file's sample_rate [Hz]")
-    p.set_defaults(func=_handler)
-    return p
-
-
-def main(argv=None) -> int:
-    """Stand-alone entry point: ``python -m mjsound.synth.events EVENTS.json -o out.wav``."""
-    ap = argparse.ArgumentParser(prog="mjsound")
-    sub = ap.add_subparsers(dest="command", required=True)
-    register_cli(sub)
-    args = ap.parse_args(["render-events", *(argv if argv is not None else __import__("sys").argv[1:])])
-    return args.func(args)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())

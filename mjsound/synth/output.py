@@ -12,14 +12,23 @@ are clipped and counted; NaN is mapped to 0 and counted as clipped (never writte
 
 from __future__ import annotations
 
+import errno
 import os
-import tempfile
+import shutil
 
 import numpy as np
 
-from ..io import commit_temp
+from ..io import commit_temp, discard_temp, temp_beside
 
-__all__ = ["DEFAULT_FULL_SCALE_PA", "to_full_scale", "normalize_peak", "AudioWriter", "write_audio"]
+__all__ = ["DEFAULT_FULL_SCALE_PA", "AUDIO_SUFFIXES", "WAV_MAX_BYTES", "to_full_scale", "normalize_peak",
+           "AudioWriter", "write_audio"]
+
+#: Audio file types mjsound writes (soundfile; WAV float or FLAC 24-bit).
+AUDIO_SUFFIXES = (".wav", ".flac")
+#: Largest WAV file (its RIFF header counts bytes in 32 bits); longer takes need FLAC.
+WAV_MAX_BYTES = (1 << 32) - 1024
+#: Frames per block of the second pass of a normalised file.
+_PASS_FRAMES = 1 << 16
 
 #: Pressure [Pa] mapped to digital full scale (1.0): 20 Pa = 120 dB SPL.
 DEFAULT_FULL_SCALE_PA = 20.0
@@ -67,8 +76,25 @@ def normalize_peak(audio, peak: float = 0.891):
 def _format_for(path, fmt):
     if fmt:
         return fmt.upper()
-    ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
-    return {"wav": "WAV", "flac": "FLAC", "ogg": "OGG", "aiff": "AIFF", "aif": "AIFF"}.get(ext, "WAV")
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext not in AUDIO_SUFFIXES:
+        raise ValueError(f"{os.fspath(path)!r}: cannot write {ext or 'a file without a suffix'!r} audio; "
+                         f"name the file {' or '.join('*' + e for e in AUDIO_SUFFIXES)}")
+    return ext.lstrip(".").upper()
+
+
+def _write_error(path, exc) -> OSError:
+    """An ``OSError`` naming ``path`` for a failed write (soundfile raises its own errors)."""
+    if isinstance(exc, OSError) and exc.errno:
+        code, why = exc.errno, exc.strerror or str(exc)
+    else:
+        try:
+            full = shutil.disk_usage(os.path.dirname(os.path.abspath(path))).free < (1 << 20)
+        except OSError:
+            full = False
+        code = errno.ENOSPC if full else errno.EIO
+        why = os.strerror(code) + f" ({exc})"
+    return OSError(code, f"cannot write the audio file ({why})", os.fspath(path))
 
 
 class AudioWriter:
@@ -92,6 +118,10 @@ class AudioWriter:
     full_scale_pa : float or None
         If given, blocks are pressure [Pa] and are mapped with :func:`to_full_scale`; if
         ``None`` they are written as given (already in [-1, 1]; NaN becomes 0).
+    normalize : bool or float
+        Peak-normalise (``True``: to -1 dBFS, or to the given peak; the level is lost). The
+        blocks go to a raw float32 temporary file first and are scaled in a second pass at
+        :meth:`close`, so memory stays one block whatever the length.
 
     Attributes
     ----------
@@ -104,10 +134,11 @@ class AudioWriter:
     ...     w.write(syn.render(4800))          # (channels, n) blocks
     """
 
-    def __init__(self, path, sample_rate, channels=1, subtype=None, format=None, full_scale_pa=None):
-        import soundfile as sf
-
+    def __init__(self, path, sample_rate, channels=1, subtype=None, format=None, full_scale_pa=None,
+                 normalize=False):
         self.path = os.fspath(path)
+        if os.path.isdir(self.path):
+            raise ValueError(f"{self.path!r} is a directory: give an audio file name (e.g. out.wav)")
         self.sample_rate = int(sample_rate)
         self.channels = int(channels)
         if self.channels < 1:
@@ -116,20 +147,37 @@ class AudioWriter:
         if subtype is None:
             subtype = "FLOAT" if self.format == "WAV" else "PCM_24"
         self.subtype = subtype
-        self.full_scale_pa = full_scale_pa
+        self.full_scale_pa = None if normalize else full_scale_pa
+        self.normalize = normalize
         self.n_clipped = 0
         self.frames = 0
-        d = os.path.dirname(os.path.abspath(self.path)) or "."
-        os.makedirs(d, exist_ok=True)
-        fd, self._tmp = tempfile.mkstemp(dir=d, prefix=".tmp-audio-", suffix="." + self.format.lower())
+        self.peak = 0.0
+        self._raw = None
+        self._closed = True
+        fd, self._tmp = temp_beside(self.path, "." + self.format.lower())
         os.close(fd)
         try:
-            self._f = sf.SoundFile(self._tmp, "w", samplerate=self.sample_rate, channels=self.channels,
-                                   subtype=self.subtype, format=self.format)
-        except Exception:
-            os.unlink(self._tmp)
+            if normalize:
+                fd, raw = temp_beside(self.path, ".f32")
+                self._raw = os.fdopen(fd, "wb")
+                self._raw_path = raw
+            self._f = self._open(self._tmp)
+        except BaseException:
+            self._discard()
             raise
         self._closed = False
+
+    def _open(self, tmp):
+        import soundfile as sf
+
+        return sf.SoundFile(tmp, "w", samplerate=self.sample_rate, channels=self.channels,
+                            subtype=self.subtype, format=self.format)
+
+    def _discard(self) -> None:
+        discard_temp(self._tmp)
+        if self._raw is not None:
+            self._raw.close()
+            discard_temp(self._raw_path)
 
     def write(self, block) -> None:
         """Write a (channels, n) block (a 1-D array is one channel)."""
@@ -140,6 +188,19 @@ class AudioWriter:
             b = b[None, :]
         if b.shape[0] != self.channels:
             raise ValueError(f"block has {b.shape[0]} channels, the writer {self.channels}; give (channels, n)")
+        if self.format == "WAV" and (self.frames + b.shape[1]) * self.channels * 4 > WAV_MAX_BYTES:
+            raise ValueError(f"{self.path}: a WAV file holds at most 4 GiB ({WAV_MAX_BYTES // (4 * self.channels)} "
+                             "frames here); write a .flac file for a take this long")
+        if self._raw is not None:  # first pass of a normalised file: raw pressure, scaled at close
+            b = np.nan_to_num(np.asarray(b, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+            if b.size:
+                self.peak = max(self.peak, float(np.abs(b).max()))
+            try:
+                self._raw.write(np.ascontiguousarray(b.T).tobytes())
+            except OSError as exc:
+                raise _write_error(self.path, exc) from exc
+            self.frames += b.shape[1]
+            return
         if self.full_scale_pa is not None:
             b, nc = to_full_scale(b, self.full_scale_pa)
         else:
@@ -151,16 +212,42 @@ class AudioWriter:
                 nc += int(over.sum())
                 b = np.clip(b, -1, 1)
         self.n_clipped += nc
-        self._f.write(np.ascontiguousarray(b.T))
+        try:
+            self._f.write(np.ascontiguousarray(b.T))
+        except Exception as exc:  # soundfile.LibsndfileError (a full disk, a file size limit)
+            raise _write_error(self.path, exc) from exc
         self.frames += b.shape[1]
+
+    def _second_pass(self) -> None:
+        """Scale the raw first pass to the normalised peak, block by block, into the file."""
+        self._raw.close()
+        target = 0.891 if self.normalize is True else float(self.normalize)
+        gain = target / self.peak if self.peak > 0 else 1.0
+        step = _PASS_FRAMES * self.channels
+        with open(self._raw_path, "rb") as fh:
+            while True:
+                x = np.fromfile(fh, dtype=np.float32, count=step)
+                if not x.size:
+                    break
+                self._f.write((x.reshape(-1, self.channels).astype(np.float64) * gain).astype(np.float32))
+        discard_temp(self._raw_path)
+        self._raw = None
 
     def close(self) -> None:
         """Finish the file and move it into place (atomic)."""
         if self._closed:
             return
         self._closed = True
-        self._f.close()
-        commit_temp(self._tmp, self.path)
+        try:
+            if self._raw is not None:
+                self._second_pass()
+            self._f.close()
+            commit_temp(self._tmp, self.path)
+        except BaseException as exc:
+            self._discard()
+            if isinstance(exc, Exception) and not isinstance(exc, ValueError):
+                raise _write_error(self.path, exc) from exc
+            raise
 
     def abort(self) -> None:
         """Discard everything written; ``path`` is left as it was."""
@@ -169,9 +256,10 @@ class AudioWriter:
         self._closed = True
         try:
             self._f.close()
+        except Exception:  # a full disk can fail the close too: the file is discarded anyway
+            pass
         finally:
-            if os.path.exists(self._tmp):
-                os.unlink(self._tmp)
+            self._discard()
 
     def __enter__(self):
         return self

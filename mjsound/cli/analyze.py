@@ -1,21 +1,16 @@
-"""The ``mjsound`` command line. Each subcommand has ``--help``.
-
-Subcommands register themselves from their own modules (``register_cli(subparsers)``)
-so that this file stays a table of contents and nothing heavy is imported until a
-subcommand runs.
-"""
+"""``mjsound analyze``: the modal model of one mesh."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
 
-__all__ = ["main", "build_parser"]
+__all__ = ["register"]
 
 
-def _add_analyze(sub):
+def register(sub) -> None:
+    """Add ``analyze`` to an argparse ``subparsers``."""
     p = sub.add_parser(
         "analyze",
         help="modal analysis of a mesh: frequencies, decay rates, sound map",
@@ -38,12 +33,16 @@ def _add_analyze(sub):
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the model cache")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("-o", "--output", default=None, help="write the model to this .npz file")
-    p.set_defaults(func=_run_analyze)
+    p.set_defaults(func=run)
 
 
-def _run_analyze(args) -> int:
-    from .modal.analyze import analyze
+def run(args) -> int:
+    """Handler of ``mjsound analyze``."""
+    from ..io import check_output_file
+    from ..modal.analyze import analyze
 
+    if args.output:
+        check_output_file(args.output, (".npz",), "-o")
     t0 = time.perf_counter()
     model = analyze(
         args.mesh, args.material, method=args.method, quality=args.quality, f_max=args.f_max,
@@ -73,38 +72,3 @@ def _run_analyze(args) -> int:
     if args.output:
         print(f"wrote      {args.output}")
     return 0
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="mjsound", description="Physically based sound for MuJoCo simulations.")
-    parser.add_argument("--version", action="version", version="mjsound 0.1.0")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    _add_analyze(sub)
-    for module in ("mjsound.synth.events", "mjsound.sim.rollout", "mjsound.batch", "mjsound.report", "mjsound.fit"):
-        try:
-            mod = __import__(module, fromlist=["register_cli"])
-        except ModuleNotFoundError as exc:  # an optional part that is not installed
-            if exc.name and module.startswith(exc.name):
-                continue
-            raise
-        if hasattr(mod, "register_cli"):
-            mod.register_cli(sub)
-    return parser
-
-
-def main(argv=None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
-    try:
-        return int(args.func(args) or 0)
-    except (ValueError, KeyError) as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        print(f"mjsound {args.command}: error: {msg}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

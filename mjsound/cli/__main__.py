@@ -1,0 +1,7 @@
+"""``python -m mjsound.cli ...`` is ``mjsound ...``."""
+
+import sys
+
+from . import main
+
+sys.exit(main())
