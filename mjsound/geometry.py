@@ -8,8 +8,19 @@ Everything is in metres, in the object's own frame. :func:`load_mesh` accepts
   ``capsule:RADIUS,LENGTH``,
 * a ``(vertices, faces)`` pair or a ``trimesh.Trimesh``.
 
-and returns a cleaned :class:`trimesh.Trimesh` (duplicate vertices merged, degenerate and
-duplicate faces removed) or raises a ``ValueError`` that names the problem.
+and returns a cleaned :class:`trimesh.Trimesh` or raises a ``ValueError`` that names the problem.
+
+Cleaning keeps a surface what it is:
+
+* vertices are welded by position only: texture seams and split normals (an OBJ's ``vt`` /
+  ``vn``, which make a textured cube 24 vertices and 12 separate quads) do not cut a closed
+  surface into open pieces;
+* duplicate faces go; zero-area faces go only when that does not open a closed surface (a
+  sliver face on a T-junction is part of what closes it, and a closed surface that turned
+  open would be analysed as a hollow shell).
+
+:func:`surface_report` says whether a mesh is closed (and so analysed as a solid) or open
+(analysed as a wall of a given thickness).
 """
 
 from __future__ import annotations
@@ -21,7 +32,7 @@ import warnings
 import numpy as np
 import trimesh
 
-__all__ = ["load_mesh", "builtin_mesh", "mesh_digest", "BUILTIN_SHAPES"]
+__all__ = ["load_mesh", "builtin_mesh", "mesh_digest", "surface_report", "BUILTIN_SHAPES"]
 
 BUILTIN_SHAPES = {
     "box": "box:LX,LY,LZ (full side lengths, m)",
@@ -94,7 +105,8 @@ def load_mesh(mesh, *, check_size: bool = True) -> trimesh.Trimesh:
     Returns
     -------
     trimesh.Trimesh
-        Merged vertices, no degenerate or duplicate faces.
+        Vertices welded by position, no duplicate faces, no zero-area faces unless they
+        close the surface (module docstring). No texture or normals are kept.
 
     Raises
     ------
@@ -138,9 +150,17 @@ def load_mesh(mesh, *, check_size: bool = True) -> trimesh.Trimesh:
         raise ValueError(f"{label}: empty mesh (no vertices or faces)")
     if not np.isfinite(tm.vertices).all():
         raise ValueError(f"{label}: vertices contain NaN or Inf; fix the mesh")
-    tm.merge_vertices()
-    keep = tm.nondegenerate_faces(height=1e-12 * max(tm.scale, 1e-300))
-    tm.update_faces(keep & tm.unique_faces())
+    tm = _welded(tm)
+    unique = tm.unique_faces()
+    keep = tm.nondegenerate_faces(height=1e-12 * max(tm.scale, 1e-300)) & unique
+    if not keep.all():
+        closed = tm.is_watertight
+        cleaned = tm.copy()
+        cleaned.update_faces(keep)
+        if closed and not cleaned.is_watertight:
+            cleaned = tm.copy()  # zero-area faces close this surface: keep them
+            cleaned.update_faces(unique)
+        tm = cleaned
     tm.remove_unreferenced_vertices()
     if len(tm.faces) == 0:
         raise ValueError(f"{label}: every face has zero area; nothing to analyse")
@@ -154,6 +174,37 @@ def load_mesh(mesh, *, check_size: bool = True) -> trimesh.Trimesh:
             stacklevel=2,
         )
     return tm
+
+
+def _welded(tm: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The geometry of ``tm`` alone (no texture, normals or colours), vertices welded by position
+    (trimesh's merge tolerance, 1e-8 m)."""
+    out = trimesh.Trimesh(vertices=np.asarray(tm.vertices, np.float64), faces=np.asarray(tm.faces, np.int64),
+                          process=False)
+    out.merge_vertices(merge_tex=True, merge_norm=True)
+    return out
+
+
+def surface_report(tm: trimesh.Trimesh) -> dict:
+    """Whether a cleaned mesh is closed, and how many boundary edges it has.
+
+    Returns
+    -------
+    dict
+        ``closed`` (bool: every edge has exactly two faces, the mesh bounds a volume and is
+        analysed as a solid), ``boundary_edges`` (int: edges with one face; an open mesh is
+        analysed as a wall, see :func:`mjsound.modal.analyze.analyze`'s ``thickness``),
+        ``volume_m3`` (float, NaN when open), ``area_m2``.
+    """
+    edges = np.sort(np.asarray(tm.edges), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    closed = bool(tm.is_watertight)
+    return {
+        "closed": closed,
+        "boundary_edges": int(np.sum(counts == 1)),
+        "volume_m3": float(abs(tm.volume)) if closed else float("nan"),
+        "area_m2": float(tm.area),
+    }
 
 
 def mesh_digest(tm: trimesh.Trimesh) -> str:

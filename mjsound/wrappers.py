@@ -24,211 +24,40 @@ Example
 from __future__ import annotations
 
 import functools
-import hashlib
+import itertools
 import math
-import warnings
 
 import gymnasium as gym
 import numpy as np
 from numba import njit
 
-__all__ = ["AudioObservation", "AudioWindow", "build_scene", "resolve_materials", "stft_log1p"]
-
-_SILENT_WORDS = {"none", "silent", "off", ""}
-
-#: Process-wide memo of modal models by model geometry + materials + rate + quality, so
-#: that several copies of one env (SyncVectorEnv, repeated gym.make) analyse once.
-_SCENE_MEMO: dict = {}
+__all__ = ["AudioObservation", "AudioWindow", "EnvAudio", "scene_materials", "stft_log1p"]
 
 
 # ---------------------------------------------------------------------- materials
-def resolve_materials(model, materials=None, default_material=None) -> dict:
-    """The ``materials`` mapping for :meth:`SoundScene.from_model`, with a default.
+def scene_materials(materials=None, default_material=None) -> dict:
+    """The ``materials`` mapping for :meth:`SoundScene.from_model` with a default.
 
-    Every geom that would otherwise have no acoustic material (no entry in ``materials`` for
-    its name or its body's name, no ``mjsound:GEOM`` custom text, no MJCF material named like
-    an acoustic one) gets ``default_material``. Named geoms are mapped by geom name; unnamed
-    ones by their body's name (and then the body's named geoms are pinned to what they would
-    have had, so the body entry changes nothing else).
-
-    Parameters
-    ----------
-    model : mujoco.MjModel
-    materials : dict, optional
-        ``{geom_or_body_name: material}``; the key ``"*"`` is the same as ``default_material``.
-    default_material : str | Material | None
-        Material for geoms without one (``None``: they stay silent, SoundScene's rule).
-
-    Returns
-    -------
-    dict
+    ``default_material`` becomes the ``"*"`` entry (the material of every geom that has none
+    otherwise) unless ``materials`` has its own ``"*"``; ``None`` leaves those geoms silent.
+    Keys are checked by the scene (an unknown one is an error listing the closest names).
     """
-    import mujoco
-
     mapping = dict(materials or {})
-    star = mapping.pop("*", None)
-    if star is not None:
-        default_material = star
-    if default_material is None:
-        return mapping
-    resolved = geom_materials(model, mapping)
-    out = dict(mapping)
-    name = lambda t, i: mujoco.mj_id2name(model, t, int(i)) or ""  # noqa: E731
-    for g in range(model.ngeom):
-        if resolved[g] is not None:
-            continue
-        raw = name(mujoco.mjtObj.mjOBJ_GEOM, g)
-        if raw:
-            out[raw] = default_material
-            continue
-        body = int(model.geom_bodyid[g])
-        bname = name(mujoco.mjtObj.mjOBJ_BODY, body)
-        if not bname:
-            continue  # unnamed geom on an unnamed body: cannot be addressed, stays silent
-        out.setdefault(bname, default_material)
-        # pin the body's named geoms to their own material (the body entry must not change them)
-        for h in np.flatnonzero(np.asarray(model.geom_bodyid) == body):
-            hn = name(mujoco.mjtObj.mjOBJ_GEOM, h)
-            if hn and hn not in out:
-                out[hn] = resolved[h] if resolved[h] is not None else default_material
-    return out
-
-
-def geom_materials(model, mapping) -> list:
-    """Each geom's material as SoundScene would resolve it from ``mapping`` (raw value: a name,
-    a Material, ...; ``None`` when it has none)."""
-    import mujoco
-
-    from .materials import get_material
-    from .sim.scene import _custom_materials
-
-    custom = _custom_materials(model)
-    name = lambda t, i: mujoco.mj_id2name(model, t, int(i)) or ""  # noqa: E731
-
-    def own(g):
-        """Material the geom has without a default (or None)."""
-        raw = name(mujoco.mjtObj.mjOBJ_GEOM, g)
-        body = name(mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[g])
-        for key in (raw, body):
-            if key and key in mapping:
-                return mapping[key]
-        if raw and raw in custom:
-            return custom[raw]
-        if model.geom_matid[g] >= 0:
-            try:
-                return get_material(name(mujoco.mjtObj.mjOBJ_MATERIAL, model.geom_matid[g]))
-            except KeyError:
-                pass
-        return None
-
-    return [own(g) for g in range(model.ngeom)]
-
-
-def _model_key(model, mapping, sample_rate, quality, method, budget_modes) -> str:
-    h = hashlib.sha1()
-    for arr in (model.geom_type, model.geom_size, model.geom_dataid, model.geom_contype,
-                model.geom_conaffinity, model.geom_bodyid, model.body_weldid):
-        h.update(np.ascontiguousarray(arr).tobytes())
-    if model.nmesh:
-        h.update(np.ascontiguousarray(model.mesh_vert).tobytes())
-        h.update(np.ascontiguousarray(model.mesh_face).tobytes())
-    h.update(repr(sorted((str(k), repr(v)) for k, v in mapping.items())).encode())
-    h.update(repr((int(sample_rate), quality, method, budget_modes)).encode())
-    return h.hexdigest()
+    if default_material is not None:
+        mapping.setdefault("*", default_material)
+    return mapping
 
 
 def build_scene(model, mapping, sample_rate, quality="draft", method="hex", microphones=None,
-                budget_modes=None, progress=False, models=None):
-    """:meth:`SoundScene.from_model` with the process-wide model memo (see ``_SCENE_MEMO``)."""
+                budget_modes=None, progress=True, models=None, **scene_kw):
+    """:meth:`SoundScene.from_model` as the wrappers use it: no error estimate (a second,
+    coarser solve that only reports accuracy: about 2/3 of the time of a small model), models
+    memoised per process (several copies of one env analyse once) and disk-cached."""
     from .sim.scene import SoundScene
 
-    key = _model_key(model, mapping, sample_rate, quality, method, budget_modes)
-    memo = _SCENE_MEMO.get(key)
-    mats = dict(mapping)
-    given = dict(models or {})
-    if memo is not None:
-        given = {**memo["models"], **given}
-        for gname in memo["silent"]:
-            mats[gname] = "silent"  # analysed before: no audible modes; do not analyse again
-    else:
-        given = {**_analyse_geoms(model, mapping, sample_rate, quality, method, skip=set(given), progress=progress),
-                 **given}
-    scene = SoundScene.from_model(model, materials=mats, microphones=microphones, budget_modes=budget_modes,
-                                  sample_rate=sample_rate, quality=quality, progress=progress,
-                                  method=method, models=given)
-    if memo is None:
-        import mujoco
-
-        silent = []
-        for gname, why in scene.silent.items():
-            if ("no audible modes" in why or "analysis failed" in why) and \
-                    mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, gname) >= 0:
-                silent.append(gname)  # named geoms only (a mapping can only address those)
-        _SCENE_MEMO[key] = {"models": {s.name: s.model for s in scene.sounding}, "silent": silent}
-    return scene
-
-
-#: Process-wide memo of modal models by (mesh label, material, rate, quality, method).
-_MODEL_MEMO: dict = {}
-
-
-def _analyse_geoms(model, mapping, sample_rate, quality, method, skip=(), progress=False) -> dict:
-    """Modal models of the geoms SoundScene would analyse, without ``analyze``'s error estimate
-    (a second, coarser solve that only reports accuracy: about 2/3 of the time of a small
-    primitive), identical shapes and materials analysed once. Geoms whose analysis fails are
-    left to SoundScene (which retries, then warns and keeps them silent)."""
-    import mujoco
-
-    from .materials import Material, parse_material
-    from .modal.analyze import analyze
-    from .sim.scene import _sphere_inaudible, geom_mesh_spec, geom_name
-
-    T = mujoco.mjtGeom
-    pair = set(np.asarray(model.pair_geom1).tolist()) | set(np.asarray(model.pair_geom2).tolist())
-    mats = geom_materials(model, mapping)
-    todo = []
-    for g in range(model.ngeom):
-        gname = geom_name(model, g)
-        raw = mats[g]
-        if gname in skip or raw is None:
-            continue
-        if isinstance(raw, str) and raw.strip().lower() in _SILENT_WORDS:
-            continue
-        if not (model.geom_contype[g] or model.geom_conaffinity[g] or g in pair):
-            continue
-        if int(model.geom_type[g]) in (T.mjGEOM_PLANE, T.mjGEOM_HFIELD, getattr(T, "mjGEOM_SDF", -99)):
-            continue
-        try:
-            mat = raw if isinstance(raw, Material) else parse_material(raw)
-        except (KeyError, ValueError):
-            continue  # SoundScene reports it
-        if _sphere_inaudible(model, g, mat, sample_rate):
-            continue
-        todo.append((g, gname, mat))
-    it = todo
-    if progress and todo:
-        try:
-            from tqdm.auto import tqdm
-
-            it = tqdm(todo, desc="mjsound: modal analysis", unit="geom")
-        except ImportError:  # pragma: no cover
-            pass
-    out = {}
-    for g, gname, mat in it:
-        spec, label = geom_mesh_spec(model, g)
-        if isinstance(spec, tuple):
-            label = label + ":" + hashlib.sha1(np.ascontiguousarray(spec[0]).tobytes()).hexdigest()
-        k = (label, repr(mat), int(sample_rate), quality, method)
-        mm = _MODEL_MEMO.get(k)
-        if mm is None:
-            try:
-                mm = analyze(spec, mat, method=method, quality=quality, sample_rate=sample_rate,
-                             error_estimate=False, progress=False)
-            except (ValueError, RuntimeError, MemoryError):
-                continue
-            _MODEL_MEMO[k] = mm
-        out[gname] = mm  # zero modes included: SoundScene then marks it silent without re-analysing
-    return out
+    return SoundScene.from_model(model, materials=mapping, microphones=microphones, budget_modes=budget_modes,
+                                 sample_rate=sample_rate, quality=quality, progress=progress, method=method,
+                                 models=models, error_estimate=False, **scene_kw)
 
 
 # ---------------------------------------------------------------------- spectrogram
@@ -338,6 +167,96 @@ def _push_kernel(buf, block, scale):
     return clipped, peak
 
 
+# ---------------------------------------------------------------------- shared core
+class EnvAudio:
+    """The audio side of an environment wrapper (gymnasium's :class:`AudioObservation` and
+    dm_control's :class:`mjsound.dmc.AudioEnvironment`): scene, simulator, listener, window.
+
+    Parameters are those of :class:`AudioObservation` (there documented), plus the physics
+    ``model``, ``data`` and the env step ``dt`` [s]. The wrapper steps the physics through
+    :attr:`sim` (``sim.substeps(n)`` or ``sim.step(render=False)`` after every ``mj_step``),
+    calls :meth:`reset` after the env's reset and :meth:`end_step` after each env step.
+    """
+
+    def __init__(self, model, data, dt, sample_rate=16000, window_s=None, mode="waveform", mics=None,
+                 materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
+                 follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
+                 objects="body", sound_meshes=None):
+        import mujoco
+
+        from .sim.simulator import AudioSimulator
+
+        if mode not in ("waveform", "spectrogram"):
+            raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
+        fsp = float(full_scale_pa)
+        if not (math.isfinite(fsp) and fsp > 0):
+            raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure [Pa]")
+        self.sample_rate = int(sample_rate)
+        window = int(round((dt if window_s is None else float(window_s)) * self.sample_rate))
+        if window < 2:
+            raise ValueError(f"audio window of {window} samples is too short (window_s={window_s}, dt={dt})")
+        self.window = window
+        mic_arg = None if mics is None else (list(mics) if len(mics) and isinstance(mics[0], str) else np.asarray(mics, float))
+        self.scene = build_scene(model, scene_materials(materials, default_material), self.sample_rate,
+                                 quality=quality, microphones=mic_arg, budget_modes=budget_modes, progress=progress,
+                                 models=models, objects=objects, sound_meshes=sound_meshes)
+        self.sim = AudioSimulator(model, data, scene=self.scene, sample_rate=self.sample_rate, progress=False,
+                                  **{"keep_events": 0, **(sim_kwargs or {})})
+        self.n_channels = self.sim.n_channels
+        # listener that follows a body (translation only; AudioSimulator.follow)
+        if mics is None and not self.scene.mic_site_ids and follow is not None and self.sim.synth is not None:
+            if follow == "auto":
+                body = 1 if model.nbody > 1 and model.body_weldid[1] != 0 else None
+            else:
+                body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, str(follow))
+                if body < 0:
+                    raise ValueError(f"follow={follow!r}: no such body")
+            if body is not None:
+                d0 = mujoco.MjData(model)
+                mujoco.mj_forward(model, d0)
+                self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
+        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
+        self._audible = np.zeros(model.ngeom, bool)
+        for s in self.scene.sounding:
+            self._audible[list(s.geom_ids)] = True
+        self._rng = None
+        self._reader_impacts = 0
+
+    def reset(self, seed=None) -> dict:
+        """After the env's reset: silence, re-anchor the clock at ``data.time``, draw the noise
+        seed from the wrapper's generator (seeded by ``seed`` when given). Returns the info
+        entries."""
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(seed)
+        if self.sim.synth is not None:
+            self.sim.synth.seed = int(self._rng.integers(2**31 - 1))
+        self.sim.reset()  # (moves a following listener to its body)
+        self.audio.reset()
+        self._reader_impacts = self.sim.reader.n_impacts
+        return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
+
+    def _audible_impacts(self) -> int:
+        """Impacts since the last call that involve a sounding geom (the reader's newest records)."""
+        r = self.sim.reader
+        new = r.n_impacts - self._reader_impacts
+        self._reader_impacts = r.n_impacts
+        if new <= 0:
+            return 0
+        recs = getattr(r, "_records", None)
+        if recs is None or new > len(recs):
+            return int(new)  # (more than the reader keeps: counted as audible)
+        aud = self._audible
+        return sum(1 for rec in itertools.islice(reversed(recs), new) if aud[rec.geom1] or aud[rec.geom2])
+
+    def end_step(self) -> tuple[np.ndarray, dict]:
+        """After an env step: render its audio; returns ``(audio observation, info entries)``."""
+        block = self.sim.flush()
+        clipped, peak = self.audio.push(block)
+        info = dict(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
+                    audio_impacts=self._audible_impacts())
+        return self.audio.observe(), info
+
+
 # ---------------------------------------------------------------------- wrapper
 class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Add the contact sound of the last env step to the observation.
@@ -345,10 +264,12 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Parameters
     ----------
     env : gymnasium.Env
-        A MuJoCo env: ``env.unwrapped`` has ``model`` and ``data`` and steps through
-        ``_step_mujoco_simulation(ctrl, n_frames)`` (every ``gymnasium.envs.mujoco.MujocoEnv``
-        does). For another stepping scheme call :meth:`on_substep` after every ``mj_step``
-        yourself.
+        A MuJoCo env: ``env.unwrapped`` has ``model`` and ``data``. Every physics substep is
+        heard: the wrapper hooks gymnasium's ``MujocoEnv._step_mujoco_simulation(ctrl,
+        n_frames)`` and gymnasium-robotics' ``MujocoRobotEnv._mujoco_step(action)``
+        (``n_substeps`` steps). An env that steps another way is refused at construction
+        (``TypeError``) unless ``substeps="manual"``: then call :meth:`on_substep` after every
+        ``mj_step`` yourself.
     sample_rate : int
         Audio sample rate [Hz] (default 16 kHz, as SoundSpaces; modes above 0.45 fs are not
         computed).
@@ -372,12 +293,14 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Default: the model's sites named ``mic*``; without any, one listener 1 m from the
         scene (``SoundScene``'s rule) that keeps its offset from ``follow``'s body.
     materials : dict, optional
-        ``{geom_or_body_name: material}`` (``"*"``: default for all others); see
-        :class:`mjsound.sim.SoundScene`.
+        ``{key: material}``, key a geom name, ``geom<ID>`` / id of an unnamed geom, a body name
+        or ``"*"`` (the default for all others); see :class:`mjsound.sim.SoundScene`. An
+        unknown key is an error listing the closest names.
     default_material : str | Material | None
         Material of geoms that have none (default ``"aluminium"``; ``None`` keeps them
-        silent). Soft materials such as ``"rubber"`` make the modal analysis very expensive
-        (slow waves need fine meshes) and are overdamped above a few kHz: prefer stiff ones.
+        silent); the same as ``materials["*"]``. Soft materials such as ``"rubber"`` make the
+        modal analysis very expensive (slow waves need fine meshes) and are overdamped above a
+        few kHz: prefer stiff ones.
     full_scale_pa : float
         Pressure mapped to 1.0 (default 20 Pa = 120 dB SPL, as ``mjsound.synth.output``).
         ``info["audio_clipped"]`` counts the new samples (all channels) beyond it.
@@ -390,20 +313,29 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Only used when ``mics`` is None and the model has no ``mic*`` sites.
     quality : str
         Modal analysis quality (default ``"draft"``: cheap, within a few per cent). The
-        wrapper analyses each distinct (shape, material) once per process, without
-        ``analyze``'s error estimate, and the results are also disk-cached by ``analyze``.
+        wrapper analyses each distinct object once per process, without ``analyze``'s error
+        estimate, and the results are also disk-cached by ``analyze``.
     budget_modes : int, optional
         Total modes of the scene (shared by importance), for speed.
     models : dict, optional
-        Precomputed ``{geom_name: ModalModel}`` (skips their analysis).
+        Precomputed ``{object_name: ModalModel}`` (skips their analysis).
     progress : bool
-        Progress bar over the modal analyses.
+        Progress bar (stderr) over the modal analyses, shown once they take over a second
+        (default True).
     sim_kwargs : dict, optional
         Extra keyword arguments for :class:`mjsound.sim.AudioSimulator` (``sustained``,
         ``synth_kwargs``, ``reader_kwargs``...). ``keep_events`` defaults to 0 here: an
         environment keeps no event log (``env.sim.event_log``), which lets a whole
         ``frame_skip`` run in one numba call (:mod:`mjsound.sim.fused`); give e.g.
         ``keep_events=100_000`` to keep one.
+    objects : {"body", "geom"}
+        Sounding objects are bodies (default: a body's collision geoms ring as one) or geoms.
+    sound_meshes : dict, optional
+        ``{body: geom or mesh}``: the surface a body's sound is computed from (e.g. its
+        visual mesh); see :class:`mjsound.sim.SoundScene`.
+    substeps : {"auto", "manual"}
+        ``"auto"``: hook the env's stepping (above) or refuse the env; ``"manual"``: no hook,
+        call :meth:`on_substep` after every ``mj_step``.
 
     Observation
     -----------
@@ -414,7 +346,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     ----
     ``audio_clipped`` (int, samples x channels of this step beyond full scale, NaN included),
     ``audio_peak_pa`` (float, largest |pressure| of this step [Pa]), ``audio_samples`` (int,
-    new samples per channel this step), ``audio_impacts`` (int, impacts this step).
+    new samples per channel this step), ``audio_impacts`` (int, impacts this step that
+    involve a sounding object).
 
     Seeding
     -------
@@ -439,64 +372,45 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         quality: str = "draft",
         budget_modes: int | None = None,
         models: dict | None = None,
-        progress: bool = False,
+        progress: bool = True,
         sim_kwargs: dict | None = None,
+        objects: str = "body",
+        sound_meshes: dict | None = None,
+        substeps: str = "auto",
     ):
         gym.utils.RecordConstructorArgs.__init__(
             self, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics, materials=materials,
             default_material=default_material, full_scale_pa=full_scale_pa, n_fft=n_fft, hop=hop,
-            follow=follow, quality=quality, budget_modes=budget_modes,
+            follow=follow, quality=quality, budget_modes=budget_modes, objects=objects, substeps=substeps,
         )
         gym.Wrapper.__init__(self, env)
         import mujoco
-
-        from .sim.simulator import AudioSimulator
 
         self._mj = mujoco
         uw = env.unwrapped
         if not (hasattr(uw, "model") and hasattr(uw, "data")):
             raise TypeError("AudioObservation needs a MuJoCo env: env.unwrapped must have .model and .data")
-        if mode not in ("waveform", "spectrogram"):
-            raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
-        fsp = float(full_scale_pa)
-        if not (math.isfinite(fsp) and fsp > 0):
-            raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure [Pa]")
-        self.sample_rate = int(sample_rate)
-        self.mode = mode
-        self.full_scale_pa = fsp
+        if substeps not in ("auto", "manual"):
+            raise ValueError(f"substeps={substeps!r}: choose 'auto' (hook the env's stepping) or 'manual'")
+        hook = _stepping_hook(uw) if substeps == "auto" else None
+        if substeps == "auto" and hook is None:
+            raise TypeError(
+                f"AudioObservation cannot find how {type(uw).__name__} steps MuJoCo (neither gymnasium's "
+                "MujocoEnv._step_mujoco_simulation nor gymnasium-robotics' MujocoRobotEnv._mujoco_step), so it "
+                "cannot hear its substeps. Pass substeps='manual' and call env.on_substep() after every "
+                "mj_step of the env, or step the physics through env.sim.substeps(n)."
+            )
         model, data = uw.model, uw.data
         dt = float(getattr(uw, "dt", model.opt.timestep))
-        if window_s is None:
-            window = int(round(dt * self.sample_rate))
-        else:
-            window = int(round(float(window_s) * self.sample_rate))
-        if window < 2:
-            raise ValueError(f"audio window of {window} samples is too short (window_s={window_s}, dt={dt})")
-        self.window = window
+        self.core = EnvAudio(model, data, dt, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics,
+                             materials=materials, default_material=default_material, full_scale_pa=full_scale_pa,
+                             n_fft=n_fft, hop=hop, follow=follow, quality=quality, budget_modes=budget_modes,
+                             models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
+                             sound_meshes=sound_meshes)
+        self.scene, self.sim, self.audio = self.core.scene, self.core.sim, self.core.audio
+        self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
+        self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa
 
-        mapping = resolve_materials(model, materials, default_material)
-        mic_arg = None if mics is None else (list(mics) if len(mics) and isinstance(mics[0], str) else np.asarray(mics, float))
-        scene = build_scene(model, mapping, self.sample_rate, quality=quality, microphones=mic_arg,
-                            budget_modes=budget_modes, progress=progress, models=models)
-        self.scene = scene
-        self.sim = AudioSimulator(model, data, scene=scene, sample_rate=self.sample_rate, progress=False,
-                                  **{"keep_events": 0, **(sim_kwargs or {})})
-        self.n_channels = self.sim.n_channels
-
-        # listener that follows a body (translation only; AudioSimulator.follow)
-        if mics is None and not scene.mic_site_ids and follow is not None and self.sim.synth is not None:
-            if follow == "auto":
-                body = 1 if model.nbody > 1 and model.body_weldid[1] != 0 else None
-            else:
-                body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, str(follow))
-                if body < 0:
-                    raise ValueError(f"follow={follow!r}: no such body")
-            if body is not None:
-                d0 = mujoco.MjData(model)
-                mujoco.mj_forward(model, d0)
-                self.sim.follow(int(body), np.asarray(scene.mic_positions) - d0.xpos[body])
-
-        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
         audio_space = self.audio.space
         inner = env.observation_space
         if isinstance(inner, gym.spaces.Dict):
@@ -508,27 +422,29 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._dict_obs = False
             self.observation_space = gym.spaces.Dict({"observation": inner, "audio": audio_space})
 
-        self._rng = None
-        self._hooked = False
-        if hasattr(uw, "_step_mujoco_simulation"):
-            self._install_hook(uw)
-        else:
-            warnings.warn("env.unwrapped has no _step_mujoco_simulation: call AudioObservation.on_substep() "
-                          "after every mj_step, or the audio stays silent", stacklevel=2)
+        self._hooked = None
+        if hook is not None:
+            self._install_hook(uw, hook)
 
     # ------------------------------------------------------------------ substeps
-    def _install_hook(self, uw) -> None:
+    def _install_hook(self, uw, hook) -> None:
+        """Replace the env's stepping method (on the instance) by one that hears every substep."""
         mj = self._mj
         model, data = uw.model, uw.data
-        substeps = self.sim.substeps  # mj_step + on_substep, n_frames times (one numba call)
+        substeps = self.sim.substeps  # mj_step + on_substep, n times (one numba call)
+        if hook == "_step_mujoco_simulation":  # gymnasium MujocoEnv
+            def _step_mujoco_simulation(ctrl, n_frames):
+                data.ctrl[:] = ctrl
+                substeps(n_frames)
+                mj.mj_rnePostConstraint(model, data)
 
-        def _step_mujoco_simulation(ctrl, n_frames):
-            data.ctrl[:] = ctrl
-            substeps(n_frames)
-            mj.mj_rnePostConstraint(model, data)
+            uw._step_mujoco_simulation = _step_mujoco_simulation
+        else:  # gymnasium-robotics MujocoRobotEnv: mj_step(model, data, nstep=n_substeps)
+            def _mujoco_step(action):
+                substeps(uw.n_substeps)
 
-        uw._step_mujoco_simulation = _step_mujoco_simulation
-        self._hooked = True
+            uw._mujoco_step = _mujoco_step
+        self._hooked = hook
 
     def on_substep(self) -> None:
         """Read the contacts of the ``mj_step`` just taken and queue its sound (rendered once
@@ -537,8 +453,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.sim.step(render=False)
 
     # ------------------------------------------------------------------ gym API
-    def _observe(self, obs):
-        audio = self.audio.observe()
+    def _observe(self, obs, audio):
         if self._dict_obs:
             out = dict(obs)
             out["audio"] = audio
@@ -547,29 +462,31 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
-        if seed is not None or self._rng is None:
-            self._rng = np.random.default_rng(seed)
-        if self.sim.synth is not None:
-            self.sim.synth.seed = int(self._rng.integers(2**31 - 1))
-        self.sim.reset()  # (moves a following listener to its body)
-        self.audio.reset()
-        info = dict(info)
-        info.update(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
-        return self._observe(obs), info
+        info = {**info, **self.core.reset(seed)}
+        return self._observe(obs, self.audio.observe()), info
 
     def step(self, action):
-        n_imp = self.sim.n_impacts
         obs, reward, terminated, truncated, info = self.env.step(action)
-        block = self.sim.flush()
-        clipped, peak = self.audio.push(block)
-        info = dict(info)
-        info.update(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
-                    audio_impacts=self.sim.n_impacts - n_imp)
-        return self._observe(obs), reward, terminated, truncated, info
+        audio, extra = self.core.end_step()
+        return self._observe(obs, audio), reward, terminated, truncated, {**info, **extra}
 
     def close(self):
         uw = self.env.unwrapped
-        if self._hooked and "_step_mujoco_simulation" in vars(uw):
-            del uw._step_mujoco_simulation  # back to the class method
-            self._hooked = False
+        if self._hooked and self._hooked in vars(uw):
+            delattr(uw, self._hooked)  # back to the class method
+            self._hooked = None
         return super().close()
+
+
+def _stepping_hook(uw) -> str | None:
+    """Which stepping method of the unwrapped env to hook: gymnasium's ``MujocoEnv`` steps
+    through ``_step_mujoco_simulation(ctrl, n_frames)``; gymnasium-robotics' ``MujocoRobotEnv``
+    through ``_mujoco_step(action)``, ``mj_step(model, data, nstep=n_substeps)``. None: neither."""
+    import mujoco
+
+    if callable(getattr(uw, "_step_mujoco_simulation", None)):
+        return "_step_mujoco_simulation"
+    if callable(getattr(uw, "_mujoco_step", None)) and isinstance(getattr(uw, "n_substeps", None), (int, np.integer)) \
+            and isinstance(uw.model, mujoco.MjModel) and isinstance(uw.data, mujoco.MjData):
+        return "_mujoco_step"
+    return None

@@ -1,44 +1,66 @@
-"""`SoundScene`: which geoms of a MuJoCo model sound, with which material and modal model.
+"""`SoundScene`: which objects of a MuJoCo model sound, with which material and modal model.
 
 A geom *sounds* when it can collide (``contype`` or ``conaffinity`` non-zero, or it is named
 in an explicit ``<pair>``), is not a plane/height field, and has an acoustic material. The
 material comes from, in this order of precedence:
 
-1. the Python mapping ``materials={geom_or_body_name: material}`` (a geom name wins over its
-   body's name; a value of ``None``/``"none"``/``"silent"`` makes the geom silent),
+1. the Python mapping ``materials={key: material}``, key a geom name, MuJoCo's fallback name
+   ``geom<ID>`` of an unnamed geom, its id, or its body's name (a geom key wins over its
+   body's; a value of ``None``/``"none"``/``"silent"`` makes the geom silent),
 2. an MJCF custom text ``<custom><text name="mjsound:GEOMNAME" data="steel"/></custom>``,
 3. the geom's MJCF ``material`` name when it names a known acoustic material
-   (case-insensitive, see :func:`mjsound.materials.get_material`).
+   (case-insensitive, see :func:`mjsound.materials.get_material`),
+4. ``materials["*"]``, the default for every other geom.
 
-Geoms with no acoustic material are silent but still excite what they hit; a plane (e.g. the
-floor) may carry a material, which is then used for the contact (Hertz) pulse of the objects
-hitting it, but it never gets a modal model.
+An unknown key in ``materials`` is an error listing the closest names: a typo never passes
+silently.
 
-Meshes come from the compiled model, in the geom frame (mesh geoms from ``mesh_vert`` /
-``mesh_face``; primitives as built-in shape specs of the right size). Modal models come from
-:func:`mjsound.modal.analyze.analyze` (disk-cached) with an optional tqdm progress bar.
+Sounding geoms form **objects** (:mod:`mjsound.sim.objects`): by default the collision geoms
+of one body with one material ring as one (one modal model of their union, in the frame of
+an anchor geom), ``objects="geom"`` keeps one per geom. An object of one geom is named like
+the geom; an object of several geoms like their body. Geoms with no acoustic material are
+silent but still excite what they hit; a plane (e.g. the floor) may carry a material, which
+is then used for the contact (Hertz) pulse of the objects hitting it, but it never gets a
+modal model.
 
-A scene budget ``budget_modes`` (total modes over all sounding geoms) is shared by
-importance: every sounding geom keeps at least a few modes (never silently dropped), the rest
-go greedily to the loudest next-lowest mode of any geom (loudness per unit impulse at 1 m:
-``|radiation_i| * rms(phi_i) / omega_i``). Every truncation is listed in :meth:`report`.
+Modal models come from :func:`mjsound.modal.analyze.analyze` (disk-cached, and memoised in the
+process) with a progress bar on stderr once the analysis takes over a second. What the scene
+decided is in :meth:`SoundScene.report`: each object's modes, error estimate (flagged above
+50 cents), mass against MuJoCo's, open surfaces and every mode budget.
+
+Budgets: a large solid (a table, a floor slab) whose Weyl estimate of modes below f_max is
+above :data:`AUTO_MAX_MODES` keeps its lowest ``AUTO_MAX_MODES`` (``max_modes_per_object``).
+A scene budget ``budget_modes`` (total modes) is shared by importance: every object keeps at
+least a few modes (never silently dropped), the rest go greedily to the loudest next-lowest
+mode of any object (loudness per unit impulse at 1 m: ``|radiation_i| * rms(phi_i) /
+omega_i``). Every truncation is listed in :meth:`SoundScene.report`.
 """
 
 from __future__ import annotations
 
 import heapq
 import os
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..materials import Material, get_material, parse_material
 from ..modal.model import ModalModel
+from .objects import (checked_mapping, close_names, custom_materials, custom_texts, geom_mesh_spec, geom_name,
+                      group_objects, plan_object, unique_names)
 
-__all__ = ["SoundScene", "SoundingGeom", "geom_mesh_spec", "geom_contact_radius"]
+from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, _analyze_with_fallback,  # noqa: F401 (re-exported)
+                             _finite_or_none, _mode_cap,
+                             _sphere_inaudible, _surface_notes, check_masses, warn_unheard)
+
+_custom_materials = custom_materials  # (older name, used by mjsound.wrappers)
+
+__all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
 
 _SILENT_WORDS = {"none", "silent", "off", ""}
+
+#: Estimated frequency errors above this are flagged in the report [cents].
+ERROR_FLAG_CENTS = 50.0
 
 
 def _mujoco():
@@ -49,14 +71,17 @@ def _mujoco():
 
 @dataclass
 class SoundingGeom:
-    """One geom that sounds.
+    """One sounding object: one geom, or the collision geoms of one body that share a material.
 
     Attributes
     ----------
-    geom_id, body_id : int
-        MuJoCo ids.
+    geom_id : int
+        The anchor geom: the model lives in its frame and follows its pose.
+    body_id : int
+        MuJoCo body id.
     name : str
-        Synthesizer object name (the geom name, or ``geom<ID>`` for unnamed geoms).
+        Synthesizer object name: the geom's name (``geom<ID>`` for unnamed geoms) for one geom,
+        the body's name (``body<ID>``) for several.
     material : Material
     model : ModalModel
         The (possibly budget-truncated) model the synthesizer plays.
@@ -68,6 +93,11 @@ class SoundingGeom:
         Built-in spec or ``mesh:NAME`` that was analysed.
     dynamic : bool
         Whether the geom moves (its body is not welded to the world).
+    method : str
+    geom_ids : tuple[int, ...]
+        Every geom whose contacts excite this object (the anchor first).
+    notes : list[str]
+        What the scene noticed or decided (mode budget, open surface, mass against MuJoCo's).
     """
 
     geom_id: int
@@ -80,6 +110,16 @@ class SoundingGeom:
     mesh: str
     dynamic: bool = True
     method: str = "hex"
+    geom_ids: tuple = ()
+    notes: list = field(default_factory=list)
+
+    def __post_init__(self):
+        if not self.geom_ids:
+            self.geom_ids = (int(self.geom_id),)
+
+
+#: The same class under the name of what it is since objects are bodies.
+SoundingObject = SoundingGeom
 
 
 @dataclass
@@ -136,6 +176,10 @@ class SoundScene:
         method: str = "hex",
         models: dict | None = None,
         cache: bool = True,
+        objects: str = "body",
+        sound_meshes: dict | None = None,
+        max_modes_per_object="auto",
+        error_estimate: bool = True,
     ) -> "SoundScene":
         """Build the scene of a model.
 
@@ -144,26 +188,46 @@ class SoundScene:
         model : mujoco.MjModel | str | os.PathLike
             A compiled model or a path to an MJCF file.
         materials : dict, optional
-            ``{geom_or_body_name: material}``; values are anything
-            :func:`mjsound.materials.parse_material` accepts, or ``None``/``"silent"``.
+            ``{key: material}``; a key is a geom name, MuJoCo's fallback name of an unnamed
+            geom (``"geom22"``, as the report prints it) or its id (``22``), a body name, or
+            ``"*"`` (every geom that has no material otherwise: not in the mapping, no custom
+            text, no MJCF material named like an acoustic one). Values are anything
+            :func:`mjsound.materials.parse_material` accepts, or ``None``/``"silent"``. An
+            unknown key is an error that lists the closest names.
         microphones : list[str] | (m, 3) array, optional
             Site names (they follow their bodies) or fixed world positions [m]. Default: the
             sites whose name starts with ``mic`` in model order, else one listener 1 m from the
             centre of the scene.
         budget_modes : int, optional
-            Total modes over all sounding geoms (None: no limit).
+            Total modes over all sounding objects (None: no limit).
         sample_rate : int
             Audio sample rate [Hz]; modes above ``0.45 * sample_rate`` are not computed.
         quality : str
             Passed to ``analyze`` (``"draft"``, ``"default"``, ``"high"``).
         progress : bool
-            Show a tqdm progress bar over the analyses.
+            Progress bar (stderr) over the analyses; it appears once they take over a second.
         method : str
             Discretization (``"hex"`` default); on failure falls back to ``hex``, then silence.
         models : dict, optional
-            Precomputed ``{geom_name: ModalModel}``; those geoms skip analysis.
+            Precomputed ``{object_name: ModalModel}``; those objects skip analysis.
         cache : bool
             Use the on-disk model cache.
+        objects : {"body", "geom"}
+            ``"body"`` (default): the collision geoms of one body with one material ring as one
+            object (:mod:`mjsound.sim.objects`); ``"geom"``: every geom rings on its own.
+        sound_meshes : dict, optional
+            ``{body_or_geom_name: surface}``: analyse this surface instead of the collision
+            geoms (a geom such as the body's visual mesh, a mesh asset, a file, a built-in
+            spec or ``(V, F)`` in the body frame; see :mod:`mjsound.sim.objects`). MJCF:
+            ``<text name="mjsound-mesh:BODY" data="GEOM_OR_MESH"/>``.
+        max_modes_per_object : "auto" | int | None
+            Mode budget of one object. ``"auto"``: a solid whose Weyl estimate of modes
+            below f_max exceeds :data:`AUTO_MAX_MODES` (a table or a floor slab in aluminium:
+            hundreds of modes, a minute of analysis, little of the sound) keeps its lowest
+            ``AUTO_MAX_MODES``; the report says so. ``None``: no limit.
+        error_estimate : bool
+            Let ``analyze`` estimate each model's frequency error (a second, coarser solve);
+            the report shows it and flags objects above 50 cents.
 
         Returns
         -------
@@ -173,20 +237,24 @@ class SoundScene:
         if not isinstance(model, mujoco.MjModel):
             model = mujoco.MjModel.from_xml_path(os.fspath(model))
         scene = cls(model=model, budget_modes=budget_modes, sample_rate=int(sample_rate))
-        materials = dict(materials or {})
+        materials = checked_mapping(model, materials, "materials", allow_star=True)
+        sound_meshes = {**custom_texts(model, "mjsound-mesh:"),
+                        **checked_mapping(model, sound_meshes, "sound_meshes", allow_star=False)}
         models = dict(models or {})
-        custom = _custom_materials(model)
+        custom = custom_materials(model)
+        star = materials.pop("*", None)
 
         # ---------------------------------------------------------------- materials
         pair_geoms = set(np.asarray(model.pair_geom1).tolist()) | set(np.asarray(model.pair_geom2).tolist())
-        todo = []  # (g, name, material, source)
+        todo, sources = [], []
+        named = set()  # geoms whose material the user named (mapping or custom text)
         for g in range(model.ngeom):
             gname = geom_name(model, g)
             bname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[g])) or ""
             mat, source = None, None
             raw_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
-            for key in (raw_name, bname):
-                if key and key in materials:
+            for key in (raw_name, gname, g, bname):
+                if key not in ("", None) and key in materials:
                     mat, source = materials[key], "mapping"
                     break
             if source is None and raw_name and raw_name in custom:
@@ -197,6 +265,8 @@ class SoundScene:
                     mat, source = get_material(mname), "mjcf-material"
                 except KeyError:
                     mat, source = None, None
+            if source is None and star is not None:
+                mat, source = star, "default"
             if mat is not None and not isinstance(mat, Material):
                 if isinstance(mat, str) and mat.strip().lower() in _SILENT_WORDS:
                     mat = None
@@ -206,6 +276,7 @@ class SoundScene:
                     except (KeyError, ValueError) as exc:
                         raise ValueError(f"geom {gname!r}: bad acoustic material ({source}): {exc}") from exc
             scene.geom_material.append(mat)
+            sources.append(source)
             collides = bool(model.geom_contype[g] or model.geom_conaffinity[g] or g in pair_geoms)
             gtype = int(model.geom_type[g])
             if not collides:
@@ -217,54 +288,82 @@ class SoundScene:
             elif gtype in (mujoco.mjtGeom.mjGEOM_HFIELD, getattr(mujoco.mjtGeom, "mjGEOM_SDF", -99)):
                 scene.silent[gname] = "height field / SDF (not analysed)"
             else:
-                todo.append((g, gname, mat, source))
+                todo.append(g)
+                if source in ("mapping", "custom"):
+                    named.add(g)
+
+        # ---------------------------------------------------------------- objects
+        groups = group_objects(model, todo, scene.geom_material, objects)
+        plans = [plan_object(model, members, sound_meshes, scene.geom_material[members[0]], sources[members[0]])
+                 for members in groups]
+        unique_names(plans)
+        unknown = set(models) - {p["name"] for p in plans}
+        if unknown:
+            names = [p["name"] for p in plans]
+            k = sorted(unknown)[0]
+            raise ValueError(f"models: no sounding object named {k!r}{close_names(k, names)}; "
+                             f"the objects are {', '.join(map(repr, names)) or 'none'}")
 
         # ---------------------------------------------------------------- analysis
         import time as _time
 
         t0 = _time.perf_counter()
         analysed = []
-        it = todo
-        if progress and todo and any(name not in models for _, name, _, _ in todo):
+        from ..modal.analyze import default_f_max
+
+        f_max = default_f_max(sample_rate)
+        bar = None
+        if progress and any(p["name"] not in models for p in plans):
             try:
                 from tqdm.auto import tqdm
 
-                it = tqdm(todo, desc="mjsound: modal analysis", unit="geom")
+                bar = tqdm(total=len(plans), desc="mjsound: modal analysis", unit="object", delay=1.0)
             except ImportError:  # pragma: no cover
                 pass
-        for g, gname, mat, source in it:
-            spec, label = geom_mesh_spec(model, g)
-            inaudible = _sphere_inaudible(model, g, mat, sample_rate)
-            if gname in models:
-                mm = models[gname]
-            elif inaudible:
-                scene.silent[gname] = inaudible
-                continue
-            else:
-                mm = _analyze_with_fallback(gname, spec, mat, method, quality, sample_rate, cache)
-            if mm is None:
-                scene.silent[gname] = "analysis failed (see warning)"
-                continue
-            if mm.n_modes == 0:
-                scene.silent[gname] = "no audible modes below f_max"
-                continue
-            body = int(model.geom_bodyid[g])
-            analysed.append(
-                SoundingGeom(
-                    geom_id=g,
-                    body_id=body,
-                    name=gname,
-                    material=mat,
-                    model=mm,
-                    n_modes_analysed=mm.n_modes,
-                    source=source,
-                    mesh=label,
-                    dynamic=bool(model.body_weldid[body] != 0),
-                    method=str(mm.method),
+        try:
+            for plan in plans:
+                name, members, mat = plan["name"], plan["members"], plan["material"]
+                if bar is not None:
+                    bar.set_postfix_str(name, refresh=False)
+                mm, notes = models.get(name), []
+                inaudible = _sphere_inaudible(model, members[0], mat, sample_rate) if len(members) == 1 and \
+                    plan["sound_mesh"] is None else None
+                if mm is None and inaudible:
+                    scene.silent[name] = inaudible
+                elif mm is None:
+                    max_modes, cap_note = _mode_cap(plan["mesh"], mat, f_max, max_modes_per_object)
+                    if cap_note:
+                        notes.append(cap_note)
+                    mm = _analyze_with_fallback(name, plan["mesh"], mat, method, quality, sample_rate, cache,
+                                                max_modes=max_modes, error_estimate=error_estimate)
+                    if mm is None:
+                        scene.silent[name] = "analysis failed (see warning)"
+                if bar is not None:
+                    bar.update(1)
+                if mm is None:
+                    continue
+                if mm.n_modes == 0:
+                    scene.silent[name] = f"no audible modes (none between 20 Hz and f_max {mm.info.get('f_max', f_max) / 1000:.1f} kHz)"
+                    continue
+                notes.extend(_surface_notes(mm))
+                body = int(model.geom_bodyid[members[0]])
+                analysed.append(
+                    SoundingGeom(
+                        geom_id=members[0], body_id=body, name=name, material=mat, model=mm,
+                        n_modes_analysed=mm.n_modes, source=plan["source"], mesh=plan["label"],
+                        dynamic=bool(model.body_weldid[body] != 0), method=str(mm.method),
+                        geom_ids=tuple(members), notes=notes,
+                    )
                 )
-            )
+        finally:
+            if bar is not None:
+                bar.close()
+        for plan in plans:
+            plan["named"] = any(g in named for g in plan["members"])
         scene.analysis_seconds = _time.perf_counter() - t0
         scene.sounding = analysed
+        warn_unheard(scene, [p for p in plans if p["named"] and p["name"] in scene.silent], f_max)
+        check_masses(scene)
         scene._apply_budget()
         scene._setup_microphones(microphones)
         return scene
@@ -359,8 +458,15 @@ class SoundScene:
         return int(sum(s.model.n_modes for s in self.sounding))
 
     def by_geom(self) -> dict:
-        """``{geom_id: SoundingGeom}``."""
-        return {s.geom_id: s for s in self.sounding}
+        """``{geom_id: SoundingGeom}`` for every geom that excites an object (an object of
+        several geoms appears once per geom; its anchor comes last)."""
+        out = {}
+        for s in self.sounding:
+            for g in s.geom_ids[1:]:
+                out[g] = s
+        for s in self.sounding:
+            out[s.geom_id] = s
+        return out
 
     def summary(self) -> dict:
         """JSON-able description of the scene."""
@@ -378,6 +484,10 @@ class SoundScene:
                     "f_max_hz": float(s.model.frequencies_hz[-1]) if s.model.n_modes else None,
                     "dofs": int(s.model.dofs),
                     "seconds": float(s.model.seconds),
+                    "geoms": [geom_name(self.model, g) for g in s.geom_ids],
+                    "mass_kg": float(s.model.mass_kg),
+                    "error_estimate_cents": _finite_or_none(s.model.error_estimate_cents),
+                    "notes": list(s.notes),
                 }
                 for s in self.sounding
             ],
@@ -391,13 +501,29 @@ class SoundScene:
         }
 
     def report(self) -> str:
-        """Human-readable summary (what sounds, with how many modes, what was cut)."""
-        lines = [f"{len(self.sounding)} sounding geom(s), {self.n_modes} modes, mics: {', '.join(self.mic_names)}"]
+        """Human-readable summary: what sounds (modes, range, error estimate, flagged ``(!)``
+        above 50 cents), what each object is made of, every budget and note, what is silent."""
+        lines = [f"{len(self.sounding)} sounding object(s), {self.n_modes} modes, mics: {', '.join(self.mic_names)}"]
+        flagged = 0
         for s in self.sounding:
             f = s.model.frequencies_hz
             rng = f"{f[0]:.0f}-{f[-1]:.0f} Hz" if len(f) else "-"
             cut = f" (of {s.n_modes_analysed})" if s.model.n_modes != s.n_modes_analysed else ""
-            lines.append(f"  {s.name:<20s} {s.material.name:<14s} {s.model.n_modes:4d} modes{cut}  {rng}  [{s.mesh}]")
+            err = float(s.model.error_estimate_cents)
+            if np.isfinite(err):
+                bad = err > ERROR_FLAG_CENTS
+                flagged += bad
+                est = f"+-{err:.0f} c{' (!)' if bad else ''}"
+            else:
+                est = "err n/a"
+            geoms = f" {len(s.geom_ids)} geoms," if len(s.geom_ids) > 1 else ""
+            lines.append(f"  {s.name:<20s} {s.material.name:<14s} {s.model.n_modes:4d} modes{cut}  {rng}  {est}  "
+                         f"{s.model.mass_kg:.3g} kg  [{geoms} {s.mesh}]".replace("[ ", "["))
+            for note in s.notes:
+                lines.append(f"      {note}")
+        if flagged:
+            lines.append(f"  (!) {flagged} object(s) with an estimated frequency error above {ERROR_FLAG_CENTS:.0f} cents: "
+                         "a higher quality ('default', 'high') makes them more accurate")
         for note in self.budget_notes:
             lines.append(f"  budget: {note}")
         for name, why in self.silent.items():
@@ -406,72 +532,6 @@ class SoundScene:
 
 
 # ---------------------------------------------------------------------- helpers
-def geom_name(model, g: int) -> str:
-    """The geom's name, or ``geom<ID>`` when it has none."""
-    mujoco = _mujoco()
-    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"geom{int(g)}"
-
-
-def _custom_materials(model) -> dict:
-    """``{geom_name: material text}`` from custom texts named ``mjsound:GEOMNAME``."""
-    mujoco = _mujoco()
-    out = {}
-    for t in range(model.ntext):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TEXT, t) or ""
-        if not name.startswith("mjsound:"):
-            continue
-        adr, size = int(model.text_adr[t]), int(model.text_size[t])
-        raw = bytes(model.text_data[adr : adr + size - 1])
-        out[name[len("mjsound:") :]] = raw.decode("utf-8", "replace").strip()
-    return out
-
-
-def geom_mesh_spec(model, g: int):
-    """What to analyse for geom ``g``: a built-in spec or ``(vertices, faces)`` in the geom frame.
-
-    Returns
-    -------
-    (mesh, label) : (str | tuple[np.ndarray, np.ndarray], str)
-        ``mesh`` for :func:`analyze`; ``label`` a short description.
-
-    Raises
-    ------
-    ValueError
-        For planes, height fields and SDFs.
-    """
-    mujoco = _mujoco()
-    T = mujoco.mjtGeom
-    t = int(model.geom_type[g])
-    s = np.asarray(model.geom_size[g], dtype=np.float64)
-    fmt = lambda *v: ",".join(f"{x:.6g}" for x in v)  # noqa: E731
-    if t == T.mjGEOM_SPHERE:
-        spec = f"sphere:{fmt(s[0])}"
-        return spec, spec
-    if t == T.mjGEOM_BOX:
-        spec = f"box:{fmt(*(2 * s))}"
-        return spec, spec
-    if t == T.mjGEOM_CYLINDER:
-        spec = f"cylinder:{fmt(s[0], 2 * s[1])}"
-        return spec, spec
-    if t == T.mjGEOM_CAPSULE:
-        spec = f"capsule:{fmt(s[0], 2 * s[1])}"
-        return spec, spec
-    if t == T.mjGEOM_ELLIPSOID:
-        import trimesh
-
-        sph = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
-        return (np.asarray(sph.vertices) * s[None, :], np.asarray(sph.faces)), f"ellipsoid:{fmt(*s)}"
-    if t == T.mjGEOM_MESH:
-        mid = int(model.geom_dataid[g])
-        va, vn = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
-        fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
-        v = np.array(model.mesh_vert[va : va + vn], dtype=np.float64)
-        f = np.array(model.mesh_face[fa : fa + fn], dtype=np.int64)
-        mname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MESH, mid) or str(mid)
-        return (v, f), f"mesh:{mname} ({vn} vertices)"
-    raise ValueError(f"geom {geom_name(model, g)!r}: type {t} has no mesh to analyse")
-
-
 def geom_contact_radius(model, g: int) -> float:
     """Radius of curvature for Hertz contact [m] (inf for planes and flat boxes)."""
     mujoco = _mujoco()
@@ -488,23 +548,6 @@ def geom_contact_radius(model, g: int) -> float:
     return np.inf
 
 
-def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
-    """Why a solid sphere is too small/stiff to ring below f_max, or None.
-
-    The lowest mode of a free solid sphere (spheroidal n=0, l=2) is at
-    ``omega R / c_s ~ 2.6`` (nu 0..0.45), ``c_s = sqrt(G / rho)``; a margin of two keeps it safe.
-    """
-    mujoco = _mujoco()
-    if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_SPHERE:
-        return None
-    R = float(model.geom_size[g][0])
-    f1 = 2.6 * np.sqrt(mat.shear_modulus / mat.rho) / (2 * np.pi * R)
-    f_max = min(20000.0, 0.45 * float(sample_rate))
-    if 0.5 * f1 > f_max:
-        return f"no audible modes (lowest mode ~{f1 / 1000:.0f} kHz > f_max {f_max / 1000:.1f} kHz); still excites what it hits"
-    return None
-
-
 def _mode_loudness(mm: ModalModel) -> np.ndarray:
     """Pressure per unit impulse at 1 m of each mode (ranking only) [Pa / (N s)]."""
     if mm.n_modes == 0:
@@ -515,16 +558,3 @@ def _mode_loudness(mm: ModalModel) -> np.ndarray:
         rad = mm.omega**2  # plain modal acceleration
     return rms * rad / mm.omega
 
-
-def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, cache):
-    """``analyze`` with ``method``, then ``hex``; ``None`` (and a warning) when both fail."""
-    from ..modal.analyze import analyze
-
-    tried = []
-    for m in dict.fromkeys([method, "hex"]):
-        try:
-            return analyze(spec, material, method=m, quality=quality, sample_rate=sample_rate, cache=cache, progress=False)
-        except (ValueError, RuntimeError, MemoryError) as exc:
-            tried.append(f"{m}: {exc}")
-    warnings.warn(f"geom {name!r} stays silent: modal analysis failed ({'; '.join(tried)})", stacklevel=3)
-    return None

@@ -1,0 +1,165 @@
+"""Analysing a scene's objects: fallbacks, the process-wide memo, mode budgets of large solids,
+and what the scene tells its user about them (objects that will not ring, open surfaces,
+masses that disagree with MuJoCo's). Used by :meth:`mjsound.sim.SoundScene.from_model`."""
+
+from __future__ import annotations
+
+import hashlib
+import warnings
+
+import numpy as np
+
+from ..modal.model import ModalModel
+from .objects import solid_mode_count
+
+#: A body's sounding mass and MuJoCo's may differ by this fraction before the scene warns.
+MASS_TOLERANCE = 0.05
+#: Mode budget of one large solid object under ``max_modes_per_object="auto"``.
+AUTO_MAX_MODES = 64
+
+
+def _mujoco():
+    import mujoco
+
+    return mujoco
+
+
+def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
+    """Why a solid sphere is too small/stiff to ring below f_max, or None.
+
+    The lowest mode of a free solid sphere (spheroidal n=0, l=2) is at
+    ``omega R / c_s ~ 2.6`` (nu 0..0.45), ``c_s = sqrt(G / rho)``; a margin of two keeps it safe.
+    """
+    mujoco = _mujoco()
+    if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_SPHERE:
+        return None
+    R = float(model.geom_size[g][0])
+    f1 = 2.6 * np.sqrt(mat.shear_modulus / mat.rho) / (2 * np.pi * R)
+    f_max = min(20000.0, 0.45 * float(sample_rate))
+    if 0.5 * f1 > f_max:
+        return f"no audible modes (lowest mode ~{f1 / 1000:.0f} kHz > f_max {f_max / 1000:.1f} kHz); still excites what it hits"
+    return None
+
+
+#: Process-wide memo of modal models by (surface, material, analysis options), so that several
+#: copies of one env (SyncVectorEnv, repeated gym.make) analyse each object once.
+_MODEL_MEMO: dict = {}
+
+
+def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, cache, max_modes=None,
+                           error_estimate=True):
+    """``analyze`` with ``method``, then ``hex``; ``None`` (and a warning) when both fail."""
+    from ..modal.analyze import analyze
+
+    if isinstance(spec, tuple):
+        h = hashlib.sha1(np.ascontiguousarray(spec[0], np.float64).tobytes())
+        h.update(np.ascontiguousarray(spec[1], np.int64).tobytes())
+        label = h.hexdigest()
+    else:
+        label = str(spec)
+    key = (label, material.key(), int(sample_rate), quality, method, max_modes, bool(error_estimate), bool(cache))
+    if key in _MODEL_MEMO:
+        return _MODEL_MEMO[key]
+    tried = []
+    for m in dict.fromkeys([method, "hex"]):
+        try:
+            mm = analyze(spec, material, method=m, quality=quality, sample_rate=sample_rate, cache=cache,
+                         progress=False, max_modes=max_modes, error_estimate=error_estimate)
+            _MODEL_MEMO[key] = mm
+            return mm
+        except (ValueError, RuntimeError, MemoryError) as exc:
+            tried.append(f"{m}: {exc}")
+    warnings.warn(f"{name!r} stays silent: modal analysis failed ({'; '.join(tried)})", stacklevel=3)
+    return None
+
+
+# ---------------------------------------------------------------------- construction helpers
+def _finite_or_none(x):
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _mode_cap(mesh, material, f_max, max_modes_per_object):
+    """``(max_modes, note)`` for one object's analysis (see ``SoundScene.from_model``)."""
+    if max_modes_per_object is None:
+        return None, None
+    if max_modes_per_object != "auto":
+        n = int(max_modes_per_object)
+        if n < 1:
+            raise ValueError(f"max_modes_per_object={max_modes_per_object!r}: give 'auto', None or a count >= 1")
+        return n, f"mode budget: lowest {n} modes (max_modes_per_object={n})"
+    from ..geometry import load_mesh
+    from ..modal.analyze import ringing_below
+
+    tm = load_mesh(mesh, check_size=False)
+    if not tm.is_watertight:
+        return None, None
+    est = 2.0 * solid_mode_count(abs(float(tm.volume)), material, min(f_max, ringing_below(material)))
+    if est <= AUTO_MAX_MODES:
+        return None, None
+    return AUTO_MAX_MODES, (f"large solid ({np.max(tm.extents):.2g} m, ~{est:.0f} modes expected below "
+                            f"{min(f_max, ringing_below(material)) / 1000:.1f} kHz): its lowest {AUTO_MAX_MODES} "
+                            "analysed (max_modes_per_object=None analyses all)")
+
+
+def _surface_notes(mm: ModalModel) -> list:
+    """A note when the analysed surface was open (analysed as a thin wall, not a solid)."""
+    info = mm.info or {}
+    if info.get("watertight", True):
+        return []
+    h = info.get("h")
+    r = info.get("refine")
+    t = info.get("wall_m") or info.get("thickness")
+    if not t and h is not None and r:
+        t = float(np.min(h)) / float(r)
+    thick = f"a wall {1000 * t:.2g} mm thick" if t else "a thin wall"
+    return [f"open surface: analysed as {thick}, not a solid; close the mesh, or give the wall thickness "
+            "(wall= in the material, or thickness= in analyze)"]
+
+
+def warn_unheard(scene, plans, f_max) -> None:
+    """A warning for every object the user gave a material that will not ring."""
+    for p in plans:
+        why = scene.silent[p["name"]]
+        fix = ("a lower-pitched object (larger, or a softer or denser material) or a higher sample_rate "
+               f"(f_max = 0.45 x sample_rate, now {f_max / 1000:.1f} kHz) would make it ring"
+               if "no audible modes" in why else "see the warning above")
+        warnings.warn(f"mjsound: {p['name']!r} ({p['material'].name}, {p['label']}) will not ring: {why}. "
+                      f"It still excites what it hits; {fix}.", UserWarning, stacklevel=3)
+
+def check_masses(scene) -> None:
+    """Compare every body's sounding mass with MuJoCo's ``body_mass``; note and warn > 5 % off.
+
+    Only bodies (not the world) whose colliding geoms all sound are compared: the modal
+    models' masses (``rho V``, what the sound assumes) summed over the body's objects
+    against what the physics uses (MJCF density, ``mass`` or ``<inertial>``).
+    """
+    m = scene.model
+    by_body: dict = {}
+    for s in scene.sounding:
+        by_body.setdefault(s.body_id, []).append(s)
+    sounding_geoms = {g for s in scene.sounding for g in s.geom_ids}
+    off = []
+    for b, objs in by_body.items():
+        if b == 0 or not m.body_mass[b] > 0:
+            continue
+        geoms = np.flatnonzero(np.asarray(m.geom_bodyid) == b)
+        colliding = [g for g in geoms.tolist() if m.geom_contype[g] or m.geom_conaffinity[g]]
+        if not set(colliding) <= sounding_geoms:
+            continue
+        mass = sum(float(s.model.mass_kg) for s in objs)
+        if not np.isfinite(mass) or mass <= 0:
+            continue
+        ref = float(m.body_mass[b])
+        if abs(mass / ref - 1.0) > MASS_TOLERANCE:
+            note = (f"mass {mass:.3g} kg ({', '.join(sorted({s.material.name for s in objs}))}) against MuJoCo's "
+                    f"{ref:.3g} kg for its body ({100 * (mass / ref - 1):+.0f} %): set the body's density or mass in "
+                    "the MJCF, or choose the material it is made of")
+            for s in objs:
+                s.notes.append(note)
+            off.append(f"{objs[0].name} {mass:.3g} vs {ref:.3g} kg")
+    if off:
+        warnings.warn(f"mjsound: {len(off)} object(s) differ in mass from MuJoCo's by more than "
+                      f"{100 * MASS_TOLERANCE:.0f} % (the sound and the physics disagree; scene.report() says "
+                      f"more): {'; '.join(off[:6])}{' ...' if len(off) > 6 else ''}", UserWarning, stacklevel=3)
+
