@@ -1,5 +1,6 @@
 #!/usr/bin/env python
-"""Step-time cost of AudioObservation on gymnasium's Ant-v5 and Humanoid-v5 (benchmark, not a test).
+"""Step-time cost of AudioObservation on gymnasium's Ant-v5 and Humanoid-v5 and gymnasium-robotics'
+FetchPickAndPlace-v4, and the cold construction time of the Fetch env (benchmark, not a test).
 
 For each env: the CPU time per ``env.step`` (``time.process_time``: this machine is shared, and
 CPU time is what another process cannot inflate) bare, wrapped in waveform mode and wrapped in
@@ -10,9 +11,20 @@ numba warm-up and modal analysis excluded). The three are measured in interleave
 ``AsyncVectorEnv`` of 2 wrapped Ant-v5 (waveform): env steps per wall second summed over both
 envs. Goal (issue 5): step_ratio <= 1.5 in waveform mode.
 
-Usage: python scripts/bench_env.py [--steps 300] [--rounds 5] [--sample-rate 16000] [--json]
+gymnasium-robotics envs (``--robotics``, default FetchPickAndPlace-v4; run through
+``mjsound.compat.patch_gymnasium_robotics`` on mujoco 4) get actions that drive the gripper down
+onto the table for the first half of every 50-step episode and random ones after, so that the
+timed steps include contacts. Goal (issue 15): step_ratio <= 1.3.
+
+Cold construction (``--cold``): ``AudioObservation(gym.make(FETCH), sample_rate=fs)`` timed in a
+fresh process with an empty ``MJSOUND_CACHE_DIR`` (no model cache, no in-process memo; numba's own
+on-disk cache of compiled kernels is used as a user's second run would: compile time is not
+analysis time), at each ``--cold-rates``. Goal (issue 15): under 10 s.
+
+Usage: python scripts/bench_env.py [--steps 300] [--rounds 5] [--sample-rate 16000] [--envs ...]
+       [--robotics ...] [--cold] [--cold-rates 16000 48000] [--json]
 With --json one object: {"envs": [{"id", "mode", "step_ratio", "bare_ms", "wrapped_ms", ...}],
-"async2_steps_per_s", ...}.
+"async2_steps_per_s", "cold": [{"id", "sample_rate", "seconds", "modes", ...}], ...}.
 """
 
 from __future__ import annotations
@@ -20,7 +32,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
+import tempfile
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
@@ -49,23 +63,81 @@ def time_steps(env, acts, seed=0):
     return total / len(acts)
 
 
+def make_env(env_id):
+    """``gym.make(env_id)``; gymnasium-robotics ids are registered (and patched for mujoco 4) first."""
+    if env_id not in gym.registry:
+        import gymnasium_robotics
+
+        from mjsound.compat import patch_gymnasium_robotics
+
+        patch_gymnasium_robotics()
+        gym.register_envs(gymnasium_robotics)
+    return gym.make(env_id)
+
+
+def actions(env_id, space, n):
+    """Seeded random actions; for gymnasium-robotics' Fetch: down onto the table for the first
+    25 steps of every 50 (an episode), random after."""
+    space.seed(0)
+    acts = [space.sample() for _ in range(n)]
+    if env_id.startswith("Fetch"):
+        down = np.zeros(space.shape, space.dtype)
+        down[2] = -1.0
+        acts = [down if i % 50 < 25 else a for i, a in enumerate(acts)]
+    return acts
+
+
+COLD = """
+import os, sys, time, json
+sys.path.insert(0, {root!r})
+sys.argv = ["cold"]
+from scripts.bench_env import make_env
+from mjsound.wrappers import AudioObservation
+env = make_env({env_id!r})
+t0 = time.perf_counter()
+w = AudioObservation(env, sample_rate={fs}, progress=False)
+dt = time.perf_counter() - t0
+print(json.dumps({{"seconds": dt, "modes": w.scene.n_modes, "objects": len(w.scene.sounding),
+                  "notes": [n for s in w.scene.sounding for n in s.notes if "large solid" in n]}}))
+"""
+
+
+def cold_construction(env_id, fs) -> dict:
+    """Seconds to construct the wrapper in a fresh process with an empty model cache."""
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "MJSOUND_CACHE_DIR": cache}
+        out = subprocess.run([sys.executable, "-c", COLD.format(root=root, env_id=env_id, fs=fs)], env=env,
+                             capture_output=True, text=True, check=True)
+    return {"id": env_id, "sample_rate": fs, **json.loads(out.stdout.strip().splitlines()[-1])}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--sample-rate", type=int, default=16000)
     p.add_argument("--envs", nargs="+", default=["Ant-v5", "Humanoid-v5"])
+    p.add_argument("--robotics", nargs="*", default=["FetchPickAndPlace-v4"])
+    p.add_argument("--cold", action="store_true", help="also time cold construction of the first --robotics env")
+    p.add_argument("--cold-rates", nargs="+", type=int, default=[16000, 48000])
     p.add_argument("--async-seconds", type=float, default=5.0)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     rows = []
-    for env_id in args.envs:
-        envs = {"bare": gym.make(env_id)}
+    cold = []
+    if args.cold and args.robotics:
+        for fs in args.cold_rates:
+            cold.append(cold_construction(args.robotics[0], fs))
+            if not args.json:
+                c = cold[-1]
+                print(f"cold construction {c['id']} at {fs} Hz: {c['seconds']:.1f} s ({c['objects']} objects, "
+                      f"{c['modes']} modes; {'; '.join(c['notes']) or 'no mode budget'})", flush=True)
+    for env_id in list(args.envs) + list(args.robotics):
+        envs = {"bare": make_env(env_id)}
         for mode in ("waveform", "spectrogram"):
-            envs[mode] = AudioObservation(gym.make(env_id), sample_rate=args.sample_rate, mode=mode)
-        space = envs["bare"].action_space
-        space.seed(0)
-        acts = [space.sample() for _ in range(args.steps)]
+            envs[mode] = AudioObservation(make_env(env_id), sample_rate=args.sample_rate, mode=mode, progress=False)
+        acts = actions(env_id, envs["bare"].action_space, args.steps)
         times = {k: [] for k in envs}
         for _ in range(args.rounds):
             for k, env in envs.items():
@@ -77,14 +149,14 @@ def main(argv=None) -> int:
             st = env.sim.stats()
             rows.append({"id": env_id, "mode": mode, "step_ratio": ratio, "bare_ms": 1e3 * t_bare,
                          "wrapped_ms": 1e3 * float(np.median(times[mode])),
-                         "sounding_geoms": len(env.scene.sounding), "modes": env.scene.n_modes,
+                         "sounding_objects": len(env.scene.sounding), "modes": env.scene.n_modes,
                          "contact_us_per_substep": st["contact_us_per_step"],
                          "synth_us_per_substep": st["synth_us_per_step"],
                          "fused_us_per_substep": st["fused_us_per_step"]})
             if not args.json:
                 r = rows[-1]
                 print(f"{env_id:<14s} {mode:<12s} bare {r['bare_ms']:.3f} ms  wrapped {r['wrapped_ms']:.3f} ms  "
-                      f"ratio {r['step_ratio']:.2f}  ({r['sounding_geoms']} geoms, {r['modes']} modes; per substep "
+                      f"ratio {r['step_ratio']:.2f}  ({r['sounding_objects']} objects, {r['modes']} modes; per substep "
                       f"in numba {r['fused_us_per_substep']:.0f} us with mj_step, in Python contacts "
                       f"{r['contact_us_per_substep']:.0f} us, synth {r['synth_us_per_substep']:.0f} us; "
                       f"CPU time, median of {args.rounds} interleaved rounds)", flush=True)
@@ -92,7 +164,8 @@ def main(argv=None) -> int:
             env.close()
 
     fs = args.sample_rate
-    venv = gym.vector.AsyncVectorEnv([lambda: AudioObservation(gym.make("Ant-v5"), sample_rate=fs) for _ in range(2)])
+    venv = gym.vector.AsyncVectorEnv([lambda: AudioObservation(gym.make("Ant-v5"), sample_rate=fs, progress=False)
+                                      for _ in range(2)])
     venv.reset(seed=[0, 1])
     venv.action_space.seed(0)
     for _ in range(10):
@@ -103,7 +176,7 @@ def main(argv=None) -> int:
         n += 1
     rate = 2 * n / (time.perf_counter() - t0)
     venv.close()
-    out = {"envs": rows, "async2_steps_per_s": rate, "sample_rate": fs, "steps": args.steps,
+    out = {"envs": rows, "async2_steps_per_s": rate, "sample_rate": fs, "steps": args.steps, "cold": cold,
            "async2_note": "env steps per wall second summed over the 2 envs (Ant-v5, waveform)"}
     if args.json:
         print(json.dumps(out))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from mjsound.wrappers import AudioObservation, resolve_materials, stft_log1p
+from mjsound.wrappers import AudioObservation, scene_materials, stft_log1p
 
 ENVS = ["Ant-v5", "Humanoid-v5", "HalfCheetah-v5", "Pusher-v5"]
 
@@ -92,7 +92,9 @@ def test_substep_contacts_are_read():
         for _ in range(u.frame_skip):
             mujoco.mj_step(bu.model, bu.data)
             sim.step()
-    assert n_wrapped == sim.events["impact"] > 0
+    assert env.sim.reader.n_impacts == sim.events["impact"] > 0
+    heard = env.scene.by_geom()  # audio_impacts: the impacts with a sounding side
+    assert n_wrapped == sum(1 for r in sim.impacts if r.geom1 in heard or r.geom2 in heard) > 0
     env.close()
     bare.close()
 
@@ -128,17 +130,104 @@ def test_stft_log1p_matches_numpy():
     np.testing.assert_allclose(S[1, :, 2], ref, rtol=1e-4, atol=1e-5)
 
 
-def test_default_material_mapping_unnamed_geoms():
-    import mujoco
+def test_materials_star_and_checked_keys_in_the_wrapper():
+    assert scene_materials({"x": "oak"}, "steel") == {"x": "oak", "*": "steel"}
+    assert scene_materials({"*": "glass"}, "steel") == {"*": "glass"}  # the mapping's own default wins
+    assert scene_materials({"x": "oak"}, None) == {"x": "oak"}
+    env = wrapped("HalfCheetah-v5", materials={"*": "steel"}, default_material=None)
+    assert env.scene.sounding and {s.material.name for s in env.scene.sounding} == {"steel"}
+    env.close()
+    with pytest.raises(ValueError, match=r"no geom or body named 'tosro'.*closest: 'torso'"):
+        wrapped("HalfCheetah-v5", materials={"tosro": "steel"})
 
-    xml = """<mujoco><custom><text name="mjsound:named" data="glass"/></custom><worldbody>
-      <body name="b"><freejoint/><geom type="box" size=".01 .01 .01"/>
-        <geom name="named" type="sphere" size=".01"/><geom name="other" type="sphere" size=".01" pos=".02 0 0"/></body>
-    </worldbody></mujoco>"""
-    m = mujoco.MjModel.from_xml_string(xml)
-    mp = resolve_materials(m, {"*": "steel"})
-    assert mp["b"] == "steel" and mp["named"] == "glass" and mp["other"] == "steel"
-    assert resolve_materials(m, {"x": "oak"}, None) == {"x": "oak"}
+
+def test_audio_impacts_count_audible_impacts_only():
+    """Only the torso sounds: the feet hit the floor (impacts between silent geoms), nothing is heard."""
+    silent = wrapped("HalfCheetah-v5", materials={"torso": "steel"}, default_material=None)
+    assert [s.name for s in silent.scene.sounding] == ["torso"]
+    _, infos = run(silent, 1, 20)
+    assert silent.sim.reader.n_impacts > 0 and sum(i["audio_impacts"] for i in infos) == 0
+    heard = wrapped("HalfCheetah-v5")
+    _, infos = run(heard, 1, 20)
+    sounding = heard.scene.by_geom()
+    n = sum(1 for r in heard.sim.reader.impacts if r.geom1 in sounding or r.geom2 in sounding)
+    assert sum(i["audio_impacts"] for i in infos) == n > 0
+    assert n < heard.sim.reader.n_impacts  # (some feet have no audible modes: their impacts do not count)
+    silent.close()
+    heard.close()
+
+
+class _HandSteppedEnv(gym.Env):
+    """A MuJoCo env that steps with its own ``mj_step`` loop (no hook can find it)."""
+
+    def __init__(self):
+        import mujoco
+
+        self.model = mujoco.MjModel.from_xml_string(
+            '<mujoco><worldbody><geom type="plane" size="1 1 .1"/><body pos="0 0 .3"><freejoint/>'
+            '<geom name="box" type="box" size=".15 .15 .005"/></body></worldbody></mujoco>')
+        self.data = mujoco.MjData(self.model)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (1,), np.float64)
+        self.action_space = gym.spaces.Box(-1, 1, (1,), np.float32)
+        self.on_substep = None
+
+    def reset(self, *, seed=None, options=None):
+        import mujoco
+
+        mujoco.mj_resetData(self.model, self.data)
+        return np.array([self.data.time]), {}
+
+    def step(self, action):
+        import mujoco
+
+        for _ in range(10):
+            mujoco.mj_step(self.model, self.data)
+            if self.on_substep is not None:
+                self.on_substep()
+        return np.array([self.data.time]), 0.0, False, False, {}
+
+
+def test_an_env_whose_stepping_cannot_be_found_is_refused():
+    with pytest.raises(TypeError, match="substeps='manual'"):
+        AudioObservation(_HandSteppedEnv(), materials={"box": "steel"})
+    inner = _HandSteppedEnv()
+    env = AudioObservation(inner, materials={"box": "steel"}, substeps="manual", sample_rate=16000)
+    inner.on_substep = env.on_substep
+    env.reset(seed=0)
+    for _ in range(30):
+        obs, _, _, _, info = env.step(env.action_space.sample())
+    assert env.sim.steps == 300 and env.sim.reader.n_impacts > 0
+    with pytest.raises(ValueError, match="substeps="):
+        AudioObservation(_HandSteppedEnv(), substeps="magic")
+
+
+def fetch_rollout(seed, steps=36):
+    """FetchPickAndPlace (gymnasium-robotics): the gripper driven down onto the table, then random."""
+    import gymnasium_robotics
+
+    gym.register_envs(gymnasium_robotics)
+    env = AudioObservation(gym.make("FetchPickAndPlace-v4"), sample_rate=16000)
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    audio, impacts = [], 0
+    for i in range(steps):
+        a = np.array([0.0, 0.0, -1.0, 0.0]) if i < 24 else env.action_space.sample()
+        obs, _, _, _, info = env.step(a)
+        assert env.observation_space.contains(obs)
+        audio.append(obs["audio"])
+        impacts += info["audio_impacts"]
+    env.close()
+    return env, np.concatenate(audio, axis=1), impacts
+
+
+def test_gymnasium_robotics_fetch_is_heard_and_reproducible():
+    env, a, impacts = fetch_rollout(3)
+    u = env.unwrapped
+    assert env.sim.steps == 36 * u.n_substeps  # every substep of _mujoco_step went through the simulator
+    assert impacts > 0 and np.abs(a).max() > 0
+    assert a.shape[1] == 36 * round(u.dt * 16000)
+    _, b, _ = fetch_rollout(3)
+    np.testing.assert_array_equal(a, b)
 
 
 def test_vector_envs():

@@ -84,11 +84,15 @@ def _report(summary, args) -> int:
         return 0
     sc = s["scene"]
     print(f"scene      {args.scene if hasattr(args, 'scene') else 'demo'}  ({s['mode']})")
-    print(f"sounding   {len(sc['sounding'])} geom(s), {sc['n_modes']} modes, analysis {s['analysis_seconds']:.1f} s")
+    print(f"sounding   {len(sc['sounding'])} object(s), {sc['n_modes']} modes, analysis {s['analysis_seconds']:.1f} s")
     for g in sc["sounding"]:
         extra = f" of {g['n_modes_analysed']}" if g["n_modes"] != g["n_modes_analysed"] else ""
         rng = f"{g['f_min_hz']:.0f}-{g['f_max_hz']:.0f} Hz" if g["f_min_hz"] else "-"
-        print(f"  {g['geom']:<16s} {g['material']:<12s} {g['n_modes']:4d}{extra} modes  {rng}")
+        err = g.get("error_estimate_cents")
+        est = "" if err is None else f"  +-{err:.0f} c" + (" (!)" if err > 50 else "")
+        print(f"  {g['geom']:<16s} {g['material']:<12s} {g['n_modes']:4d}{extra} modes  {rng}{est}")
+        for note in g.get("notes", ()):
+            print(f"      {note}")
     for name, why in sc["silent"].items():
         print(f"  silent {name}: {why}")
     for note in sc["budget_notes"]:

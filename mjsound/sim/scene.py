@@ -516,7 +516,7 @@ class SoundScene:
                 est = f"+-{err:.0f} c{' (!)' if bad else ''}"
             else:
                 est = "err n/a"
-            geoms = f" {len(s.geom_ids)} geoms," if len(s.geom_ids) > 1 else ""
+            geoms = f" {len(s.geom_ids)} geoms," if len(s.geom_ids) > 1 and not s.mesh.startswith("union") else ""
             lines.append(f"  {s.name:<20s} {s.material.name:<14s} {s.model.n_modes:4d} modes{cut}  {rng}  {est}  "
                          f"{s.model.mass_kg:.3g} kg  [{geoms} {s.mesh}]".replace("[ ", "["))
             for note in s.notes:

@@ -31,8 +31,8 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
     ``omega R / c_s ~ 2.6`` (nu 0..0.45), ``c_s = sqrt(G / rho)``; a margin of two keeps it safe.
     """
     mujoco = _mujoco()
-    if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_SPHERE:
-        return None
+    if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_SPHERE or getattr(mat, "wall", None) is not None:
+        return None  # (a hollow sphere rings lower)
     R = float(model.geom_size[g][0])
     f1 = 2.6 * np.sqrt(mat.shear_modulus / mat.rho) / (2 * np.pi * R)
     f_max = min(20000.0, 0.45 * float(sample_rate))
@@ -57,7 +57,9 @@ def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, c
         label = h.hexdigest()
     else:
         label = str(spec)
-    key = (label, material.key(), int(sample_rate), quality, method, max_modes, bool(error_estimate), bool(cache))
+    # (keyed by the analysis function too: one replaced by a fake never shares entries with the real one)
+    key = (analyze, label, material.key(), int(sample_rate), quality, method, max_modes, bool(error_estimate),
+           bool(cache))
     if key in _MODEL_MEMO:
         return _MODEL_MEMO[key]
     tried = []
@@ -92,8 +94,8 @@ def _mode_cap(mesh, material, f_max, max_modes_per_object):
     from ..modal.analyze import ringing_below
 
     tm = load_mesh(mesh, check_size=False)
-    if not tm.is_watertight:
-        return None, None
+    if not tm.is_watertight or getattr(material, "wall", None) is not None:
+        return None, None  # (only solids: an open surface or a hollow object is a wall)
     est = 2.0 * solid_mode_count(abs(float(tm.volume)), material, min(f_max, ringing_below(material)))
     if est <= AUTO_MAX_MODES:
         return None, None

@@ -1,0 +1,75 @@
+"""dm_control suite environments through :class:`mjsound.dmc.AudioEnvironment` (issue 15).
+
+dm_control 1.0.50 fails on mujoco 4.0.0; tests/conftest.py applies
+``mjsound.compat.patch_dm_control`` (documented there)."""
+
+from __future__ import annotations
+
+import dm_env
+import numpy as np
+import pytest
+from dm_control import suite
+
+from mjsound.dmc import AudioEnvironment
+
+
+def rollout(seed, steps=60, **kw):
+    env = AudioEnvironment(suite.load("ball_in_cup", "catch", task_kwargs={"random": 0}), seed=seed, **kw)
+    ts = env.reset()
+    assert ts.first() and not np.any(ts.observation["audio"])
+    spec = env.action_spec()
+    rng = np.random.default_rng(0)
+    audio, impacts = [], 0
+    for _ in range(steps):
+        ts = env.step(rng.uniform(spec.minimum, spec.maximum, spec.shape))
+        audio.append(ts.observation["audio"])
+        impacts += env.last_info["audio_impacts"]
+    return env, np.concatenate(audio, axis=1), impacts
+
+
+def test_dm_control_suite_env_is_heard_and_reproducible():
+    env, a, impacts = rollout(3)
+    assert isinstance(env, dm_env.Environment)
+    n_sub = round(env.control_timestep() / env.physics.timestep())
+    assert env.sim.steps == 60 * n_sub  # every physics substep went through the simulator
+    # the cup's five capsules ring as one object
+    (cup,) = env.scene.sounding
+    assert cup.name == "cup" and len(cup.geom_ids) == 5
+    assert impacts > 0 and np.abs(a).max() > 0
+    spec = env.observation_spec()["audio"]
+    W = round(env.control_timestep() * 16000)
+    assert spec.shape == (1, W) and spec.dtype == np.float32 and a.shape == (1, 60 * W)
+    spec.validate(a[:, :W])
+    assert set(env.observation_spec()) == {"position", "velocity", "audio"}
+    _, b, _ = rollout(3)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_reset_silences_the_last_episode():
+    env, a, _ = rollout(3)
+    assert np.abs(a[:, -4000:]).max() > 0  # still ringing at the end
+    ts = env.reset()
+    assert ts.first() and not np.any(ts.observation["audio"])
+    assert env.sim.samples == 0 and env.sim.steps == 0
+    ringing = env.sim.synth.render(800)  # what the synthesizer holds after the reset: nothing
+    assert not np.any(ringing)
+
+
+def test_automatic_reset_after_the_last_step_and_close():
+    env = AudioEnvironment(suite.load("ball_in_cup", "catch", task_kwargs={"random": 0, "time_limit": 0.1}),
+                           seed=0, progress=False)
+    ts = env.reset()
+    steps = 0
+    while not ts.last():
+        ts = env.step(np.zeros(2))
+        steps += 1
+    ts = env.step(np.zeros(2))  # dm_control resets by itself
+    assert ts.first() and not np.any(ts.observation["audio"]) and env.sim.steps == 0
+    physics = env.physics
+    env.close()
+    assert "step" not in vars(physics)
+
+
+def test_refuses_what_is_not_a_dm_control_env():
+    with pytest.raises(TypeError, match="dm_control environment"):
+        AudioEnvironment(object())

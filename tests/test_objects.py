@@ -1,0 +1,224 @@
+"""Sounding objects as users have them (issue 15): bodies of several geoms, named sound meshes,
+checked material keys, masses against MuJoCo's, what the report says, budgets of large solids.
+
+Modal models are seeded stubs or a recording fake ``analyze`` wherever the analysis itself is
+not the point, so the file runs in seconds."""
+
+from __future__ import annotations
+
+import warnings
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjsound.geometry import load_mesh
+from mjsound.sim.objects import object_surface
+from mjsound.sim.scene import AUTO_MAX_MODES, SoundScene
+from mjsound.sim.simulator import AudioSimulator
+from mjsound.sim.stub import stub_model
+
+# A static "table": the anchor geom is the leg (listed first, turned 30 degrees about z), the
+# ball falls on the top, which is the body's second geom.
+TABLE_XML = """
+<mujoco>
+  <option timestep="0.001"/>
+  <custom>{custom}</custom>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 .1"/>
+    <body name="table" pos="0.1 0 0.3" euler="0 0 10">
+      <geom name="leg" type="box" size="0.01 0.02 0.14" pos="0.15 0.05 -0.15" euler="0 0 30" density="{density}"/>
+      <geom name="top" type="box" size="0.2 0.1 0.01" density="{density}"/>
+      <geom name="look" type="cylinder" size="0.12 0.02" pos="0 0 0.02" contype="0" conaffinity="0" group="1"/>
+    </body>
+    <body name="ball" pos="0.05 0.02 0.5"><freejoint/><geom name="ball" type="sphere" size="0.01"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def table_model(custom="", density=1000):
+    return mujoco.MjModel.from_xml_string(TABLE_XML.format(custom=custom, density=density))
+
+
+def gid(model, name):
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+
+
+def world_vertices(model, data, g, V):
+    """Vertices ``V`` of geom ``g``'s frame in the world."""
+    return V @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+
+
+def sorted_rows(a):
+    a = np.round(np.asarray(a), 9)
+    return a[np.lexsort(a.T[::-1])]
+
+
+@pytest.fixture
+def recorded(monkeypatch):
+    """A fake ``analyze`` that records its calls and returns stubs."""
+    import mjsound.modal.analyze as an
+
+    calls = []
+
+    def fake(mesh, material, **kw):
+        calls.append({"mesh": mesh, "material": material.name, **kw})
+        return stub_model(mesh, material, 4, 900.0)
+
+    monkeypatch.setattr(an, "analyze", fake)
+    return calls
+
+
+def test_a_body_of_several_geoms_is_one_object_in_its_anchor_frame(recorded):
+    model = table_model()
+    scene = SoundScene.from_model(model, materials={"table": "steel"}, progress=False)
+    (obj,) = scene.sounding
+    leg, top = gid(model, "leg"), gid(model, "top")
+    assert obj.name == "table" and obj.geom_ids == (leg, top) and obj.geom_id == leg
+    assert scene.by_geom() == {leg: obj, top: obj}
+    # the analysed surface, put into the world by the anchor's pose, is both geoms where they are
+    (call,) = recorded
+    V, F = call["mesh"]
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    union_world = world_vertices(model, data, leg, V)
+    expected = []
+    for g in (leg, top):
+        corners = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T * model.geom_size[g]
+        expected.append(world_vertices(model, data, g, corners))
+    np.testing.assert_allclose(sorted_rows(union_world), sorted_rows(np.vstack(expected)), atol=1e-9)
+    assert len(F) == 24
+    # per-geom stays an option
+    per_geom = SoundScene.from_model(model, materials={"table": "steel"}, progress=False, objects="geom")
+    assert [s.name for s in per_geom.sounding] == ["leg", "top"]
+    with pytest.raises(ValueError, match="objects="):
+        SoundScene.from_model(model, materials={"table": "steel"}, progress=False, objects="bodies")
+
+
+def test_a_hit_on_any_geom_of_the_body_rings_the_one_object():
+    model = table_model()
+    leg, top = gid(model, "leg"), gid(model, "top")
+    V, F = object_surface(model, [leg, top])[0]
+    models = {"table": stub_model((V, F), "steel", 6, 700.0)}
+    scene = SoundScene.from_model(model, materials={"table": "steel"}, models=models, progress=False)
+    sim = AudioSimulator(model, scene=scene, sample_rate=16000)
+    assert sim._geom_obj[leg] == sim._geom_obj[top] >= 0  # both geoms excite the same object
+    y = sim.run(0.4)
+    hits = [r for r in sim.impacts if top in (r.geom1, r.geom2)]
+    assert hits and not any(leg in (r.geom1, r.geom2) for r in sim.impacts)
+    assert np.max(np.abs(y)) > 0  # the top was hit, the table (anchored at the leg) rang
+
+
+def test_sound_mesh_named_in_mjcf_or_python(recorded):
+    model = table_model(custom='<text name="mjsound-mesh:table" data="look"/>')
+    scene = SoundScene.from_model(model, materials={"table": "steel"}, progress=False)
+    (obj,) = scene.sounding
+    assert obj.mesh == "sound mesh: geom look"
+    V, _ = recorded[-1]["mesh"]
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    look = gid(model, "look")
+    spec, _ = object_surface(model, [look])  # the cylinder's built-in spec, in its own frame
+    Vl = np.asarray(load_mesh(spec).vertices)
+    np.testing.assert_allclose(sorted_rows(world_vertices(model, data, obj.geom_id, V)),
+                               sorted_rows(world_vertices(model, data, look, Vl)), atol=1e-9)
+    # in Python, in the body frame: a box of the top's size at the body origin
+    model = table_model()
+    SoundScene.from_model(model, materials={"table": "steel"}, progress=False,
+                          sound_meshes={"table": "box:0.4,0.2,0.02"})
+    V, _ = recorded[-1]["mesh"]
+    top = gid(model, "top")
+    body_to_world = world_vertices(model, data, obj.geom_id, V)
+    np.testing.assert_allclose(np.sort(np.unique(np.round(body_to_world[:, 2], 9))),
+                               sorted({round(float(data.geom_xpos[top][2]) + s * 0.01, 9) for s in (-1, 1)}), atol=1e-9)
+    with pytest.raises(ValueError, match="not a geom, mesh asset"):
+        SoundScene.from_model(model, materials={"table": "steel"}, progress=False, sound_meshes={"table": "lok"})
+    with pytest.raises(ValueError, match="closest: 'table'"):
+        SoundScene.from_model(model, materials={"table": "steel"}, progress=False, sound_meshes={"tabel": "look"})
+
+
+def test_material_keys_are_checked_and_every_form_works(recorded):
+    xml = """<mujoco><worldbody>
+      <body name="b1" pos="0 0 1"><freejoint/><geom type="box" size=".05 .05 .05"/></body>
+      <body name="b2" pos="0 0 2"><freejoint/><geom type="box" size=".05 .05 .05"/></body>
+      <body name="b3" pos="0 0 3"><freejoint/><geom name="named" type="box" size=".05 .05 .05"/></body>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    scene = SoundScene.from_model(model, materials={"geom0": "steel", 1: "glass", "*": "oak"}, progress=False)
+    got = {s.name: (s.material.name, s.source) for s in scene.sounding}
+    assert got == {"geom0": ("steel", "mapping"), "geom1": ("glass", "mapping"), "named": ("oak", "default")}
+    with pytest.raises(ValueError, match=r"no geom or body named 'nmaed'.*closest: 'named'"):
+        SoundScene.from_model(model, materials={"nmaed": "steel"}, progress=False)
+    with pytest.raises(ValueError, match="geom id 7 out of range"):
+        SoundScene.from_model(model, materials={7: "steel"}, progress=False)
+    with pytest.raises(ValueError, match="unknown material"):
+        SoundScene.from_model(model, materials={"*": "stele"}, progress=False)
+    with pytest.raises(ValueError, match="models: no sounding object named 'nam'"):
+        SoundScene.from_model(model, materials={"*": "oak"}, progress=False, models={"nam": stub_model()})
+
+
+def test_a_named_object_that_cannot_ring_says_so():
+    xml = """<mujoco><worldbody>
+      <body name="A" pos="0 0 1"><freejoint/><geom name="pebble" type="sphere" size=".005"/></body>
+      <body name="B" pos="0 0 2"><freejoint/><geom name="grit" type="sphere" size=".005"/></body>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    with pytest.warns(UserWarning, match=r"'pebble' \(steel.*will not ring: no audible modes.*higher sample_rate"):
+        scene = SoundScene.from_model(model, materials={"pebble": "steel", "*": "steel"}, progress=False)
+    assert "no audible modes" in scene.silent["grit"]
+    with warnings.catch_warnings():  # given by "*" only: reported, no warning
+        warnings.simplefilter("error")
+        SoundScene.from_model(model, materials={"*": "steel"}, progress=False)
+
+
+def test_masses_are_compared_with_mujocos():
+    model = table_model(density=1000)  # steel is 7850 kg/m^3
+    V, F = object_surface(model, [gid(model, "leg"), gid(model, "top")])[0]
+    models = {"table": stub_model((V, F), "steel", 4, 900.0)}
+    with pytest.warns(UserWarning, match=r"differ in mass from MuJoCo's.*table"):
+        scene = SoundScene.from_model(model, materials={"table": "steel"}, models=models, progress=False)
+    (obj,) = scene.sounding
+    vol = 0.4 * 0.2 * 0.02 + 0.02 * 0.04 * 0.28
+    assert obj.model.mass_kg == pytest.approx(7850 * vol, rel=1e-6)
+    ref = float(model.body_mass[obj.body_id])  # MuJoCo: density 1000, the visual cylinder included
+    assert ref == pytest.approx(1000 * (vol + np.pi * 0.12**2 * 0.04), rel=1e-6)
+    assert any(f"{100 * (7850 * vol / ref - 1):+.0f} %" in n for n in obj.notes) and "against MuJoCo's" in scene.report()
+    # the visual cylinder has density too (MuJoCo counts it): the body is heavier than the boxes,
+    # so give it no mass for an exact match
+    xml = TABLE_XML.format(custom="", density=7850).replace('group="1"', 'group="1" mass="0"')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene = SoundScene.from_model(mujoco.MjModel.from_xml_string(xml), materials={"table": "steel"},
+                                      models=models, progress=False)
+    assert not scene.sounding[0].notes
+
+
+def test_report_shows_error_estimates_and_open_surfaces():
+    model = table_model()
+    mm = stub_model("box:0.4,0.2,0.02", "steel", 4, 900.0)
+    mm.error_estimate_cents = 80.0
+    mm.info = {"watertight": False, "h": [0.01, 0.01, 0.01], "refine": 2}
+    scene = SoundScene.from_model(model, materials={"table": "steel"}, models={"table": mm}, progress=False,
+                                  objects="body")
+    rep = scene.report()
+    assert "+-80 c (!)" in rep and "estimated frequency error above 50 cents" in rep
+    assert "open surface: analysed as a wall 5 mm thick" in rep
+    summary = scene.summary()["sounding"][0]
+    assert summary["error_estimate_cents"] == 80.0 and summary["geoms"] == ["leg", "top"]
+
+
+def test_large_solids_get_a_mode_budget(recorded):
+    xml = """<mujoco><worldbody>
+      <body name="slab" pos="0 0 0.5"><geom name="slab" type="box" size="0.5 0.4 0.2"/></body>
+      <body name="cube" pos="2 0 0.5"><freejoint/><geom name="cube" type="box" size="0.02 0.02 0.02"/></body>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    scene = SoundScene.from_model(model, materials={"*": "aluminium"}, sample_rate=48000, progress=False)
+    caps = {c["mesh"]: c["max_modes"] for c in recorded}
+    assert caps == {"box:1,0.8,0.4": AUTO_MAX_MODES, "box:0.04,0.04,0.04": None}
+    slab = [s for s in scene.sounding if s.name == "slab"][0]
+    assert any("large solid" in n and f"lowest {AUTO_MAX_MODES}" in n for n in slab.notes)
+    recorded.clear()
+    SoundScene.from_model(model, materials={"*": "aluminium"}, sample_rate=48000, progress=False,
+                          max_modes_per_object=None)
+    assert {c["max_modes"] for c in recorded} == {None}
