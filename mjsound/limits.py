@@ -43,16 +43,24 @@ MAX_STEPS = 10**9
 _GIB = 1 << 30
 
 
+def _show(value) -> str:
+    """A value as a user typed it: numbers in ``%g`` form (``1e+09``, ``nan``), others by repr."""
+    try:
+        return f"{float(value):g}" if not isinstance(value, (str, bool)) else repr(value)
+    except (TypeError, ValueError):
+        return repr(value)
+
+
 def finite_number(value, name: str) -> float:
     """``float(value)``, or ``ValueError`` naming ``name`` if it is not a finite number."""
     if isinstance(value, bool):
-        raise ValueError(f"{name}={value!r} must be a number")
+        raise ValueError(f"{name}={_show(value)} must be a number")
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} must be a number") from None
+        raise ValueError(f"{name}={_show(value)} must be a number") from None
     if not math.isfinite(x):
-        raise ValueError(f"{name}={value!r} must be a finite number")
+        raise ValueError(f"{name}={_show(value)} must be a finite number")
     return x
 
 
@@ -61,7 +69,7 @@ def check_sample_rate(value, name: str = "sample_rate") -> int:
     x = finite_number(value, name)
     lo, hi = SAMPLE_RATE_RANGE
     if x != int(x) or not lo <= x <= hi:
-        raise ValueError(f"{name}={value!r} Hz is not a plausible audio rate: give an integer in {lo}..{hi} Hz "
+        raise ValueError(f"{name}={_show(value)} Hz is not a plausible audio rate: give an integer in {lo}..{hi} Hz "
                          "(e.g. 16000, 44100 or 48000)")
     return int(x)
 
@@ -71,7 +79,7 @@ def check_timestep(value, name: str = "timestep") -> float:
     x = finite_number(value, name)
     lo, hi = TIMESTEP_RANGE
     if not lo <= x <= hi:
-        raise ValueError(f"{name}={value!r} s is outside the plausible {lo:g}..{hi:g} s (MuJoCo scenes use "
+        raise ValueError(f"{name}={_show(value)} s is outside the plausible {lo:g}..{hi:g} s (MuJoCo scenes use "
                          "about 1e-4..1e-2 s); give seconds")
     return x
 
@@ -80,9 +88,9 @@ def check_duration(value, name: str = "duration", allow_zero: bool = False) -> f
     """A duration in seconds, > 0 (or >= 0) and at most :data:`MAX_DURATION_S`."""
     x = finite_number(value, name)
     if x < 0 or (x == 0 and not allow_zero):
-        raise ValueError(f"{name}={value!r} s must be {'>= 0' if allow_zero else '> 0'} seconds")
+        raise ValueError(f"{name}={_show(value)} s must be {'>= 0' if allow_zero else '> 0'} seconds")
     if x > MAX_DURATION_S:
-        raise ValueError(f"{name}={value!r} s is longer than the {MAX_DURATION_S:.0f} s (one day) limit: "
+        raise ValueError(f"{name}={_show(value)} s is longer than the {MAX_DURATION_S:.0f} s (one day) limit: "
                          "is it in milliseconds or nanoseconds? give seconds")
     return x
 

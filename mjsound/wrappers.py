@@ -191,8 +191,14 @@ class EnvAudio:
         fsp = float(full_scale_pa)
         if not (math.isfinite(fsp) and fsp > 0):
             raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure [Pa]")
-        self.sample_rate = int(sample_rate)
-        window = int(round((dt if window_s is None else float(window_s)) * self.sample_rate))
+        from .limits import check_array_bytes, check_duration, check_sample_rate
+
+        self.sample_rate = check_sample_rate(sample_rate)
+        if mode == "spectrogram" and (isinstance(n_fft, bool) or not isinstance(n_fft, (int, np.integer)) or n_fft < 2):
+            raise ValueError(f"n_fft={n_fft!r} must be an integer >= 2 (samples per STFT frame), e.g. 256")
+        window = int(round((dt if window_s is None else check_duration(window_s, "window_s")) * self.sample_rate))
+        check_array_bytes(4.0 * window * max(1, len(mics) if mics is not None else 1), f"window_s={window_s}",
+                          "give the audio window in seconds (default: one env step)")
         if window < 2:
             raise ValueError(f"audio window of {window} samples is too short (window_s={window_s}, dt={dt})")
         self.window = window
@@ -466,11 +472,16 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return self._observe(obs, self.audio.observe()), info
 
     def step(self, action):
+        if self._closed:
+            raise RuntimeError("AudioObservation.step() after close(): make a new environment")
         obs, reward, terminated, truncated, info = self.env.step(action)
         audio, extra = self.core.end_step()
         return self._observe(obs, audio), reward, terminated, truncated, {**info, **extra}
 
+    _closed = False
+
     def close(self):
+        self._closed = True
         uw = self.env.unwrapped
         if self._hooked and self._hooked in vars(uw):
             delattr(uw, self._hooked)  # back to the class method

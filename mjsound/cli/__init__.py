@@ -80,9 +80,16 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
-        print(f"mjsound {args.command}: interrupted; partial outputs discarded", file=sys.stderr)
-        return 130
+        return _interrupted(args, 130)
+    except SystemExit as exc:
+        if exc.code == 128 + signal.SIGTERM:
+            return _interrupted(args, exc.code)
+        raise
     except Exception as exc:
+        cause = exc.__cause__ or exc.__context__
+        if isinstance(exc, SystemError) and isinstance(cause, (KeyboardInterrupt, SystemExit)):
+            # an interrupt that arrived inside a numba call surfaces as SystemError: it is still an interrupt
+            return _interrupted(args, 130 if isinstance(cause, KeyboardInterrupt) else cause.code)
         msg = error_message(exc)
         if msg is None:
             raise
@@ -91,6 +98,11 @@ def main(argv=None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupted(args, code: int) -> int:
+    print(f"mjsound {args.command}: interrupted; partial outputs discarded", file=sys.stderr)
+    return code
 
 
 def _terminate(signum, frame):

@@ -144,6 +144,7 @@ def _run_sonify(args) -> int:
         sample_rate=args.sample_rate, materials=args.materials, out=args.output,
         mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
         progress=not args.json and sys.stderr.isatty(), full_scale_pa=args.full_scale_pa, normalize=args.normalize,
+        keep_audio=False,
     )
     return _report(summary, args)
 

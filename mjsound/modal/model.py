@@ -217,16 +217,19 @@ class ModalModel:
             raise ValueError(f"{path}: not a valid mjsound model ({exc})") from exc
         except Exception as exc:  # zipfile.BadZipFile, KeyError, OSError, EOFError ...
             raise ValueError(f"{path}: not a valid mjsound model ({type(exc).__name__}: {exc})") from exc
-        return cls(
-            **arrays,
-            material=Material(**meta["material"]),
-            method=meta["method"],
-            dofs=meta["dofs"],
-            seconds=meta["seconds"],
-            error_estimate_cents=meta["error_estimate_cents"],
-            mass_kg=meta["mass_kg"],
-            info=meta["info"],
-        )
+        try:
+            return cls(
+                **arrays,
+                material=Material(**meta["material"]),
+                method=meta["method"],
+                dofs=meta["dofs"],
+                seconds=meta["seconds"],
+                error_estimate_cents=meta["error_estimate_cents"],
+                mass_kg=meta["mass_kg"],
+                info=meta["info"],
+            )
+        except (KeyError, TypeError, ValueError) as exc:  # a metadata field missing or malformed
+            raise ValueError(f"{path}: not a valid mjsound model (metadata {type(exc).__name__}: {exc})") from exc
 
 
 def _json_default(o):
