@@ -288,3 +288,62 @@ def test_cli_fit_json(tmp_path, capsys):
     sf.write(bad, np.zeros(FS, np.float32), FS)
     assert main(["fit", str(bad)]) == 2
     assert "silent" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- what a recording supports (issue 17)
+@pytest.mark.parametrize("seed", [0, 3])
+def test_noise_free_strike_gives_exactly_its_modes(seed):
+    model, f, d, A = random_model(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FitWarning)
+        fit = fit_recording(strike(model), FS)
+    assert fit.n_modes == fit.modes_supported == len(f)  # nothing invented
+    for i in range(len(f)):
+        j = match(fit, f[i])
+        assert abs(fit.damped_frequencies_hz[j] / f[i] - 1) < 1e-4
+        assert abs(fit.gains[j] / A[i] - 1) < 0.01
+
+
+def test_one_pure_decay_is_one_mode():
+    t = np.arange(FS) / FS
+    fit = fit_recording(np.exp(-3 * t) * np.sin(2 * np.pi * 440 * t), FS)
+    assert fit.n_modes == 1
+    assert abs(fit.damped_frequencies_hz[0] - 440) < 1e-3 and abs(fit.amplitudes[0] - 1) < 1e-3
+
+
+def test_asking_for_more_modes_than_supported_warns_and_invents_none():
+    model, f, d, A = random_model(0)
+    with pytest.warns(FitWarning, match="30 modes asked for, but the recording supports only 16"):
+        fit = fit_recording(strike(model), FS, n_modes=30)
+    assert fit.n_modes == fit.modes_supported == 16
+    fit = fit_recording(strike(model), FS, n_modes=5)
+    assert fit.n_modes == 5 and fit.modes_supported == 16
+    assert fit.summary()["modes_supported"] == 16
+
+
+def test_repeated_identical_strikes_are_not_clipped():
+    model, f, d, A = random_model(1, n=4, d_lo=200.0, d_hi=400.0)
+    one = strike(model, t_imp=0.0, T=0.02)
+    rec = np.concatenate([np.zeros(2400), np.tile(one, 600)])  # 600 identical strikes, 20 ms apart
+    with pytest.warns(FitWarning) as got:
+        fit = fit_recording(rec, FS)
+    msgs = [str(w.message) for w in got]
+    assert not any("clipped" in m for m in msgs) and any("more than one impact" in m for m in msgs)
+    assert fit.n_modes >= 1
+
+
+def test_quiet_16_bit_strike_is_not_clipped_but_a_full_scale_one_is(tmp_path):
+    import soundfile as sf
+
+    model, f, d, A = random_model(2, n=6, d_hi=20.0)
+    clean = strike(model)
+    quiet = clean / np.abs(clean).max() * 10 ** (-60 / 20)  # -60 dBFS: 33 steps of 16 bits
+    sf.write(tmp_path / "quiet.wav", quiet, FS, subtype="PCM_16")
+    fit = fit_recording(tmp_path / "quiet.wav")
+    assert not any("clipped" in w for w in fit.warnings)
+    i = int(np.argmax(np.abs(A)))
+    assert abs(fit.damped_frequencies_hz[match(fit, f[i])] / f[i] - 1) < 0.005
+    loud = np.clip(clean / np.abs(clean).max() * 1.5, -1, 1)
+    sf.write(tmp_path / "loud.wav", loud, FS, subtype="PCM_16")
+    with pytest.warns(FitWarning, match="clipped"):
+        fit_recording(tmp_path / "loud.wav")

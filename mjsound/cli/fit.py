@@ -65,7 +65,7 @@ def run(args) -> int:
     print(f"recording  {args.recording} ({fit.channels}, {fit.sample_rate} Hz)")
     print(f"onset      {fit.onset_s:.5f} s; analysed {fit.analysis_start_s:.3f}..{fit.analysis_end_s:.3f} s; "
           f"peak {fit.snr_db:.1f} dB over the noise floor")
-    print(f"modes      {fit.n_modes}; residual {fit.residual_db:.1f} dB; {fit.seconds:.2f} s")
+    print(f"modes      {fit.n_modes} (the recording supports {fit.modes_supported}); residual {fit.residual_db:.1f} dB; {fit.seconds:.2f} s")
     print("   f [Hz]    d [1/s]   T60 [s]   amplitude")
     for f, d, a in zip(fit.frequencies_hz, fit.decay_per_s, fit.amplitudes):
         print(f"{f:9.2f}  {d:9.3f}  {6.91 / d:8.3f}  {a:10.4g}")

@@ -25,6 +25,8 @@ MIN_PEAK_DB = 15.0
 SECOND_ONSET_DB = 6.0
 #: Largest number of Hankel rows per band (bounds the SVD cost).
 MAX_ROWS = 192
+#: Fewer quantisation steps than this under the peak: a plateau there is quantisation, not clipping.
+QUANT_LEVELS = 256
 #: Largest number of decimated samples used per band.
 MAX_BAND_SAMPLES = 4096
 
@@ -64,6 +66,31 @@ def _to_mono(audio, channel):
     if not -nch <= c < nch:
         raise ValueError(f"channel={channel!r} is out of range for {nch} channels (0..{nch - 1}, or None to mix)")
     return x[:, c], f"channel {c % nch} of {nch}"
+
+
+def _clipped_samples(x, peak):
+    """Indices of the samples on clipping plateaus of ``x`` (1-D), ascending.
+
+    A plateau is a run of consecutive samples at the extreme level ``peak`` (within 1e-6):
+    at least 3 samples, or 2 at the digital rail of float audio (``0.999 <= peak <= 1``). A
+    single loud sample repeated (identical strikes) is not a plateau. A plateau is only
+    quantisation, not clipping, when the loudest part of the signal uses fewer than
+    ``QUANT_LEVELS`` quantisation steps (a quiet strike in a 16-bit file: -60 dBFS is 33 steps)
+    and is not at the rail.
+    """
+    at = np.abs(x) >= peak * (1 - 1e-6)
+    at_rail = 0.999 <= peak <= 1.0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], at.astype(np.int8), [0]])))
+    starts, ends = edges[0::2], edges[1::2]
+    long = (ends - starts) >= (2 if at_rail else 3)
+    if not long.any():
+        return np.zeros(0, np.int64)
+    if not at_rail:
+        top = np.unique(np.abs(x[np.abs(x) >= 0.5 * peak]))
+        step = float(np.min(np.diff(top))) if len(top) > 1 else peak
+        if peak / step < QUANT_LEVELS:
+            return np.zeros(0, np.int64)
+    return np.concatenate([np.arange(a, b) for a, b in zip(starts[long], ends[long])])
 
 
 def _warn(msgs, text):
@@ -157,12 +184,9 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
         raise ValueError("recording is silent (all samples are zero): check the input channel / microphone and record the impact again")
 
     # ---------------------------------------------------------------- clipping
-    clip_end = -1
-    near = np.abs(x) >= peak * (1 - 1e-4)
-    n_clip = int(near.sum())
-    if n_clip >= 4:
-        clip_idx = np.flatnonzero(near)
-        clip_end = int(clip_idx[-1])
+    clip_idx = _clipped_samples(x, peak)
+    n_clip = len(clip_idx)
+    clip_end = int(clip_idx[-1]) if n_clip else -1
     x = x - np.mean(x)
 
     # ---------------------------------------------------------------- envelope, noise floor
@@ -297,6 +321,7 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
 
     # ---------------------------------------------------------------- full-rate amplitudes, pruning
     b, res = _ls_amplitudes(seg, fs, tau_a, lam)
+    beyond_limit = 0  # significant modes dropped by the n_modes limit
     for _ in range(3):
         if len(lam) == 0:
             break
@@ -308,6 +333,7 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
         en = np.abs(b) ** 2 / 2 * span
         ok = en > noise_k * 10 ** (min_snr_db / 10)
         if n_modes is not None and ok.sum() > n_modes:
+            beyond_limit += int(ok.sum()) - int(n_modes)
             ranks = np.argsort(-np.where(ok, en, -1.0))
             ok = np.zeros(len(lam), bool)
             ok[ranks[: int(n_modes)]] = True
@@ -316,6 +342,11 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
         lam, noise_k = lam[ok], noise_k[ok]
         b, res = _ls_amplitudes(seg, fs, tau_a, lam)
 
+    n_significant = len(lam) + beyond_limit
+    if n_modes is not None and n_significant < n_modes:
+        _warn(msgs, f"{n_modes} modes asked for, but the recording supports only {n_significant} above "
+                    f"min_snr_db={min_snr_db:g} dB; the fit returns those and invents none. Record longer, closer "
+                    "or with less noise for more")
     if len(lam) == 0:
         _warn(msgs, "no mode rose above the noise: the fit is empty. Record closer to the object, strike harder "
                     "or lower min_snr_db")
@@ -366,6 +397,7 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
         channels=chdesc,
         impulse_like=impulse_like,
         warnings=msgs,
+        modes_supported=n_significant,
         seconds=_time.perf_counter() - t_start,
         source=source,
     )

@@ -39,6 +39,8 @@ class FitResult:
     channels : str, how channels were combined ("mono", "mix of 2", "channel 1 of 2").
     impulse_like : bool, whether the phases are those of an impulse at ``onset_s``.
     warnings : list of str, problems found (also issued as :class:`FitWarning`).
+    modes_supported : int, modes the recording supports (above ``min_snr_db``) before the
+        ``n_modes`` limit; the fit never returns more.
     seconds : float, fitting wall time.
     """
 
@@ -56,6 +58,7 @@ class FitResult:
     channels: str = "mono"
     impulse_like: bool = True
     warnings: list = field(default_factory=list)
+    modes_supported: int = -1
     seconds: float = 0.0
     source: str = "array"
 
@@ -182,6 +185,7 @@ class FitResult:
             "phases_rad": self.phases_rad.tolist(),
             "gains": self.gains.tolist(),
             "n_modes": self.n_modes,
+            "modes_supported": int(self.modes_supported),
             "residual_db": _num(self.residual_db),
             "snr_db": _num(self.snr_db),
             "noise_rms": _num(self.noise_rms),

@@ -14,6 +14,13 @@ def _frames(x, L):
     return e
 
 
+#: Components this far below a band's strongest one are not resolved [dB]. The Gram matrix
+#: ``H H^H`` squares the condition number, so singular values below about 1e-8 of the largest
+#: are rounding noise; without this floor a noise-free recording "finds" dozens of modes
+#: whose huge, cancelling amplitudes fit that noise.
+MAX_DYNAMIC_RANGE_DB = 90.0
+
+
 def _esprit(y, L, max_order, min_sig=0.0):
     """Poles z of a complex signal y by ESPRIT with L Hankel rows.
 
@@ -23,7 +30,8 @@ def _esprit(y, L, max_order, min_sig=0.0):
     for an L x C noise matrix, with the noise level sigma estimated from the lower half of
     the singular values themselves (they are noise when there are fewer than L/2 modes, and
     self-calibrate to the band's own noise, which a periodogram median overestimates when
-    resonance skirts fill the band). Returns ``(z, sigma^2)``."""
+    resonance skirts fill the band). The threshold is never below
+    :data:`MAX_DYNAMIC_RANGE_DB` under the largest singular value. Returns ``(z, sigma^2)``."""
     N = len(y)
     C = N - L + 1
     idx = np.arange(L)[:, None] + np.arange(C)[None, :]
@@ -36,8 +44,10 @@ def _esprit(y, L, max_order, min_sig=0.0):
     ev, U = ev[::-1], U[:, ::-1]
     s = np.sqrt(np.maximum(ev, 0.0))
     # median singular value of the noise part ~ sigma sqrt(C) (Marchenko-Pastur, C >> L)
-    sig = max(float(np.median(s[L // 2:])) / math.sqrt(C), min_sig)
-    thr = 1.1 * sig * (math.sqrt(L) + math.sqrt(C))
+    spread = math.sqrt(L) + math.sqrt(C)
+    floor = float(s[0]) * 10 ** (-MAX_DYNAMIC_RANGE_DB / 20) / (1.1 * spread)
+    sig = max(float(np.median(s[L // 2:])) / math.sqrt(C), min_sig, floor)
+    thr = 1.1 * sig * spread
     K = int(np.sum(s > thr))
     K = min(K, max_order, L - 2)
     if K <= 0:
