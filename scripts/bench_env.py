@@ -117,7 +117,7 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--sample-rate", type=int, default=16000)
-    p.add_argument("--envs", nargs="+", default=["Ant-v5", "Humanoid-v5"])
+    p.add_argument("--envs", nargs="*", default=["Ant-v5", "Humanoid-v5"])
     p.add_argument("--robotics", nargs="*", default=["FetchPickAndPlace-v4"])
     p.add_argument("--cold", action="store_true", help="also time cold construction of the first --robotics env")
     p.add_argument("--cold-rates", nargs="+", type=int, default=[16000, 48000])

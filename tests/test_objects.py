@@ -14,7 +14,9 @@ import pytest
 
 from mjsound.geometry import load_mesh
 from mjsound.sim.objects import object_surface
+from mjsound.materials import get_material
 from mjsound.sim.scene import AUTO_MAX_MODES, SoundScene
+from mjsound.sim.scene_analysis import BAND_MARGIN
 from mjsound.sim.simulator import AudioSimulator
 from mjsound.sim.stub import stub_model
 
@@ -214,11 +216,20 @@ def test_large_solids_get_a_mode_budget(recorded):
     </worldbody></mujoco>"""
     model = mujoco.MjModel.from_xml_string(xml)
     scene = SoundScene.from_model(model, materials={"*": "aluminium"}, sample_rate=48000, progress=False)
-    caps = {c["mesh"]: c["max_modes"] for c in recorded}
-    assert caps == {"box:1,0.8,0.4": AUTO_MAX_MODES, "box:0.04,0.04,0.04": None}
+    caps = {c["mesh"]: (c["max_modes"], c["f_max"]) for c in recorded}
+    assert caps["box:0.04,0.04,0.04"] == (None, None)
+    n, f_band = caps["box:1,0.8,0.4"]
+    # Weyl: N(f) = 2 (4 pi / 3) V f^3 (1/cL^3 + 2/cT^3); the band ends BAND_MARGIN above the
+    # estimated frequency of the 64th mode
+    al = get_material("aluminium")
+    cT = np.sqrt(al.shear_modulus / al.rho)
+    cL = cT * np.sqrt(2 * (1 - al.nu) / (1 - 2 * al.nu))
+    f64 = (AUTO_MAX_MODES / (2 * 4 * np.pi / 3 * 0.32 * (1 / cL**3 + 2 / cT**3))) ** (1 / 3)
+    assert n == AUTO_MAX_MODES and f_band == pytest.approx(BAND_MARGIN * f64, rel=1e-9) and f_band < 0.45 * 48000
     slab = [s for s in scene.sounding if s.name == "slab"][0]
-    assert any("large solid" in n and f"lowest {AUTO_MAX_MODES}" in n for n in slab.notes)
+    assert any("large solid" in n and f"lowest {AUTO_MAX_MODES}, analysed to {f_band / 1000:.1f} kHz" in n
+               for n in slab.notes)
     recorded.clear()
     SoundScene.from_model(model, materials={"*": "aluminium"}, sample_rate=48000, progress=False,
                           max_modes_per_object=None)
-    assert {c["max_modes"] for c in recorded} == {None}
+    assert {(c["max_modes"], c["f_max"]) for c in recorded} == {(None, None)}

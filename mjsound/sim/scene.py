@@ -331,10 +331,10 @@ class SoundScene:
                 if mm is None and inaudible:
                     scene.silent[name] = inaudible
                 elif mm is None:
-                    max_modes, cap_note = _mode_cap(plan["mesh"], mat, f_max, max_modes_per_object)
+                    max_modes, f_band, cap_note = _mode_cap(plan["mesh"], mat, f_max, max_modes_per_object)
                     if cap_note:
                         notes.append(cap_note)
-                    mm = _analyze_with_fallback(name, plan["mesh"], mat, method, quality, sample_rate, cache,
+                    mm = _analyze_with_fallback(name, plan["mesh"], mat, method, quality, sample_rate, cache, f_max=f_band,
                                                 max_modes=max_modes, error_estimate=error_estimate)
                     if mm is None:
                         scene.silent[name] = "analysis failed (see warning)"

@@ -16,6 +16,8 @@ from .objects import solid_mode_count
 MASS_TOLERANCE = 0.05
 #: Mode budget of one large solid object under ``max_modes_per_object="auto"``.
 AUTO_MAX_MODES = 64
+#: Such an object is analysed up to this factor above the estimated frequency of its last kept mode.
+BAND_MARGIN = 1.25
 
 
 def _mujoco():
@@ -47,7 +49,7 @@ _MODEL_MEMO: dict = {}
 
 
 def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, cache, max_modes=None,
-                           error_estimate=True):
+                           error_estimate=True, f_max=None):
     """``analyze`` with ``method``, then ``hex``; ``None`` (and a warning) when both fail."""
     from ..modal.analyze import analyze
 
@@ -59,14 +61,14 @@ def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, c
         label = str(spec)
     # (keyed by the analysis function too: one replaced by a fake never shares entries with the real one)
     key = (analyze, label, material.key(), int(sample_rate), quality, method, max_modes, bool(error_estimate),
-           bool(cache))
+           bool(cache), f_max)
     if key in _MODEL_MEMO:
         return _MODEL_MEMO[key]
     tried = []
     for m in dict.fromkeys([method, "hex"]):
         try:
             mm = analyze(spec, material, method=m, quality=quality, sample_rate=sample_rate, cache=cache,
-                         progress=False, max_modes=max_modes, error_estimate=error_estimate)
+                         progress=False, max_modes=max_modes, error_estimate=error_estimate, f_max=f_max)
             _MODEL_MEMO[key] = mm
             return mm
         except (ValueError, RuntimeError, MemoryError) as exc:
@@ -82,26 +84,36 @@ def _finite_or_none(x):
 
 
 def _mode_cap(mesh, material, f_max, max_modes_per_object):
-    """``(max_modes, note)`` for one object's analysis (see ``SoundScene.from_model``)."""
+    """``(max_modes, f_band, note)`` for one object's analysis (see ``SoundScene.from_model``).
+
+    Under ``"auto"`` a closed solid whose Weyl estimate ``N(f) = 2 * solid_mode_count`` (the
+    factor two for the free surface's modes) exceeds ``AUTO_MAX_MODES`` below ``f_top`` (f_max,
+    or where its material stops ringing) keeps its lowest ``AUTO_MAX_MODES``, and is analysed
+    only up to ``f_band = BAND_MARGIN * f_N``, ``f_N = f_top (AUTO_MAX_MODES / N(f_top))^(1/3)``
+    the estimated frequency of its last kept mode: the mesh is sized for the modes kept
+    (elements per wavelength at ``f_band``, not at ``f_max``). ``f_band`` None: the default.
+    """
     if max_modes_per_object is None:
-        return None, None
+        return None, None, None
     if max_modes_per_object != "auto":
         n = int(max_modes_per_object)
         if n < 1:
             raise ValueError(f"max_modes_per_object={max_modes_per_object!r}: give 'auto', None or a count >= 1")
-        return n, f"mode budget: lowest {n} modes (max_modes_per_object={n})"
+        return n, None, f"mode budget: lowest {n} modes (max_modes_per_object={n})"
     from ..geometry import load_mesh
     from ..modal.analyze import ringing_below
 
     tm = load_mesh(mesh, check_size=False)
     if not tm.is_watertight or getattr(material, "wall", None) is not None:
-        return None, None  # (only solids: an open surface or a hollow object is a wall)
-    est = 2.0 * solid_mode_count(abs(float(tm.volume)), material, min(f_max, ringing_below(material)))
+        return None, None, None  # (only solids: an open surface or a hollow object is a wall)
+    f_top = min(f_max, ringing_below(material))
+    est = 2.0 * solid_mode_count(abs(float(tm.volume)), material, f_top)
     if est <= AUTO_MAX_MODES:
-        return None, None
-    return AUTO_MAX_MODES, (f"large solid ({np.max(tm.extents):.2g} m, ~{est:.0f} modes expected below "
-                            f"{min(f_max, ringing_below(material)) / 1000:.1f} kHz): its lowest {AUTO_MAX_MODES} "
-                            "analysed (max_modes_per_object=None analyses all)")
+        return None, None, None
+    f_band = min(f_top, BAND_MARGIN * f_top * (AUTO_MAX_MODES / est) ** (1 / 3))
+    return AUTO_MAX_MODES, f_band, (
+        f"large solid ({np.max(tm.extents):.2g} m, ~{est:.0f} modes expected below {f_top / 1000:.1f} kHz): its "
+        f"lowest {AUTO_MAX_MODES}, analysed to {f_band / 1000:.1f} kHz (max_modes_per_object=None analyses all)")
 
 
 def _surface_notes(mm: ModalModel) -> list:
