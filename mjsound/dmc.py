@@ -106,8 +106,11 @@ class AudioEnvironment(dm_env.Environment):
 
         physics.step = step
 
+    _closed = False
+
     def close(self) -> None:
         """Give the physics its own ``step`` back and close the wrapped env."""
+        self._closed = True
         if "step" in vars(self._physics):
             del self._physics.step
         close = getattr(self._env, "close", None)
@@ -134,6 +137,8 @@ class AudioEnvironment(dm_env.Environment):
         return self._with_audio(ts, self.audio.observe())
 
     def step(self, action):
+        if self._closed:
+            raise RuntimeError("AudioEnvironment.step() after close(): make a new environment")
         ts = self._env.step(action)
         if ts.first():  # dm_control reset by itself after a LAST step
             return self._after_reset(ts)

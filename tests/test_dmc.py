@@ -68,6 +68,8 @@ def test_automatic_reset_after_the_last_step_and_close():
     physics = env.physics
     env.close()
     assert "step" not in vars(physics)
+    with pytest.raises(RuntimeError, match="after close"):
+        env.step(np.zeros(2))
 
 
 def test_refuses_what_is_not_a_dm_control_env():

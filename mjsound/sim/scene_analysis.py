@@ -127,12 +127,19 @@ def _surface_notes(mm: ModalModel) -> list:
     if not t and h is not None and r:
         t = float(np.min(h)) / float(r)
     thick = f"a wall {1000 * t:.2g} mm thick" if t else "a thin wall"
-    return [f"open surface: analysed as {thick}, not a solid; close the mesh, or give the wall thickness "
-            "(wall= in the material, or thickness= in analyze)"]
+    return [f"not a closed surface (open, or edges with more than two faces): its unclosed parts are analysed as "
+            f"{thick}, not as a solid; close the mesh, or give the wall thickness (wall= in the material)"]
 
 
 def warn_unheard(scene, plans, f_max) -> None:
-    """A warning for every object the user gave a material that will not ring."""
+    """A warning for every object the user gave a material that will not ring, and one when
+    nothing in the scene rings although some objects have materials."""
+    if not scene.sounding and any("no audible modes" in why for why in scene.silent.values()):
+        quiet = [n for n, why in scene.silent.items() if "no audible modes" in why]
+        warnings.warn(f"mjsound: nothing in this scene rings: {len(quiet)} object(s) with a material have no mode "
+                      f"between 20 Hz and f_max {f_max / 1000:.1f} kHz ({', '.join(quiet[:4])}"
+                      f"{' ...' if len(quiet) > 4 else ''}). A higher sample_rate (f_max = 0.45 x sample_rate) or "
+                      "lower-pitched materials would make them ring.", UserWarning, stacklevel=3)
     for p in plans:
         why = scene.silent[p["name"]]
         fix = ("a lower-pitched object (larger, or a softer or denser material) or a higher sample_rate "
