@@ -89,18 +89,11 @@ def _scene_hash(scene_xml, model) -> str:
 
 
 def _write_json_atomic(path, obj) -> None:
-    from .io import commit_temp, temp_beside
+    from .io import atomic_open
 
-    fd, tmp = temp_beside(path, suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(obj, fh, indent=1, sort_keys=True, default=_json_default)
-            fh.write("\n")
-        commit_temp(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_open(path) as fh:
+        json.dump(obj, fh, indent=1, sort_keys=True, default=_json_default)
+        fh.write("\n")
 
 
 def _json_default(o):

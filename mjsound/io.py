@@ -9,11 +9,13 @@ writes into the same directory removes every such file of this host whose proces
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import tempfile
 
-__all__ = ["temp_beside", "commit_temp", "discard_temp", "remove_stale_temps", "check_output_file", "TEMP_PREFIX"]
+__all__ = ["temp_beside", "commit_temp", "discard_temp", "remove_stale_temps", "check_output_file", "atomic_path",
+           "atomic_open", "TEMP_PREFIX"]
 
 #: Prefix of every temporary file mjsound writes.
 TEMP_PREFIX = ".mjsound-tmp-"
@@ -118,3 +120,26 @@ def check_output_file(path, suffixes, option: str = "output") -> str:
     if parent and not os.path.isdir(parent):
         raise ValueError(f"{option} {p!r}: {parent!r} is a file, not a directory")
     return p
+
+
+@contextlib.contextmanager
+def atomic_path(path, suffix: str = ""):
+    """Yield a temporary path beside ``path`` to write (e.g. ``fig.savefig(tmp)``); on success it
+    is moved onto ``path`` atomically, on any exception (Ctrl-C included) it is removed."""
+    fd, tmp = temp_beside(path, suffix)
+    os.close(fd)
+    try:
+        yield tmp
+        commit_temp(tmp, path)
+    except BaseException:
+        discard_temp(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_open(path, mode: str = "w", **kwargs):
+    """``open`` for writing, atomically: the file appears whole at ``path`` when the block ends
+    without an exception, and not at all otherwise."""
+    with atomic_path(path, os.path.splitext(os.fspath(path))[1]) as tmp:
+        with open(tmp, mode, **kwargs) as fh:
+            yield fh

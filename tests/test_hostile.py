@@ -269,3 +269,49 @@ def test_wrapper_step_after_close_raises(scene):
     env.close()
     with pytest.raises(RuntimeError, match=r"step\(\) after close\(\)"):
         env.step(env.action_space.sample())
+
+
+def test_atomic_open_and_stale_temp_sweep(tmp_path):
+    import subprocess
+    import sys
+
+    import mjsound.io as mio
+
+    target = tmp_path / "report.md"
+    target.write_text("old")
+    with pytest.raises(KeyboardInterrupt):
+        with mio.atomic_open(target) as fh:
+            fh.write("half")
+            raise KeyboardInterrupt
+    assert target.read_text() == "old" and os.listdir(tmp_path) == ["report.md"]
+    with mio.atomic_open(target) as fh:
+        fh.write("new")
+    assert target.read_text() == "new" and os.listdir(tmp_path) == ["report.md"]
+    # temp files of a finished process of this host go; a live process's (ours) and other hosts' stay
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    host = mio._host()
+    names = [f"{mio.TEMP_PREFIX}{host}-{dead.stdout.strip()}-abc.wav", f"{mio.TEMP_PREFIX}{host}-{os.getpid()}-x.wav",
+             f"{mio.TEMP_PREFIX}otherhost-{dead.stdout.strip()}-y.wav"]
+    for n in names:
+        (tmp_path / n).write_bytes(b"x")
+    removed = mio.remove_stale_temps(tmp_path)
+    assert [os.path.basename(p) for p in removed] == names[:1]
+    assert sorted(os.listdir(tmp_path)) == sorted(["report.md", *names[1:]])
+
+
+@pytest.mark.parametrize("normalize", [False, True])
+def test_streamed_file_equals_the_whole_take(scene, tmp_path, normalize):
+    """The take written block by block is the file the whole array would give (also with the
+    second, normalising pass), and the warm-up block is timed apart."""
+    import soundfile as sf
+
+    from mjsound.sim.rollout import sonify
+    from mjsound.synth.output import normalize_peak, to_full_scale
+
+    s = sonify(scene, duration=2.5, out=tmp_path / "a.wav", normalize=normalize, progress=False)
+    got, fs = sf.read(tmp_path / "a.wav", dtype="float32", always_2d=True)
+    want = normalize_peak(s["audio"]) if normalize else to_full_scale(s["audio"], 20.0)[0]
+    assert fs == 48000 and got.shape == (120000, 1)
+    np.testing.assert_array_equal(got.T, want)
+    assert 0 < s["warmup_seconds"] < s["wall_seconds"] and np.isfinite(s["realtime_factor"])
+    assert not [n for n in os.listdir(tmp_path) if n.startswith(".mjsound-tmp")]

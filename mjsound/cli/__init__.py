@@ -86,9 +86,10 @@ def main(argv=None) -> int:
             return _interrupted(args, exc.code)
         raise
     except Exception as exc:
-        cause = exc.__cause__ or exc.__context__
-        if isinstance(exc, SystemError) and isinstance(cause, (KeyboardInterrupt, SystemExit)):
-            # an interrupt that arrived inside a numba call surfaces as SystemError: it is still an interrupt
+        cause = _interrupt_in_chain(exc)
+        if cause is not None:
+            # an interrupt that arrived inside a numba call (or other native code) surfaces as another
+            # exception (SystemError ...) caused by it: it is still an interrupt
             return _interrupted(args, 130 if isinstance(cause, KeyboardInterrupt) else cause.code)
         msg = error_message(exc)
         if msg is None:
@@ -98,6 +99,17 @@ def main(argv=None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupt_in_chain(exc):
+    """The KeyboardInterrupt or SIGTERM SystemExit that caused ``exc`` (its cause/context chain), or None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt) or (isinstance(exc, SystemExit) and exc.code == 128 + signal.SIGTERM):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _interrupted(args, code: int) -> int:

@@ -58,6 +58,15 @@ import traceback
 
 import numpy as np
 
+from ..io import atomic_open, atomic_path
+
+
+def _savefig(fig, path) -> None:
+    """Save a figure atomically (PNG)."""
+    with atomic_path(path, ".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+
+
 __all__ = ["run_report", "lamb_sphere", "machine_info", "measure", "BOWL_REFERENCE", "cents"]
 
 ALU = "aluminium"
@@ -707,7 +716,7 @@ def _plots(outdir, modal, synth, e2e, fmax):
         ax.set_ylabel("RMS error [cents]")
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(os.path.join(outdir, "accuracy_modal.png"), dpi=110)
+    _savefig(fig, os.path.join(outdir, "accuracy_modal.png"))
     plt.close(fig)
     files.append("accuracy_modal.png")
 
@@ -723,7 +732,7 @@ def _plots(outdir, modal, synth, e2e, fmax):
         ax.set_ylabel("error vs float64 exact [dB]")
         ax.grid(True, which="both", alpha=0.3)
         fig.tight_layout()
-        fig.savefig(os.path.join(outdir, "accuracy_synth.png"), dpi=110)
+        _savefig(fig, os.path.join(outdir, "accuracy_synth.png"))
         plt.close(fig)
         files.append("accuracy_synth.png")
 
@@ -740,7 +749,7 @@ def _plots(outdir, modal, synth, e2e, fmax):
             ax.legend(fontsize=7)
             ax.grid(True, which="both", alpha=0.3)
         fig.tight_layout()
-        fig.savefig(os.path.join(outdir, "accuracy_e2e.png"), dpi=110)
+        _savefig(fig, os.path.join(outdir, "accuracy_e2e.png"))
         plt.close(fig)
         files.append("accuracy_e2e.png")
     return files
@@ -901,7 +910,7 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
     for line in _knobs(modal, fmax, synth, e2e):
         w(line)
     w("")
-    with open(path, "w") as fh:
+    with atomic_open(path) as fh:
         fh.write("\n".join(L))
 
 
@@ -1019,7 +1028,7 @@ def run_report(output="reports", quick: bool = False, plots: bool = True, sectio
     path = os.path.join(output, "accuracy.md")
     write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, seconds)
     if json_path:
-        with open(json_path, "w") as fh:
+        with atomic_open(json_path) as fh:
             json.dump({"machine": info, "command": command, "seconds": seconds, "modal": modal, "f_max": fmax,
                        "synth": synth, "e2e": e2e}, fh,
                       default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o), indent=1)

@@ -114,12 +114,11 @@ def write_demo_assets(directory) -> str:
     directory = os.fspath(directory)
     os.makedirs(directory, exist_ok=True)
     files = {"bowl.obj": _bowl_obj(), "demo_scene.xml": demo_scene_xml()}
+    from ..io import atomic_open
+
     for name, text in files.items():
-        path = os.path.join(directory, name)
-        tmp = path + ".tmp"
-        with open(tmp, "w", newline="\n") as fh:
+        with atomic_open(os.path.join(directory, name), "w", newline="\n") as fh:
             fh.write(text)
-        os.replace(tmp, path)
     return os.path.join(directory, "demo_scene.xml")
 
 

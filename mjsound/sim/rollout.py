@@ -431,7 +431,7 @@ def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str
         warnings.warn("matplotlib not installed; no spectrogram picture (pip install 'mjsound[report]')",
                       stacklevel=2)
         return None
-    from ..io import commit_temp, discard_temp, temp_beside
+    from ..io import atomic_path
 
     audio = np.atleast_2d(audio)
     fig, axes = plt.subplots(len(audio), 1, figsize=(9, 2.4 * len(audio)), sharex=True, squeeze=False)
@@ -442,14 +442,9 @@ def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str
     axes[0, 0].set_title(f"{title}: {audio.shape[1] / sample_rate:.1f} s, peak {peak:.3g} Pa")
     axes[-1, 0].set_xlabel("simulation time [s]")
     fig.tight_layout()
-    fd, tmp = temp_beside(path, ".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=90, format="png")
-        commit_temp(tmp, path)
-    except BaseException:
-        discard_temp(tmp)
-        raise
+        with atomic_path(path, ".png") as tmp:
+            fig.savefig(tmp, dpi=90, format="png")
     finally:
         plt.close(fig)
     return os.fspath(path)

@@ -93,7 +93,7 @@ def _write_error(path, exc) -> OSError:
         except OSError:
             full = False
         code = errno.ENOSPC if full else errno.EIO
-        why = os.strerror(code) + f" ({exc})"
+        why = (os.strerror(code) if full else "is the disk full, or a file size limit reached?") + f" soundfile: {exc}"
     return OSError(code, f"cannot write the audio file ({why})", os.fspath(path))
 
 
