@@ -51,7 +51,7 @@ __all__ = ["TapContainersEnv", "N_CONTAINERS", "CONTAINER_ANALYSIS"]
 N_CONTAINERS = 3
 #: Modal analysis of the container surfaces (quadratic hex cells, 10 along the longest side:
 #: the 8 mm walls' plate modes in a few seconds; the scripted policy scores >= 0.7 with it).
-CONTAINER_ANALYSIS = {"quality": "draft", "resolution": 10, "error_estimate": False}
+CONTAINER_ANALYSIS = {"method": "hex", "quality": "draft", "resolution": 10, "error_estimate": False}
 PARK = np.array([0.5, 0.0, 0.03, 1.0, 0.0, 0.0, 0.0])
 
 

@@ -8,6 +8,8 @@ A :class:`Material` holds what modal analysis and contact need:
 * ``alpha``, ``beta`` Rayleigh damping, ``C = alpha*M + beta*K`` [1/s] and [s];
   mode i decays at ``d_i = (alpha + beta*omega_i**2) / 2`` [1/s]
 * ``restitution`` coefficient of restitution against a hard surface [-], in [0, 1]
+* ``wall`` wall thickness [m] of a hollow object made of it, or None (solid); inline
+  specs accept units: ``"aluminium,wall=0.12mm"`` (see :func:`parse_length`)
 
 Sources of the table values
 ---------------------------
@@ -35,7 +37,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-__all__ = ["Material", "MATERIALS", "get_material", "parse_material"]
+__all__ = ["Material", "MATERIALS", "get_material", "parse_material", "parse_length"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,11 @@ class Material:
         Coefficient of restitution in [0, 1].
     name : str
         Label used in reports and cache keys.
+    wall : float or None
+        Wall thickness in m (> 0) when the object is hollow: modal analysis turns a
+        closed outer surface into a wall of this thickness inside it and gives an open
+        surface exactly this thickness. None: solid (closed meshes) or the analysis'
+        own ``thickness`` (open meshes).
 
     Examples
     --------
@@ -73,6 +80,7 @@ class Material:
     beta: float = 0.0
     restitution: float = 0.5
     name: str = "custom"
+    wall: float | None = None
 
     def __post_init__(self):
         def bad(field, value, why):
@@ -103,6 +111,14 @@ class Material:
             bad("beta", self.beta, "negative (negative damping makes modes grow)")
         if not 0.0 <= self.restitution <= 1.0:
             bad("restitution", self.restitution, "outside [0, 1]")
+        if self.wall is not None:
+            try:
+                wall = float(self.wall)
+            except (TypeError, ValueError):
+                bad("wall", self.wall, "not a length in metres")
+            if not (math.isfinite(wall) and wall > 0):
+                bad("wall", self.wall, "not a positive finite length in metres")
+            object.__setattr__(self, "wall", wall)
 
     @property
     def shear_modulus(self) -> float:
@@ -126,8 +142,10 @@ class Material:
         return asdict(self)
 
     def key(self) -> str:
-        """Stable text for cache keys (full float precision)."""
-        return ",".join(f"{k}={v!r}" for k, v in sorted(asdict(self).items()))
+        """Stable text for cache keys (full float precision); a solid material's key
+        does not mention ``wall``."""
+        items = {k: v for k, v in asdict(self).items() if not (k == "wall" and v is None)}
+        return ",".join(f"{k}={v!r}" for k, v in sorted(items.items()))
 
 
 def _m(name, E, nu, rho, alpha, beta, e):
@@ -194,8 +212,17 @@ def get_material(name: str) -> Material:
 def parse_material(spec: "str | Material | dict") -> Material:
     """A material from a name, an inline spec ``"E=70e9,nu=0.33,rho=2700"``, a dict or a Material.
 
-    Inline specs may start from a named material and override fields:
-    ``"steel,alpha=0"``.
+    Inline specs may start from one named material and override fields:
+    ``"steel,alpha=0"``; ``wall=`` makes the object hollow with that wall thickness
+    (units m, cm, mm, um; a bare number is metres): ``"aluminium,wall=0.12mm"``.
+
+    Raises
+    ------
+    ValueError
+        An unknown or repeated field, a value that is not a number (or length), two base
+        materials (``"steel,glass"``), missing E/nu/rho, or an impossible value.
+    KeyError
+        An unknown material name.
     """
     if isinstance(spec, Material):
         return spec
@@ -205,21 +232,34 @@ def parse_material(spec: "str | Material | dict") -> Material:
     if "=" not in text:
         return get_material(text)
     base: dict = {}
+    base_name = None
     fields: dict = {}
     for part in text.split(","):
         part = part.strip()
         if not part:
             continue
         if "=" not in part:
+            if base_name is not None:
+                raise ValueError(
+                    f"material spec {spec!r} names two base materials ({base_name!r} and {part!r}); "
+                    f"give one, then the fields to override, e.g. '{base_name},alpha=0'"
+                )
+            base_name = part
             base = get_material(part).to_dict()
             continue
         k, v = (s.strip() for s in part.split("=", 1))
-        if k not in {"E", "nu", "rho", "alpha", "beta", "restitution", "name"}:
+        if k not in _SPEC_FIELDS:
             raise ValueError(
-                f"material spec {spec!r}: unknown field {k!r}; "
-                "fields are E, nu, rho, alpha, beta, restitution, name"
+                f"material spec {spec!r}: unknown field {k!r}; fields are {', '.join(_SPEC_FIELDS)}"
             )
-        if k != "name":
+        if k in fields:
+            raise ValueError(f"material spec {spec!r}: {k} is given twice")
+        if k == "wall":
+            try:
+                v = parse_length(v)
+            except ValueError as exc:
+                raise ValueError(f"material spec {spec!r}: {exc}") from None
+        elif k != "name":
             try:
                 v = float(v)
             except ValueError:
@@ -235,3 +275,32 @@ def parse_material(spec: "str | Material | dict") -> Material:
     if "name" not in fields and not base:
         merged["name"] = "custom"
     return Material(**merged)
+
+
+_SPEC_FIELDS = ("E", "nu", "rho", "alpha", "beta", "restitution", "name", "wall")
+_LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "\u00b5m": 1e-6, "\u03bcm": 1e-6}
+
+
+def parse_length(text) -> float:
+    """A length in metres from ``"0.12mm"``, ``"4 mm"``, ``"0.4cm"``, ``"120um"`` or a bare
+    number (metres).
+
+    Raises
+    ------
+    ValueError
+        Not a number with one of the units m, cm, mm, um (or µm), or not positive and finite.
+    """
+    import re
+
+    raw = str(text).strip()
+    m = re.fullmatch(r"([-+0-9.eE]+)\s*([a-zA-Z\u00b5\u03bc]*)", raw)
+    unit = m.group(2).lower() if m else ""
+    if m is None or unit not in ("",) + tuple(_LENGTH_UNITS):
+        raise ValueError(f"length {raw!r} is not a number with a unit m, cm, mm or um (e.g. '0.12mm')")
+    try:
+        value = float(m.group(1)) * _LENGTH_UNITS.get(unit, 1.0)
+    except ValueError:
+        raise ValueError(f"length {raw!r} is not a number with a unit m, cm, mm or um (e.g. '0.12mm')") from None
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"length {raw!r} must be positive and finite")
+    return value

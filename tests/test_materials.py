@@ -51,3 +51,32 @@ def test_material_is_hashable_key_stable():
     a = Material(E=1e9, nu=0.3, rho=1000)
     assert a.key() == Material(E=1e9, nu=0.3, rho=1000).key()
     assert a.key() != Material(E=1e9, nu=0.3, rho=1001).key()
+
+
+@pytest.mark.parametrize("text, metres", [("0.12mm", 0.12e-3), ("4 mm", 4e-3), ("0.4cm", 4e-3), ("120um", 120e-6),
+                                          ("0.002", 0.002), ("2e-3m", 2e-3)])
+def test_wall_in_inline_spec_with_units(text, metres):
+    m = parse_material(f"aluminium,wall={text}")
+    assert m.wall == pytest.approx(metres, rel=1e-12)
+    assert m.E == get_material("aluminium").E and m.name == "aluminium"
+    assert m.key() != get_material("aluminium").key()  # hollow objects are cached apart
+
+
+@pytest.mark.parametrize("text", ["-1mm", "0mm", "2 furlongs", "mm", "nan", "inf m"])
+def test_bad_wall_named(text):
+    with pytest.raises(ValueError, match="wall|length"):
+        parse_material(f"aluminium,wall={text}")
+
+
+def test_solid_material_key_unchanged_by_wall_field():
+    assert "wall" not in get_material("steel").key()
+    assert Material(E=1e9, nu=0.3, rho=1000, wall=0.001).wall == 0.001
+    with pytest.raises(ValueError, match="wall"):
+        Material(E=1e9, nu=0.3, rho=1000, wall=-0.001)
+
+
+def test_two_base_materials_refused():
+    with pytest.raises(ValueError, match="two base materials.*'steel'.*'glass'"):
+        parse_material("steel,glass,alpha=0")
+    with pytest.raises(ValueError, match="given twice"):
+        parse_material("steel,alpha=0,alpha=1")

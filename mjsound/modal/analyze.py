@@ -6,28 +6,18 @@ from the shortest wavelength ``f_max`` needs, discretize (hex | tet | shell), so
 sample the mass-normalised shapes at the surface points, estimate radiation, and
 estimate the frequency error from a coarser solve.
 
-Element size
-------------
-Two wavelengths matter at ``f_max``: the shear wave ``lambda_s = c_s / f_max`` with
-``c_s = sqrt(G / rho)``, and the bending wave of the thinnest wall,
+Method, element size and budget
+-------------------------------
+:func:`.plan.plan_analysis` decides from the mesh alone, before anything is built:
+the method (``method="auto"``: quadratic tets through thin curved walls, voxel
+hexahedra otherwise), the element size (from the shortest wavelength at ``f_max``,
+with a floor per side that bounds the lowest modes' error), and the estimated modes,
+dofs and peak memory, kept under ``max_memory_gb`` (default 8 GB, or
+``$MJSOUND_MAX_MEMORY_GB``) by coarsening or a refusal that names the numbers.
 
-.. math:: \lambda_b = 2\pi \left(\frac{E t^2}{12 \rho (1-\nu^2)}\right)^{1/4}
-          \Big/ \sqrt{2\pi f_{max}},
-
-with the wall thickness estimated as ``t = 2 V / A`` (exact for a plate, half the side
-of a square bar) or given for open surfaces. The quality preset sets elements per
-wavelength and a minimum count along the longest side:
-
-=========  ======================  ==================  =============  ============
-quality    elements / wavelength   min. along longest  hex refine r   min. across
-=========  ======================  ==================  =============  ============
-draft      3                       4                   2              2
-default    6                       8                   3              4
-high       10                      16                  4              6
-=========  ======================  ==================  =============  ============
-
-"min. across" is the least number of hex cells along each axis, capped so that no
-cell is thinner than half the wall; a plate's thickness axis keeps one cell.
+Hollow objects: ``wall=`` (or a material's ``wall``, ``"aluminium,wall=0.12mm"``) turns a
+closed outer surface into a wall of that thickness inside it and an open surface into
+a wall of exactly that thickness (:func:`.surface.hollow`) before the analysis.
 
 Radiation
 ---------
@@ -55,26 +45,20 @@ import numpy as np
 import trimesh
 
 from ..geometry import load_mesh, mesh_digest
-from ..materials import Material, parse_material
+from ..materials import Material, parse_material, parse_length
 from .discretization import Discretization
 from .eigen import solve_band
 from .model import ModalModel
+from .plan import (MAX_REFINE, QUADRATIC_SIZE, QUALITY, AnalysisBudgetError, Plan, element_size,  # noqa: F401
+                   hex_min_cells, plan_analysis)
 
-__all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "default_f_max"]
+__all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "default_f_max", "AnalysisBudgetError"]
 
 F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
-MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
-MODEL_VERSION = 10  # bump when discretization or model contents change (invalidates cache)
-
-QUALITY = {
-    "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2},
-    "default": {"per_wavelength": 6.0, "min_per_side": 8, "refine": 3, "min_across": 4},
-    "high": {"per_wavelength": 10.0, "min_per_side": 16, "refine": 4, "min_across": 6},
-}
-METHODS = ("hex", "tet", "shell")
+MODEL_VERSION = 11  # bump when discretization or model contents change (invalidates cache)
+METHODS = ("auto", "hex", "tet", "shell")
 
 
 def default_f_max(sample_rate: float | None = None) -> float:
@@ -119,26 +103,6 @@ def wall_thickness(mesh: trimesh.Trimesh) -> float:
     return float(2.0 * abs(mesh.volume) / mesh.area)
 
 
-def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
-                 resolution: int | None = None, thickness: float | None = None, order: int = 1) -> float:
-    """Target element size [m] (see the module docstring); quadratic elements (``order=2``)
-    may be ``QUADRATIC_SIZE`` times larger for the same waves."""
-    size = float(np.max(mesh.extents))
-    if resolution is not None:
-        if int(resolution) < 1:
-            raise ValueError(f"resolution must be >= 1 element along the longest side, got {resolution}")
-        return size / int(resolution)
-    q = _quality(quality)
-    lam_s = np.sqrt(material.shear_modulus / material.rho) / f_max
-    t = thickness if thickness is not None else wall_thickness(mesh)
-    if not np.isfinite(t) or t <= 0:
-        t = size
-    plate = material.E * t**2 / (12.0 * material.rho * (1.0 - material.nu**2))
-    lam_b = 2 * np.pi * plate**0.25 / np.sqrt(2 * np.pi * f_max)
-    h = min(lam_s, lam_b) / q["per_wavelength"] * (QUADRATIC_SIZE if order == 2 else 1.0)
-    return float(min(h, size / q["min_per_side"]))
-
-
 def _quality(quality: str) -> dict:
     if quality not in QUALITY:
         raise ValueError(f"quality {quality!r} unknown; choose one of {', '.join(QUALITY)}")
@@ -158,23 +122,13 @@ def surface_samples(mesh: trimesh.Trimesh, n_points: int = 1024):
     return np.vstack([V, pts]), np.vstack([N, mesh.face_normals[fid]])
 
 
-def _discretize(method, mesh, material, h, points, quality, thickness, order, refine) -> Discretization:
+def _discretize(method, mesh, material, h, points, quality, thickness, order, refine,
+                through_wall=True) -> Discretization:
     if method == "hex":
         from .hex import discretize_hex
 
-        # A bar or rod needs a few cells across its section even when the wavelength rule
-        # allows one: up to `min_across`, but cells no thinner than half the wall.
         t = wall_thickness(mesh) if thickness is None else thickness
-        # A plate's thickness axis (extent ~ t) keeps one cell: incompatible-mode cells bend
-        # exactly through one layer, and a second layer would add a third of the dofs.
-        if np.isfinite(t) and t > 0:
-            across = np.where(mesh.extents > 1.5 * t, np.ceil(mesh.extents / (0.5 * t)), 1)
-        else:
-            across = np.ones(3)
-        min_across = _quality(quality)["min_across"]
-        if order == 2:
-            min_across = (min_across + 1) // 2
-        min_cells = np.minimum(min_across, across).astype(int)
+        min_cells = hex_min_cells(mesh, thickness, quality, order)
         if refine is None:
             # Fine voxels of at most a quarter of the wall: a wall smeared over partly
             # filled voxels is too thick in bending (a 20 cm bowl with 4 mm walls rang 12 %
@@ -187,7 +141,7 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
     if method == "tet":
         from .tet import discretize_tet
 
-        return discretize_tet(mesh, material, h, points, order=order)
+        return discretize_tet(mesh, material, h, points, order=order, through_wall=through_wall)
     if method == "shell":
         from .shell import discretize_shell
 
@@ -222,17 +176,20 @@ def _solve(disc: Discretization, f_max: float, progress: bool, max_modes=None):
 def analyze(
     mesh,
     material,
-    method: str = "hex",
+    method: str = "auto",
     quality: str = "default",
     f_max: float | None = None,
     *,
     sample_rate: float | None = None,
     resolution: int | None = None,
     thickness: float | None = None,
+    wall=None,
     order: int = 2,
     refine: int | None = None,
     n_points: int = 1024,
     max_modes: int | None = None,
+    max_memory_gb: float | None = None,
+    over_budget: str = "coarsen",
     error_estimate: bool = True,
     cache: bool = True,
     progress: bool = False,
@@ -244,12 +201,17 @@ def analyze(
     mesh : path | built-in spec | (vertices, faces) | trimesh.Trimesh
         Surface in metres (see :func:`mjsound.geometry.load_mesh`), e.g. ``"box:0.5,0.01,0.01"``.
     material : str | Material | dict
-        Named (``"aluminium"``) or inline (``"E=70e9,nu=0.33,rho=2700"``).
-    method : {'hex', 'tet', 'shell'}
-        Voxel-embedded hexahedra (default, any mesh), tetrahedra (watertight meshes;
-        ``order`` 1 or 2) or Raghuvanshi's spring-mass shell (cheap, approximate).
+        Named (``"aluminium"``) or inline (``"E=70e9,nu=0.33,rho=2700"``,
+        ``"aluminium,wall=0.12mm"``).
+    method : {'auto', 'hex', 'tet', 'shell'}
+        ``auto`` (default) picks per object (:mod:`.plan`; the reason is in
+        ``info["method_choice"]``): quadratic tets with one element through thin curved
+        walls (bowls, cans, tubes, hollow objects; needs TetGen), voxel-embedded
+        hexahedra otherwise (any mesh: open, non-manifold, self-intersecting). ``hex``,
+        ``tet`` (watertight meshes, volume refined; ``order`` 1 or 2) and ``shell``
+        (Raghuvanshi's spring-mass surface: cheap, approximate) force one.
     quality : {'draft', 'default', 'high'}
-        Elements per wavelength at ``f_max`` (module docstring).
+        Elements per wavelength at ``f_max`` and per side of the object (:mod:`.plan`).
     f_max : float, optional
         Highest frequency [Hz]; default ``min(20 kHz, 0.45 sample_rate)``.
     sample_rate : float, optional
@@ -257,7 +219,12 @@ def analyze(
     resolution : int, optional
         Elements along the longest side, overriding ``quality``.
     thickness : float, optional
-        Wall thickness [m] for open surfaces (hex) and the shell model.
+        Wall thickness [m] that an open surface stands for (hex slab, shell model).
+    wall : float | str, optional
+        Make the object hollow: a closed surface becomes a wall of this thickness inside
+        it, an open surface a wall of exactly this thickness (mass and frequencies
+        follow). Metres, or a length with a unit (``"0.12mm"``). Default: the
+        material's ``wall`` (None: solid).
     order : {1, 2}
         Element order for hex (20-node serendipity cells by default; 1 = 8-node cells with
         condensed bubbles) and tet (10-node by default; 1 = 4-node, which locks).
@@ -266,9 +233,22 @@ def analyze(
     n_points : int
         Surface sample points of the sound map.
     max_modes : int, optional
-        Keep at most this many (lowest) modes.
+        Keep at most this many (lowest) modes. Applied *before* the solve: the band (and
+        with it the mesh) is narrowed to where about ``2 max_modes + 10`` modes are
+        expected, so a scene can budget large objects (floors, tables) cheaply. Fewer
+        than ``max_modes`` may come back when the object has fewer modes there than
+        the estimate (``info["estimate"]``, ``info["f_max"]``).
+    max_memory_gb : float, optional
+        Cap on the estimated peak memory [GB] of this analysis (estimated from the mesh
+        before anything is built). Default ``$MJSOUND_MAX_MEMORY_GB`` or 8 GB.
+    over_budget : {'coarsen', 'refuse'}
+        Over the cap: ``coarsen`` (default) lowers the resolution, at most to
+        ``quality='draft'``'s, with a RuntimeWarning and a note in
+        ``info["budget_notes"]``; ``refuse`` raises at once. Either raises
+        :class:`AnalysisBudgetError` (a ValueError) with the estimate and the options
+        when even draft does not fit.
     error_estimate : bool
-        Also solve at 1.5x coarser elements and report the estimated error in cents.
+        Also solve a coarser discretization and report the estimated error in cents.
     cache : bool
         Read/write the disk cache (:func:`cache_dir`); corrupt entries are recomputed.
     progress : bool
@@ -306,8 +286,23 @@ def analyze(
         raise ValueError(f"order must be 1 or 2, got {order}")
     if thickness is not None and not (np.isfinite(thickness) and thickness > 0):
         raise ValueError(f"thickness={thickness} must be a positive length in metres")
+    if max_modes is not None and (isinstance(max_modes, bool) or int(max_modes) != max_modes or max_modes < 1):
+        raise ValueError(f"max_modes={max_modes!r} must be a positive whole number of modes")
+    if wall is None:
+        wall = material.wall
+    elif not isinstance(wall, (int, float, np.floating)) or isinstance(wall, bool):
+        try:
+            wall = parse_length(wall)
+        except ValueError as exc:
+            raise ValueError(f"wall: {exc}") from None
+    if wall is not None and not (np.isfinite(wall) and wall > 0):
+        raise ValueError(f"wall={wall!r} must be a positive length in metres")
 
     tm = load_mesh(mesh)
+    if wall is not None:
+        from .surface import hollow
+
+        tm = hollow(tm, float(wall))
     # Modes above the frequency where Rayleigh damping leaves them less than a cycle of
     # ringing (Q < MIN_Q; overdamped a little higher) make a thud, not a tone: neither the
     # mesh nor the solve is sized for them (rubber: 0.7 kHz instead of 20 kHz shear waves,
@@ -315,9 +310,13 @@ def analyze(
     f_ring = ringing_below(material)
     if f_ring < f_max:
         f_max = max(f_ring, 2 * F_MIN_HZ)
-    h = element_size(tm, material, f_max, quality, resolution, thickness, order if method != "shell" else 1)
-    params = dict(method=method, h=h, f_max=f_max, thickness=thickness, order=order, refine=refine, n_points=n_points, max_modes=max_modes,
-                  error_estimate=error_estimate, version=MODEL_VERSION)
+    plan = plan_analysis(tm, material, f_max, method=method, quality=quality, resolution=resolution,
+                         thickness=thickness, order=order, refine=refine, max_modes=max_modes,
+                         max_memory=max_memory_gb, over_budget=over_budget)
+    f_max, h = plan.f_max, plan.h
+    params = dict(method=plan.method, through_wall=plan.through_wall, h=h, f_max=f_max, thickness=thickness,
+                  wall=wall, order=order, refine=refine, n_points=n_points, max_modes=max_modes,
+                  quality=plan.quality, error_estimate=error_estimate, version=MODEL_VERSION)
     key = hashlib.sha256((mesh_digest(tm) + material.key() + repr(sorted(params.items()))).encode()).hexdigest()[:40]
     path = os.path.join(cache_dir(), f"{key}.npz")
     if cache and os.path.exists(path):
@@ -327,18 +326,34 @@ def analyze(
             warnings.warn(f"cache entry {path} is corrupt ({exc}); recomputing", stacklevel=2)
 
     t0 = time.perf_counter()
+    model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring, resolution,
+                 wall, t0)
+    if cache:
+        try:
+            model.save(path)
+        except OSError as exc:
+            warnings.warn(f"could not write cache entry {path}: {exc}", stacklevel=2)
+    return model
+
+
+def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, progress, f_ring, resolution,
+         wall, t0) -> ModalModel:
+    """The analysis itself, as planned: discretize, solve, sample, radiate, estimate."""
+    method, order, h, f_max, quality = plan.method, plan.order, plan.h, plan.f_max, plan.quality
     points, normals = surface_samples(tm, n_points)
-    disc = _discretize(method, tm, material, h, points, quality, thickness, order, refine)
+    args = (method, tm, material, h, points, quality, thickness, order, refine, plan.through_wall)
+    disc = _discretize(*args)
     # The error estimate's coarser discretization does not depend on the solve: it is built
     # on the second core meanwhile (the Lanczos iteration runs on one).
     pool = coarse = None
+    ratio = _coarse_ratio(plan)
     if error_estimate and method != "shell":
         from concurrent.futures import ThreadPoolExecutor
 
         pool = ThreadPoolExecutor(1)
-        coarse = pool.submit(_discretize, method, tm, material, 1.5 * h, points, quality, thickness, order, refine)
+        coarse = pool.submit(_discretize, *((method, tm, material, ratio * h) + args[4:]))
     try:
-        sol = _solve(disc, f_max, progress, max_modes)
+        sol = _solve(disc, f_max, progress, plan.max_modes)
     except BaseException:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -357,20 +372,22 @@ def analyze(
     mass = float(ex @ (disc.M @ ex))
     info = dict(disc.info)
     info.update(
-        h_target=h, f_max=f_max, quality=quality if resolution is None else f"resolution={resolution}",
+        h_target=h, f_max=f_max, quality=plan.quality if resolution is None else f"resolution={resolution}",
         solver=sol.backend, slices=sol.n_slices, n_rigid=int(sol.n_below), n_overdamped=int((~under).sum()),
         solve_seconds=sol.seconds, size_m=float(np.max(tm.extents)), area_m2=float(tm.area),
-        ringing_limit_hz=f_ring,
-        watertight=bool(tm.is_watertight),
+        ringing_limit_hz=f_ring, watertight=bool(tm.is_watertight), wall=wall,
     )
+    info.update(plan.info())
     err = float("nan")
     # the shell model has no resolution to vary (it lives on the given surface mesh)
     if error_estimate and under.sum() > 0 and method != "shell":
-        err = _error_estimate(method, tm, material, h, points, quality, thickness, order, refine,
-                              omega[under] / (2 * np.pi), coarse=coarse)
+        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max)
     if pool is not None:
         pool.shutdown(wait=True, cancel_futures=True)
-    model = ModalModel(
+    name = method
+    if method == "tet":
+        name = f"tet{4 if order == 1 else 10}" + ("" if plan.through_wall else "-wall")
+    return ModalModel(
         frequencies_hz=omega[under] / (2 * np.pi),
         decay_per_s=decay,
         points=points,
@@ -378,19 +395,13 @@ def analyze(
         shapes=shapes,
         radiation=radiation,
         material=material,
-        method=method if method != "tet" else f"tet{4 if order == 1 else 10}",
+        method=name,
         dofs=disc.dofs,
         seconds=time.perf_counter() - t0,
         error_estimate_cents=err,
         mass_kg=mass,
         info=info,
     )
-    if cache:
-        try:
-            model.save(path)
-        except OSError as exc:
-            warnings.warn(f"could not write cache entry {path}: {exc}", stacklevel=2)
-    return model
 
 
 def _radiation(points, normals, shapes, omega, area):
@@ -430,21 +441,28 @@ def radiation_damping(radiation, omega):
     return 2 * np.pi * np.asarray(radiation) ** 2 / (AIR_DENSITY * SPEED_OF_SOUND * np.asarray(omega) ** 2)
 
 
-def _error_estimate(method, tm, material, h, points, quality, thickness, order, refine, f_fine, n=10,
-                    coarse=None):
-    """Richardson-style error [cents] of the first ``n`` modes from a solve at 1.5 h.
+def _coarse_ratio(plan: Plan) -> float:
+    """Element size of the error estimate's coarser solve over the fine one: 2 for a thin
+    wall (its surface refinement halves edges: 1.5 h often gives the same surface), 1.5
+    otherwise."""
+    return 2.0 if not plan.through_wall else 1.5
 
-    With second-order convergence f(h) = f* + C h^2, the fine solve's error is
-    ``(f(h) - f(1.5 h)) / (1.5^2 - 1)``; the RMS over the first modes is returned.
-    ``coarse``: a future of the 1.5 h discretization, when already under way.
+
+#: convergence order of the frequencies in the element size, for the Richardson estimate
+ERROR_ORDER = 2.0
+
+
+def _error_estimate(f_fine, coarse, ratio, f_max, n=10):
+    """Richardson-style error [cents] of the first ``n`` modes from a coarser solve.
+
+    With convergence f(h) = f* + C h^p (p = :data:`ERROR_ORDER`), the fine solve's error is
+    ``(f(r h) - f(h)) / (r^p - 1)`` for the coarse solve at ``r h``; the RMS over the
+    first modes is returned. ``coarse``: a future of the coarser discretization.
     """
     try:
-        if coarse is not None:
-            disc = coarse.result()
-        else:
-            disc = _discretize(method, tm, material, 1.5 * h, points, quality, thickness, order, refine)
+        disc = coarse.result()
         f_hi = float(f_fine[min(n, len(f_fine)) - 1]) * 1.3
-        sol = _solve(disc, max(f_hi, 2 * F_MIN_HZ), False)
+        sol = _solve(disc, max(min(f_hi, 2 * f_max), 2 * F_MIN_HZ), False)
     except Exception:  # an estimate must never break the analysis itself
         return float("nan")
     f_coarse = np.sqrt(np.maximum(sol.eigenvalues, 0)) / (2 * np.pi)
@@ -452,4 +470,4 @@ def _error_estimate(method, tm, material, h, points, quality, thickness, order, 
     if m == 0:
         return float("nan")
     cents = 1200 * np.log2(f_coarse[:m] / f_fine[:m])
-    return float(np.sqrt(np.mean(cents**2)) / (1.5**2 - 1))
+    return float(np.sqrt(np.mean(cents**2)) / (ratio**ERROR_ORDER - 1))

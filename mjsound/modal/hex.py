@@ -324,9 +324,17 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
     occ = np.zeros(tuple(nfine), np.float32)
     parts = _components(mesh)
     s = int(supersample)
-    for part in parts:
+    closed = [p.is_watertight and abs(p.volume) > 0 for p in parts]
+    # An inward-facing closed part (negative volume) beside an outward one is a cavity (the
+    # inner shell of a hollow object): it is cut out after the solids are filled. A mesh
+    # whose closed parts all face inward is only flipped: it is filled.
+    outward = [c and p.volume > 0 for p, c in zip(parts, closed)]
+    cavity = [c and not o and any(outward) for c, o in zip(closed, outward)]
+    for part, is_closed, is_cavity in zip(parts, closed, cavity):
         tris = part.triangles
-        if part.is_watertight and abs(part.volume) > 0:
+        if is_cavity:
+            continue
+        if is_closed:
             frac = winding_occupancy(tris, lo, hfine, nfine, s)
             occ = np.maximum(occ, frac)
         else:
@@ -342,6 +350,9 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
             for off in np.linspace(-0.5 * t, 0.5 * t, n_off) if t > hmin else [0.0]:
                 shell |= surface_voxels(tris + off * normals, lo, hfine, nfine)
             occ = np.maximum(occ, shell.astype(np.float32) * fill)
+    for part, is_cavity in zip(parts, cavity):
+        if is_cavity:
+            occ = np.maximum(occ - winding_occupancy(part.triangles, lo, hfine, nfine, s), 0.0)
     return occ
 
 
@@ -420,7 +431,8 @@ def discretize_hex(
     Parameters
     ----------
     mesh : trimesh.Trimesh
-        Surface in metres. Closed components are filled; open ones become voxel shells.
+        Surface in metres. Closed components are filled (inward-facing ones beside outward
+        ones are cavities: the inner shell of a hollow object); open ones become voxel shells.
     material : Material
     h : float
         Target coarse element size [m] (per-axis sizes tile the bounding box, <= h).

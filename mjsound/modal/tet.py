@@ -67,6 +67,8 @@ _A, _B = 0.5854101966249685, 0.1381966011250105
 _Q4_POINTS = np.full((4, 4), _B) + np.eye(4) * (_A - _B)
 _Q4_WEIGHTS = np.full(4, 0.25)
 
+#: tetrahedra with 6 V < FLAT_TET (longest edge)^3 are dropped as flat (a regular one has 0.7)
+FLAT_TET = 1e-9
 #: surface edges shorter than h / SLIVER_RATIO are refused (see discretize_tet)
 SLIVER_RATIO = 50.0
 _HEX_HINT = 'use method="hex", which handles open, non-manifold and self-intersecting meshes'
@@ -146,7 +148,7 @@ _MREF = {1: _reference_mass(1), 2: _reference_mass(2)}
 # meshing
 # --------------------------------------------------------------------------------------
 def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
-                   mindihedral: float = 0.0):
+                   mindihedral: float = 0.0, refine: bool = True):
     """Quality tetrahedralization of a watertight triangle mesh with TetGen.
 
     Parameters
@@ -166,6 +168,12 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         relaxed there. Quadratic tets tolerate the resulting flat elements well.
     mindihedral : float
         Minimum dihedral angle in degrees (0: off; large values can make TetGen hang).
+    refine : bool
+        False: no quality bound and no volume bound, only the surface's own vertices
+        (a thin wall gets one tetrahedron through its thickness; ``h`` only screens
+        slivers). A closed surface inside another with the opposite orientation (the
+        inner shell of a hollow object) is a cavity either way: TetGen is given a hole
+        point inside it.
 
     Returns
     -------
@@ -211,7 +219,9 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         lmin = float(mesh.edges_unique_length.min())
         minratio = 2.0 if h is None or lmin <= 0 else float(np.clip(h / lmin, 2.0, 20.0))
     kwargs = dict(quality=True, minratio=minratio, mindihedral=mindihedral, quiet=True)
-    if h is not None:
+    if not refine:
+        kwargs = dict(quality=False, quiet=True)
+    if h is not None and refine:
         maxvol = float(h) ** 3 / (6.0 * math.sqrt(2.0))
         kwargs["maxvolume"] = maxvol
         kwargs["fixedvolume"] = True  # the 'a' switch; without it maxvolume is ignored
@@ -220,6 +230,8 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         kwargs["steinerleft"] = int(max(1e5, 20.0 * abs(mesh.volume) / maxvol))
     try:
         tgen = tetgen.TetGen(V, F)
+        for point in _cavity_points(mesh):
+            tgen.add_hole(point)
         nodes, tets = tgen.tetrahedralize(**kwargs)[:2]
     except Exception as exc:  # TetGen raises RuntimeError on self-intersections etc.
         raise ValueError(
@@ -230,6 +242,14 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
     tets = np.asarray(tets, dtype=np.int64)
     if len(tets) == 0:
         raise ValueError(f"tet method: TetGen produced no tetrahedra; {_HEX_HINT}")
+    # Flat tetrahedra (four coplanar surface points, which TetGen keeps where it may add no
+    # point) have no volume but unbounded gradients: they are dropped.
+    D = nodes[tets[:, 1:]] - nodes[tets[:, :1]]
+    longest = np.linalg.norm(nodes[tets[:, TET10_EDGES[:, 0]]] - nodes[tets[:, TET10_EDGES[:, 1]]], axis=2).max(axis=1)
+    flat = np.abs(np.linalg.det(D)) <= FLAT_TET * longest**3
+    if flat.all():
+        raise ValueError(f"tet method: every tetrahedron TetGen made is flat; {_HEX_HINT}")
+    tets = tets[~flat]
     # drop unreferenced nodes (TetGen may keep unused input vertices)
     used = np.unique(tets)
     if len(used) != len(nodes):
@@ -241,6 +261,46 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
     neg = np.linalg.det(D) < 0
     tets[neg] = tets[neg][:, [0, 2, 1, 3]]
     return nodes, tets
+
+
+def _cavity_points(mesh) -> list:
+    """A point inside each cavity: each closed component of negative volume (an inward
+    facing shell) when the mesh also has a positive one.
+
+    The point is a face centroid moved along the face's normal (into the cavity) by a
+    tenth of the distance to the nearest other vertex of that shell, checked by the
+    component's winding number (solid angle sum / 4 pi = -1 inside an inward shell)."""
+    parts = mesh.split(only_watertight=True) if len(mesh.faces) else []
+    vols = [float(p.volume) for p in parts]
+    if len(parts) < 2 or max(vols, default=0.0) <= 0:
+        return []
+    out = []
+    for part, vol in zip(parts, vols):
+        if vol >= 0:
+            continue
+        tris = np.asarray(part.triangles)
+        areas = part.area_faces
+        for f in np.argsort(-areas)[:8]:  # the largest faces first
+            c = tris[f].mean(axis=0)
+            gap = np.sort(np.linalg.norm(part.vertices - c, axis=1))[0]
+            p = c + part.face_normals[f] * 0.1 * max(gap, np.sqrt(areas[f]))
+            if _winding_number(tris, p) < -0.5:
+                out.append(p)
+                break
+        else:
+            raise ValueError(f"tet method: could not place a point inside a cavity of the mesh; {_HEX_HINT}")
+    return out
+
+
+def _winding_number(tris: np.ndarray, p: np.ndarray) -> float:
+    """Generalised winding number of point ``p`` for triangles (T, 3, 3) (Van Oosterom-
+    Strackee solid angles / 4 pi): +1 inside an outward shell, -1 inside an inward one."""
+    a, b, c = (tris[:, k] - p for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+        + np.einsum("ij,ij->i", c, a) * lb
+    return float(np.sum(2.0 * np.arctan2(num, den)) / (4.0 * np.pi))
 
 
 def _add_midpoints(nodes: np.ndarray, tets: np.ndarray):
@@ -383,7 +443,8 @@ def _interp(points, nodes, tets, conn, gradL, order, n_nodes):
 # public entry point
 # --------------------------------------------------------------------------------------
 def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: int = 2,
-                   minratio: float | None = None, mindihedral: float = 0.0) -> Discretization:
+                   minratio: float | None = None, mindihedral: float = 0.0,
+                   through_wall: bool = True) -> Discretization:
     """Tetrahedral FEM discretization of a watertight solid.
 
     Parameters
@@ -404,6 +465,12 @@ def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: i
     minratio, mindihedral : float
         TetGen quality bounds, see :func:`tetrahedralize` (default: automatic ratio,
         no dihedral bound).
+    through_wall : bool
+        True: TetGen refines the volume to ``h`` (quality mesh). False (thin walls): the
+        surface's edges are split to ``h`` (:func:`.surface.refine_to_size`) and TetGen
+        adds no point, so a thin wall has one quadratic tetrahedron through its
+        thickness, which bends correctly (its displacement is quadratic) and costs a
+        fraction of a refined mesh's dofs.
 
     Returns
     -------
@@ -425,7 +492,16 @@ def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: i
     if order not in (1, 2):
         raise ValueError(f"tet method: order must be 1 (linear) or 2 (quadratic), got {order!r}")
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    nodes, tets = tetrahedralize(mesh, h, minratio=minratio, mindihedral=mindihedral)
+    if through_wall or h is None:
+        nodes, tets = tetrahedralize(mesh, h, minratio=minratio, mindihedral=mindihedral)
+    else:
+        import trimesh
+
+        from .surface import refine_to_size
+
+        V, F = refine_to_size(mesh.vertices, mesh.faces, h)
+        surf = trimesh.Trimesh(V, F, process=False)
+        nodes, tets = tetrahedralize(surf, h, refine=False)
     vol, gradL = _geometry(nodes, tets)
     if order == 2:
         nodes_all, conn = _add_midpoints(nodes, tets)
@@ -445,6 +521,7 @@ def discretize_tet(mesh, material, h: float | None, points: np.ndarray, order: i
         "n_elements": int(len(tets)),
         "n_nodes": int(n_nodes),
         "h": None if h is None else float(h),
+        "through_wall": bool(through_wall),
         "mean_edge": mean_edge,
         "volume": float(vol.sum()),
         "max_point_outside": float(outside.max()) if len(outside) else 0.0,

@@ -1,0 +1,373 @@
+r"""Planning an analysis before anything is built: method, element size, cost and budget.
+
+:func:`plan_analysis` looks only at the surface mesh and the material. It picks the
+method (for ``method="auto"``), the element size, and estimates the modes in the band,
+the dofs and the peak memory; when the estimate exceeds the memory cap it coarsens
+(at most to ``quality="draft"``'s rule, saying so in a warning and in the model's info)
+or refuses with the numbers and the options that would fit.
+
+Method choice (``method="auto"``)
+---------------------------------
+* **thin curved walls** (a watertight mesh whose wall ``t = 2 V / A`` is under a quarter
+  of its smallest bounding-box side: bowls, cups, cans, tubes, hollow objects) get
+  quadratic tetrahedra with one element through the wall (:func:`.tet.discretize_tet`
+  with ``through_wall=False``): the voxel embedding makes such a wall a staircase (a
+  20 cm bowl rang +60 .. +200 cents sharp), while a quadratic tetrahedron bends
+  correctly through the whole wall. Needs the optional TetGen wrapper.
+* everything else (solids, bars, plates, open or non-manifold or self-intersecting
+  meshes, and thin walls TetGen refuses) gets the voxel-embedded hexahedra, Picard's
+  robust path: bars and plates are exact in bending there (one incompatible-mode cell
+  through a plate), solids converge fast.
+
+The choice and its reason are in ``model.info["method_choice"]``.
+
+Estimates
+---------
+Modes below ``f`` (Weyl's law for a solid, and the bending-mode counts of a thin wall
+and of a bar; the largest of the three):
+
+.. math:: N_{3D} = \frac{4\pi}{3} V f^3 \left(\frac{1}{c_l^3} + \frac{2}{c_s^3}\right),\quad
+          N_{wall} = \frac{A}{2}\,\frac{f}{2}\sqrt{\frac{\rho t}{D}},\quad
+          N_{bar} = \frac{2 L}{\pi} \left(\frac{(2\pi f)^2 \rho S}{E I}\right)^{1/4}
+
+with ``D = E t^3 / 12 (1 - nu^2)``, ``L`` the longest side, ``S = V / L`` and
+``I = S^2 / 12``. Memory: ``MEMORY_PER_DOF`` bytes per dof times ``(dofs / 1e5)^(1/3)``
+(the sparse factor's fill grows as ``n^(4/3)`` in 3D) plus the Lanczos basis
+(``48 x modes x dofs`` bytes) plus, for hexahedra, the fine voxel grid. Calibrated on
+the accuracy report's runs (measured peaks 0.5 .. 1.5 x the estimate).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from ..materials import Material
+
+__all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
+           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER"]
+
+#: default cap on the analysis' estimated peak memory [GB]: a 24 GB machine keeps 16 GB
+#: for the simulator, the renderer and everything else
+DEFAULT_MAX_MEMORY_GB = 8.0
+#: environment variable that overrides the default cap [GB]
+MAX_MEMORY_ENV = "MJSOUND_MAX_MEMORY_GB"
+MEMORY_PER_DOF = 20e3  # bytes per dof at 1e5 dofs (factor, matrices, assembly)
+QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
+MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
+#: a wall thinner than this fraction of the smallest bounding-box side is a thin curved wall
+THIN_WALL_RATIO = 0.25
+
+#: Quality presets. hex: elements per wavelength, least elements along the longest side,
+#: fine cells per coarse cell, least cells across a bar. wall (thin walls, quadratic
+#: tets): elements per bending wavelength at the band top and least elements along the
+#: longest side, which bounds the error of the lowest modes whatever f_max is.
+QUALITY = {
+    "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2,
+              "wall_per_wavelength": 3.0, "wall_min_per_side": 8},
+    "default": {"per_wavelength": 6.0, "min_per_side": 8, "refine": 3, "min_across": 4,
+                "wall_per_wavelength": 5.0, "wall_min_per_side": 16},
+    "high": {"per_wavelength": 10.0, "min_per_side": 16, "refine": 4, "min_across": 6,
+             "wall_per_wavelength": 8.0, "wall_min_per_side": 32},
+}
+QUALITY_ORDER = ("high", "default", "draft")
+
+
+class AnalysisBudgetError(ValueError):
+    """The analysis would exceed its memory cap even at draft resolution."""
+
+
+def max_memory_gb(value: float | None = None) -> float:
+    """The memory cap [GB]: ``value``, else ``$MJSOUND_MAX_MEMORY_GB``, else
+    :data:`DEFAULT_MAX_MEMORY_GB`."""
+    source = "max_memory_gb"
+    if value is None:
+        env = os.environ.get(MAX_MEMORY_ENV)
+        if env is None or not env.strip():
+            return DEFAULT_MAX_MEMORY_GB
+        value, source = env, f"${MAX_MEMORY_ENV}"
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{source}={value!r} is not a number of gigabytes") from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{source}={value!r} must be a positive number of gigabytes")
+    return v
+
+
+def thin_wall(mesh: trimesh.Trimesh, thickness: float | None = None) -> float:
+    """Wall thickness [m]: ``thickness`` if given, else ``2 V / A`` of a closed mesh
+    (exact for a plate, half the side of a square bar), else nan."""
+    if thickness is not None:
+        return float(thickness)
+    if not mesh.is_watertight:
+        return float("nan")
+    return float(2.0 * abs(mesh.volume) / mesh.area)
+
+
+def estimate_modes(material: Material, volume: float, area: float, wall: float, length: float,
+                   f: float) -> float:
+    """Modes below ``f`` [Hz] (module docstring): the largest of the solid, thin-wall and
+    bar estimates. ``volume`` [m^3], ``area`` [m^2] of the surface, ``wall`` [m] (nan:
+    no wall estimate), ``length`` [m] the longest side."""
+    E, nu, rho = material.E, material.nu, material.rho
+    lam, mu = material.lame
+    c_l, c_s = math.sqrt((lam + 2 * mu) / rho), math.sqrt(mu / rho)
+    n3 = 4 * math.pi / 3 * volume * f**3 * (1 / c_l**3 + 2 / c_s**3)
+    n_wall = n_bar = 0.0
+    if np.isfinite(wall) and wall > 0:
+        D = E * wall**3 / (12 * (1 - nu**2))
+        n_wall = 0.5 * area / 2 * f * math.sqrt(rho * wall / D)
+    if volume > 0 and length > 0:
+        S = volume / length
+        n_bar = 2 * length / math.pi * ((2 * math.pi * f) ** 2 * rho * S / (E * S**2 / 12)) ** 0.25
+    return float(max(n3, n_wall, n_bar))
+
+
+@dataclass
+class Plan:
+    """What :func:`plan_analysis` decided (lengths in m, memory in GB)."""
+
+    method: str
+    order: int
+    h: float
+    f_max: float
+    quality: str
+    reason: str
+    modes: float
+    dofs: int
+    memory_gb: float
+    cap_gb: float
+    through_wall: bool = True
+    refine: int | None = None
+    max_modes: int | None = None
+    notes: list = field(default_factory=list)
+
+    def info(self) -> dict:
+        return {"method_choice": self.reason, "quality_used": self.quality,
+                "estimate": {"modes": round(self.modes, 1), "dofs": int(self.dofs),
+                             "memory_gb": round(self.memory_gb, 3), "cap_gb": self.cap_gb},
+                "budget_notes": list(self.notes)}
+
+
+def _quality(quality: str) -> dict:
+    if quality not in QUALITY:
+        raise ValueError(f"quality {quality!r} unknown; choose one of {', '.join(QUALITY)}")
+    return QUALITY[quality]
+
+
+def _bending_wavelength(material: Material, t: float, f: float) -> float:
+    plate = material.E * t**2 / (12.0 * material.rho * (1.0 - material.nu**2))
+    return 2 * np.pi * plate**0.25 / np.sqrt(2 * np.pi * f)
+
+
+def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
+                 resolution: int | None = None, thickness: float | None = None, order: int = 1) -> float:
+    r"""Hexahedral (or refined tet) element size [m]: ``min(lambda_s, lambda_b) /
+    per_wavelength`` (times :data:`QUADRATIC_SIZE` for quadratic elements), at most the
+    longest side over ``min_per_side``; ``lambda_s = c_s / f_max`` and ``lambda_b`` the
+    bending wavelength of the wall ``t`` (:func:`thin_wall`) at ``f_max``:
+
+    .. math:: \lambda_b = 2\pi \left(\frac{E t^2}{12 \rho (1-\nu^2)}\right)^{1/4}
+              \Big/ \sqrt{2\pi f_{max}}
+    """
+    size = float(np.max(mesh.extents))
+    if resolution is not None:
+        if int(resolution) < 1:
+            raise ValueError(f"resolution must be >= 1 element along the longest side, got {resolution}")
+        return size / int(resolution)
+    q = _quality(quality)
+    lam_s = np.sqrt(material.shear_modulus / material.rho) / f_max
+    t = thin_wall(mesh, thickness)
+    if not np.isfinite(t) or t <= 0:
+        t = size
+    h = min(lam_s, _bending_wavelength(material, t, f_max)) / q["per_wavelength"] * (QUADRATIC_SIZE if order == 2 else 1.0)
+    return float(min(h, size / q["min_per_side"]))
+
+
+def wall_element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
+                      resolution: int | None = None) -> float:
+    """In-wall element size [m] of a thin wall (one quadratic tet through it): the bending
+    wavelength of the wall at ``f_max`` over ``wall_per_wavelength``, at most the longest
+    side over ``wall_min_per_side`` (the lowest modes' floor, independent of f_max)."""
+    size = float(np.max(mesh.extents))
+    if resolution is not None:
+        return size / int(resolution)
+    q = _quality(quality)
+    lam_b = _bending_wavelength(material, thin_wall(mesh), f_max)
+    return float(min(lam_b / q["wall_per_wavelength"], size / q["wall_min_per_side"]))
+
+
+def _tet_available() -> bool:
+    try:
+        import tetgen  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tuple[str, str]:
+    """``("tet-wall" | "hex", reason)`` for ``method="auto"`` (module docstring)."""
+    if not mesh.is_watertight:
+        return "hex", "hex: the mesh is open or non-manifold (voxel embedding handles any surface)"
+    t = thin_wall(mesh, thickness)
+    smallest = float(np.min(mesh.extents))
+    if not (t < THIN_WALL_RATIO * smallest):
+        return "hex", (f"hex: a solid, bar or plate (wall 2V/A = {t * 1e3:.3g} mm against its smallest side "
+                       f"{smallest * 1e3:.3g} mm), where voxel hexahedra are exact in bending and fast")
+    if not _tet_available():
+        return "hex", (f"hex: thin curved wall ({t * 1e3:.3g} mm) but TetGen is not installed "
+                       "(pip install 'mjsound[tet]'); expect the staircase error in error_estimate_cents")
+    return "tet-wall", (f"tet10 through the wall: thin curved wall ({t * 1e3:.3g} mm against a smallest side "
+                        f"of {smallest * 1e3:.3g} mm), where voxels make a staircase")
+
+
+def _estimate_dofs(kind: str, mesh: trimesh.Trimesh, h: float, order: int, refine: int | None,
+                   thickness: float | None, quality: str) -> tuple[float, float]:
+    """(dofs, extra bytes) of a discretization, from the mesh alone."""
+    V = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
+    A = float(mesh.area)
+    if kind == "tet-wall":
+        # the surface refined to h: ~ A / (0.43 h^2) triangles, plus the mesh's own; ~1.5
+        # tets per surface triangle, ~6 dofs per tet (measured on the bowl and a tube)
+        tris = max(len(mesh.faces), A / (0.433 * h**2) * 1.3)
+        return 9.0 * tris, 0.0
+    if kind == "tet":
+        tets = max(V / (h**3 / 8.49), 1.5 * len(mesh.faces))
+        return (6.0 if order == 2 else 1.2) * tets, 0.0
+    if kind == "shell":
+        return 3.0 * len(mesh.vertices), 0.0
+    # hex: the lattice nodes of the grid (corners, and edge midpoints for 20-node cells),
+    # times the fraction of the grid's volume the object and its surface cells fill
+    from .hex import grid_for
+
+    r = int(refine or 3)
+    # a flat surface's zero extent gets the wall (or one fine voxel), as discretize_hex does
+    ext = np.maximum(np.asarray(mesh.extents, float), thickness or h / r)
+    bounds = np.array([np.zeros(3), ext])
+    _, n, hc = grid_for(bounds, h, hex_min_cells(mesh, thickness, quality, order))
+    nodes = float(np.prod(n + 1))
+    if order == 2:
+        nodes += sum(float(n[d] * np.prod(np.delete(n + 1, d))) for d in range(3))
+    cells = float(np.prod(n))
+    fill = min(1.0, (V + A * float(np.mean(hc))) / (cells * float(np.prod(hc))))
+    extra = cells * r**3 * 4.0 + cells * fill * r**3 * 8.0 * 2.0  # fine grid, children
+    return 3.0 * nodes * fill, extra
+
+
+def hex_min_cells(mesh: trimesh.Trimesh, thickness: float | None, quality: str, order: int) -> np.ndarray:
+    """Least hex cells per axis (3,): a bar or rod needs a few across its section even when
+    the wavelength rule allows one (up to ``min_across``, but no cell thinner than half the
+    wall); a plate's thickness axis (extent ~ t) keeps one cell: incompatible-mode cells
+    bend exactly through one layer, and a second layer would add a third of the dofs."""
+    t = thin_wall(mesh, thickness)
+    if np.isfinite(t) and t > 0:
+        across = np.where(mesh.extents > 1.5 * t, np.ceil(mesh.extents / (0.5 * t)), 1)
+    else:
+        across = np.ones(3)
+    min_across = _quality(quality)["min_across"]
+    if order == 2:
+        min_across = (min_across + 1) // 2
+    return np.minimum(min_across, across).astype(int)
+
+
+def memory_gb(dofs: float, modes: float, extra_bytes: float = 0.0) -> float:
+    """Estimated peak memory [GB] (module docstring)."""
+    fill = max(1.0, dofs / 1e5) ** (1.0 / 3.0)
+    return float((MEMORY_PER_DOF * dofs * fill + 48.0 * modes * dofs + extra_bytes) / 1e9)
+
+
+def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, method: str = "auto",
+                  quality: str = "default", resolution: int | None = None, thickness: float | None = None,
+                  order: int = 2, refine: int | None = None, max_modes: int | None = None,
+                  max_memory: float | None = None, over_budget: str = "coarsen") -> Plan:
+    """Method, element size and cost of an analysis, within the memory cap.
+
+    Parameters
+    ----------
+    mesh, material, f_max, method, quality, resolution, thickness, order, refine
+        As for :func:`mjsound.analyze` (``f_max`` already limited by damping).
+    max_modes : int, optional
+        The band is first narrowed to where about ``2 max_modes + 10`` modes are expected
+        (:func:`estimate_modes`), so neither the mesh nor the solve is sized for modes
+        that would be dropped.
+    max_memory : float, optional
+        Cap on the estimated peak memory [GB] (:func:`max_memory_gb` resolves None).
+    over_budget : {'coarsen', 'refuse'}
+        Over the cap: coarsen to the next quality's element size (down to draft) with a
+        warning, or refuse at once.
+
+    Raises
+    ------
+    AnalysisBudgetError
+        Over the cap even at draft resolution (or at once with ``'refuse'``); the message
+        gives the estimate and the options (a larger ``max_memory_gb``, a lower ``f_max``,
+        ``max_modes``, ``quality='draft'``).
+    """
+    if over_budget not in ("coarsen", "refuse"):
+        raise ValueError(f"over_budget={over_budget!r}: choose 'coarsen' or 'refuse'")
+    cap = max_memory_gb(max_memory)
+    notes = []
+    V = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
+    A = float(mesh.area)
+    t = thin_wall(mesh, thickness)
+    L = float(np.max(mesh.extents))
+    if not mesh.is_watertight and thickness is not None:
+        V = A * thickness
+    if max_modes is not None:
+        want = 2 * int(max_modes) + 10
+        if estimate_modes(material, V, A, t, L, f_max) > want:
+            lo, hi = 1.0, f_max
+            for _ in range(60):
+                mid = math.sqrt(lo * hi)
+                lo, hi = (mid, hi) if estimate_modes(material, V, A, t, L, mid) < want else (lo, mid)
+            notes.append(f"band narrowed from {f_max:.0f} Hz to {hi:.0f} Hz, where about {want} modes are "
+                         f"expected (max_modes={max_modes})")
+            f_max = max(hi, 40.0)
+    if method == "auto":
+        kind, reason = choose_method(mesh, thickness)
+    else:
+        kind, reason = method, f"{method}: asked for"
+    modes = estimate_modes(material, V, A, t, L, f_max)
+    if max_modes is not None:
+        modes = min(modes, 2 * max_modes + 10)
+    qualities = QUALITY_ORDER[QUALITY_ORDER.index(quality):] if resolution is None else (quality,)
+    tried = []
+    for q in qualities:
+        if kind == "tet-wall":
+            h = wall_element_size(mesh, material, f_max, q, resolution)
+        else:
+            h = element_size(mesh, material, f_max, q, resolution, thickness, order if kind != "shell" else 1)
+        r = refine
+        if kind == "hex" and r is None:
+            r = QUALITY[q]["refine"]
+            if np.isfinite(t) and t > 0 and mesh.is_watertight:
+                r = int(np.clip(np.ceil(4 * h / t), r, MAX_REFINE))
+        dofs, extra = _estimate_dofs(kind, mesh, h, order, r, thickness, q)
+        mem = memory_gb(dofs, modes, extra)
+        tried.append((q, dofs, mem))
+        if mem <= cap:
+            if q != quality:
+                msg = (f"analysis: quality={quality!r} would need about {tried[0][1]:.3g} dofs and "
+                       f"{tried[0][2]:.3g} GB, over the cap of {cap:g} GB (max_memory_gb / ${MAX_MEMORY_ENV}); "
+                       f"using quality={q!r}'s resolution ({dofs:.3g} dofs, {mem:.3g} GB): expect a larger error")
+                warnings.warn(msg, RuntimeWarning, stacklevel=3)
+                notes.append(msg)
+            return Plan(method="tet" if kind == "tet-wall" else kind, order=order if kind != "shell" else 1, h=h,
+                        f_max=f_max, quality=q, reason=reason, modes=modes, dofs=int(dofs), memory_gb=mem,
+                        cap_gb=cap, through_wall=kind != "tet-wall", refine=r, max_modes=max_modes,
+                        notes=notes)
+        if over_budget == "refuse":
+            break
+    q, dofs, mem = tried[-1]
+    raise AnalysisBudgetError(
+        f"analysis of this mesh ({L:.3g} m, {kind}) to f_max={f_max:.0f} Hz would need about {dofs:.3g} dofs, "
+        f"{modes:.3g} modes and {mem:.3g} GB at quality={q!r}, over the cap of {cap:g} GB. Options: raise "
+        f"max_memory_gb (or ${MAX_MEMORY_ENV}), lower f_max, give max_modes=N (the band is then sized for N "
+        f"modes), or quality='draft'"
+    )
