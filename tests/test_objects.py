@@ -255,3 +255,24 @@ def test_touching_geoms_of_a_body_analyse_as_one_solid():
     assert len(plate.geom_ids) == 3 and plate.model.info["watertight"] and plate.model.n_modes > 3
     assert plate.model.mass_kg == pytest.approx(2700 * 0.4 * 0.2 * 0.01, rel=1e-3)
     assert not any("closed" in n for n in plate.notes)
+
+
+def test_cli_materials_take_the_star_and_report_objects(tmp_path, capsys):
+    """``mjsound sonify --materials '{"*": ...}'``: the default reaches every geom without one,
+    and the printed report names the object (here a body of two plates) with its notes."""
+    import json
+
+    from mjsound.cli import main
+
+    xml = tmp_path / "scene.xml"
+    xml.write_text("""<mujoco><option timestep="0.002"/><worldbody><geom name="floor" type="plane" size="1 1 .1"/>
+      <body name="tray" pos="0 0 0.05"><freejoint/><geom type="box" size=".1 .1 .005"/>
+      <geom type="box" size=".1 .1 .005" pos=".2 0 0"/></body></worldbody></mujoco>""")
+    rc = main(["sonify", str(xml), "-o", str(tmp_path / "out.wav"), "--duration", "0.1", "--sample-rate", "16000",
+               "--quality", "draft", "--materials", json.dumps({"*": "aluminium"})])
+    out = capsys.readouterr().out
+    assert rc == 0 and "sounding   1 object(s)" in out and "tray" in out and "aluminium" in out
+    assert "against MuJoCo's" in out  # density 1000 in the MJCF, aluminium in the sound
+    rc = main(["sonify", str(xml), "-o", str(tmp_path / "out.wav"), "--duration", "0.1", "--materials",
+               json.dumps({"tary": "aluminium"})])
+    assert rc == 2 and "no geom or body named 'tary'; closest: 'tray'" in capsys.readouterr().err
