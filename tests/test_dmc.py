@@ -35,6 +35,7 @@ def test_dm_control_suite_env_is_heard_and_reproducible():
     # the cup's five capsules ring as one object
     (cup,) = env.scene.sounding
     assert cup.name == "cup" and len(cup.geom_ids) == 5
+    assert env.sim._dyn_geoms.tolist() == [cup.geom_id]  # the synthesizer follows the anchor's pose
     assert impacts > 0 and np.abs(a).max() > 0
     spec = env.observation_spec()["audio"]
     W = round(env.control_timestep() * 16000)

@@ -1,6 +1,6 @@
 """AudioObservation on gymnasium's own MuJoCo envs, unmodified (issue 5, gymnasium part).
 
-The modal models of each env are analysed once per process (mjsound.wrappers' scene memo), so
+The modal models of each env are analysed once per process (the scene's model memo, mjsound.sim.scene_analysis), so
 the real analyses (a few seconds per env, draft quality at 16 kHz) are paid once per file.
 """
 
