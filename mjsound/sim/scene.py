@@ -224,7 +224,9 @@ class SoundScene:
             Mode budget of one object. ``"auto"``: a solid whose Weyl estimate of modes
             below f_max exceeds :data:`AUTO_MAX_MODES` (a table or a floor slab in aluminium:
             hundreds of modes, a minute of analysis, little of the sound) keeps its lowest
-            ``AUTO_MAX_MODES``; the report says so. ``None``: no limit.
+            ``AUTO_MAX_MODES``, analysed on a mesh sized for those modes (up to 1.25 times the
+            estimated frequency of the last, ``scene_analysis._mode_cap``); the report says
+            so. An int: every object keeps at most that many. ``None``: no limit.
         error_estimate : bool
             Let ``analyze`` estimate each model's frequency error (a second, coarser solve);
             the report shows it and flags objects above 50 cents.
