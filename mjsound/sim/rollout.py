@@ -318,7 +318,9 @@ def sonify(
         data.time = float(r["time"][0])
         _set_frame(model, data, r, 0)
         mujoco.mj_forward(model, data)
-    sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate)
+    # the event log (up to 100 000 entries) only serves an observer such as a rerun recording
+    sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate,
+                         **({} if on_block is not None else {"keep_events": 0}))
     t_obs = [0.0]  # wall time spent in on_block (e.g. rerun logging): reported apart
     if on_block is not None:
         def timed_on_block(sim_, block, n0):
