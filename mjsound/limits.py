@@ -12,8 +12,9 @@ sample rate                       ``SAMPLE_RATE_RANGE`` = 1 000 .. 768 000 Hz
 physics timestep                  ``TIMESTEP_RANGE`` = 1 us .. 1 s
 a take (sonify, events, rollout)  ``MAX_DURATION_S`` = 86 400 s (one day)
 physics steps of one job          ``MAX_STEPS`` = 10^9 (about 3 h of CPU at 10 us per step)
-one in-memory array               :func:`memory_budget_bytes`: ``$MJSOUND_MEMORY_GB`` (default
-                                  8 GiB, which leaves room on a 16-24 GB machine)
+one in-memory array               :func:`memory_budget_bytes`: ``$MJSOUND_MAX_MEMORY_GB`` GB
+                                  (default 8 GB, which leaves room on a 16-24 GB machine; the
+                                  same variable caps a modal analysis)
 ================================  =============================================================
 
 Long takes written to a file are streamed block by block (``mjsound sonify``), so only the
@@ -29,7 +30,7 @@ import os
 __all__ = [
     "SAMPLE_RATE_RANGE", "TIMESTEP_RANGE", "MAX_DURATION_S", "MAX_STEPS",
     "check_sample_rate", "check_timestep", "check_duration", "check_steps", "memory_budget_bytes",
-    "check_array_bytes", "finite_number",
+    "check_array_bytes", "finite_number", "MAX_MEMORY_ENV", "DEFAULT_MAX_MEMORY_GB",
 ]
 
 #: Accepted audio sample rates [Hz] (inclusive).
@@ -40,7 +41,10 @@ TIMESTEP_RANGE = (1e-6, 1.0)
 MAX_DURATION_S = 86400.0
 #: Most physics steps one job may ask for.
 MAX_STEPS = 10**9
-_GIB = 1 << 30
+#: Environment variable of the memory cap [GB = 1e9 bytes].
+MAX_MEMORY_ENV = "MJSOUND_MAX_MEMORY_GB"
+DEFAULT_MAX_MEMORY_GB = 8.0
+_GB = 1e9
 
 
 def _show(value) -> str:
@@ -103,19 +107,19 @@ def check_steps(n_steps, what: str, fix: str = "shorten the take or use a larger
 
 
 def memory_budget_bytes() -> int:
-    """The most bytes one in-memory array may take: ``$MJSOUND_MEMORY_GB`` GiB (default 8)."""
-    text = os.environ.get("MJSOUND_MEMORY_GB", "").strip()
+    """The most bytes one in-memory array may take: ``$MJSOUND_MAX_MEMORY_GB`` GB (default 8)."""
+    text = os.environ.get(MAX_MEMORY_ENV, "").strip()
     if not text:
-        return 8 * _GIB
-    gb = finite_number(text, "MJSOUND_MEMORY_GB")
+        return int(DEFAULT_MAX_MEMORY_GB * _GB)
+    gb = finite_number(text, f"${MAX_MEMORY_ENV}")
     if gb <= 0:
-        raise ValueError(f"MJSOUND_MEMORY_GB={text!r} must be a positive number of GiB")
-    return int(gb * _GIB)
+        raise ValueError(f"${MAX_MEMORY_ENV}={text!r} must be a positive number of gigabytes")
+    return int(gb * _GB)
 
 
 def check_array_bytes(nbytes, what: str, fix: str) -> None:
     """Refuse an allocation of ``nbytes`` bytes over :func:`memory_budget_bytes`, naming ``what``."""
     cap = memory_budget_bytes()
     if not nbytes <= cap:
-        raise ValueError(f"{what} would take {float(nbytes) / _GIB:.3g} GiB of memory, over the "
-                         f"{cap / _GIB:.3g} GiB budget ($MJSOUND_MEMORY_GB): {fix}")
+        raise ValueError(f"{what} would take {float(nbytes) / _GB:.3g} GB of memory, over the "
+                         f"{cap / _GB:.3g} GB cap (${MAX_MEMORY_ENV}): {fix}")

@@ -95,7 +95,7 @@ def test_resim_step_count_is_checked_first(scene, tmp_path):
 def test_keeping_a_long_take_in_memory_is_checked(scene, monkeypatch):
     from mjsound.sim.rollout import sonify
 
-    monkeypatch.setenv("MJSOUND_MEMORY_GB", "0.001")  # 1 MiB
+    monkeypatch.setenv("MJSOUND_MAX_MEMORY_GB", "0.001")  # 1 MB
     with pytest.raises(ValueError, match=r"keeping 60 s of audio in memory.*keep_audio=False"):
         sonify(scene, duration=60.0, progress=False)
 
@@ -117,7 +117,7 @@ def test_rollout_that_would_inflate_is_refused_from_its_headers(scene, tmp_path)
     T = 10**8
     bomb = _npz_with_header(tmp_path / "bomb.npz", {"time": ((T,), "<f8"), "qpos": ((T, 7), "<f8"),
                                                     "qvel": ((T, 6), "<f8")})
-    with pytest.raises(ValueError, match=r"rollout .*bomb.npz \(100000000 frames\) would take 10.4 GiB"):
+    with pytest.raises(ValueError, match=r"rollout .*bomb.npz \(100000000 frames\) would take 11.2 GB"):
         load_rollout(bomb)
 
 
@@ -194,8 +194,8 @@ def test_events_duration_and_times_are_checked(tmp_path, monkeypatch):
     late["events"][0]["time"] = 1e300
     with pytest.raises(ValueError, match=r"events\[0\]\.time: 1e\+300 s is after the end of the audio"):
         validate_events(late)
-    monkeypatch.setenv("MJSOUND_MEMORY_GB", "0.001")
-    with pytest.raises(ValueError, match=r"100 s of audio at 16000 Hz would take .* GiB"):
+    monkeypatch.setenv("MJSOUND_MAX_MEMORY_GB", "0.001")
+    with pytest.raises(ValueError, match=r"100 s of audio at 16000 Hz would take .* GB"):
         render_events(_events(tmp_path, duration=100.0))
 
 

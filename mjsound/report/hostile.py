@@ -214,7 +214,7 @@ def run_hostile_cases(quick: bool = False, log=print, scene=None) -> list:
         bomb = os.path.join(tmp, "bomb.npz")
         _bomb(bomb, 10**9, m.nq, m.nv)
         add(_refused("inflating rollout", f"npz headers claim 1e9 frames of {m.nq} + {m.nv} + 1 numbers",
-                     _mjsound("sonify", scene, "--rollout", bomb, "-o", wav), d, "GiB of memory"))
+                     _mjsound("sonify", scene, "--rollout", bomb, "-o", wav), d, "GB of memory"))
 
         def fsize():
             resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20))
