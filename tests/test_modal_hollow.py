@@ -86,3 +86,16 @@ def test_open_square_with_wall_rings_like_the_plate():
     assert m.frequencies_hz[0] == pytest.approx(ref, rel=0.02)
     assert m.mass_kg == pytest.approx(0.1 * 0.1 * 0.002 * STEEL.rho, rel=0.02)
     assert m.info["wall"] == 0.002 and "hex" in m.info["method_choice"]
+
+
+def test_inward_part_is_a_cavity_only_inside_a_solid():
+    from mjsound.modal.surface import cavities
+
+    outer = trimesh.creation.box(extents=[0.1, 0.1, 0.1])
+    inner = trimesh.creation.box(extents=[0.05, 0.05, 0.05])
+    inner.invert()
+    apart = trimesh.creation.box(extents=[0.05, 0.05, 0.05])
+    apart.apply_translation([1.0, 0, 0])
+    apart.invert()
+    assert cavities([outer, inner, apart]) == [False, True, False]
+    assert cavities([inner]) == [False]  # a lone flipped box is a solid

@@ -47,6 +47,7 @@ import trimesh
 
 from ..materials import Material
 from .discretization import Discretization
+from .surface import cavities
 from .voxelize import surface_voxels, winding_occupancy
 
 __all__ = ["discretize_hex", "hex_element_matrices", "grid_for"]
@@ -325,11 +326,10 @@ def _occupancy(mesh: trimesh.Trimesh, lo, nfine, hfine, supersample: int, thickn
     parts = _components(mesh)
     s = int(supersample)
     closed = [p.is_watertight and abs(p.volume) > 0 for p in parts]
-    # An inward-facing closed part (negative volume) beside an outward one is a cavity (the
-    # inner shell of a hollow object): it is cut out after the solids are filled. A mesh
-    # whose closed parts all face inward is only flipped: it is filled.
-    outward = [c and p.volume > 0 for p, c in zip(parts, closed)]
-    cavity = [c and not o and any(outward) for c, o in zip(closed, outward)]
+    # An inward-facing closed part inside an outward one is a cavity (the inner shell of a
+    # hollow object): it is cut out after the solids are filled. Other inward parts are
+    # solids with flipped faces: filled.
+    cavity = cavities(parts)
     for part, is_closed, is_cavity in zip(parts, closed, cavity):
         tris = part.triangles
         if is_cavity:

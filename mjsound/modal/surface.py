@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-__all__ = ["refine_to_size", "hollow", "vertex_offsets"]
+__all__ = ["refine_to_size", "hollow", "vertex_offsets", "winding_number", "cavities"]
 
 
 def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rounds: int = 64):
@@ -248,3 +248,32 @@ def _flipped_faces(V: np.ndarray, F: np.ndarray, normals: np.ndarray) -> int:
     """Faces of the offset surface ``V[F]`` that point against (or collapse from) ``normals``."""
     cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     return int(np.sum(np.einsum("fi,fi->f", cross, normals) <= 0.0))
+
+
+def winding_number(tris: np.ndarray, p: np.ndarray) -> float:
+    """Generalised winding number of point ``p`` (3,) for triangles (T, 3, 3): the sum of
+    their solid angles (Van Oosterom-Strackee) over 4 pi; +1 inside an outward shell, -1
+    inside an inward one, 0 outside."""
+    a, b, c = (tris[:, k] - p for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+        + np.einsum("ij,ij->i", c, a) * lb
+    return float(np.sum(2.0 * np.arctan2(num, den)) / (4.0 * np.pi))
+
+
+def cavities(parts: list) -> list:
+    """For each part (trimesh.Trimesh), whether it is a cavity: closed, facing inward
+    (negative volume) and inside an outward closed part (the inner shell of a hollow
+    object). An inward part elsewhere is a solid with flipped faces, not a cavity."""
+    closed = [p.is_watertight and abs(p.volume) > 0 for p in parts]
+    outward = [c and p.volume > 0 for p, c in zip(parts, closed)]
+    if not any(outward):
+        return [False] * len(parts)
+    solid = np.concatenate([np.asarray(p.triangles) for p, o in zip(parts, outward) if o])
+    out = []
+    for p, c, o in zip(parts, closed, outward):
+        inward = c and not o
+        probe = np.asarray(p.vertices[p.faces[0, 0]], float)  # (a part may list unused vertices)
+        out.append(bool(inward and winding_number(solid, probe) > 0.5))
+    return out

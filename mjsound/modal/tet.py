@@ -264,43 +264,29 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
 
 
 def _cavity_points(mesh) -> list:
-    """A point inside each cavity: each closed component of negative volume (an inward
-    facing shell) when the mesh also has a positive one.
+    """A point inside each cavity (:func:`.surface.cavities`: an inward closed component
+    inside an outward one, the inner shell of a hollow object).
 
     The point is a face centroid moved along the face's normal (into the cavity) by a
-    tenth of the distance to the nearest other vertex of that shell, checked by the
-    component's winding number (solid angle sum / 4 pi = -1 inside an inward shell)."""
-    parts = mesh.split(only_watertight=True) if len(mesh.faces) else []
-    vols = [float(p.volume) for p in parts]
-    if len(parts) < 2 or max(vols, default=0.0) <= 0:
-        return []
+    tenth of the face's size, checked by the component's winding number (-1 inside an
+    inward shell)."""
+    from .surface import cavities, winding_number
+
+    parts = mesh.split(only_watertight=False) if len(mesh.faces) else []
     out = []
-    for part, vol in zip(parts, vols):
-        if vol >= 0:
+    for part, is_cavity in zip(parts, cavities(parts)):
+        if not is_cavity:
             continue
         tris = np.asarray(part.triangles)
         areas = part.area_faces
         for f in np.argsort(-areas)[:8]:  # the largest faces first
-            c = tris[f].mean(axis=0)
-            gap = np.sort(np.linalg.norm(part.vertices - c, axis=1))[0]
-            p = c + part.face_normals[f] * 0.1 * max(gap, np.sqrt(areas[f]))
-            if _winding_number(tris, p) < -0.5:
+            p = tris[f].mean(axis=0) + part.face_normals[f] * 0.1 * np.sqrt(areas[f])
+            if winding_number(tris, p) < -0.5:
                 out.append(p)
                 break
         else:
             raise ValueError(f"tet method: could not place a point inside a cavity of the mesh; {_HEX_HINT}")
     return out
-
-
-def _winding_number(tris: np.ndarray, p: np.ndarray) -> float:
-    """Generalised winding number of point ``p`` for triangles (T, 3, 3) (Van Oosterom-
-    Strackee solid angles / 4 pi): +1 inside an outward shell, -1 inside an inward one."""
-    a, b, c = (tris[:, k] - p for k in range(3))
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    num = np.einsum("ij,ij->i", a, np.cross(b, c))
-    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
-        + np.einsum("ij,ij->i", c, a) * lb
-    return float(np.sum(2.0 * np.arctan2(num, den)) / (4.0 * np.pi))
 
 
 def _add_midpoints(nodes: np.ndarray, tets: np.ndarray):
