@@ -1,0 +1,312 @@
+"""Block shift-invert Lanczos for every eigenpair below the band top (:func:`_block_band`),
+with its two-core helpers (:class:`_SplitSolve`, :func:`_project_out`); used by
+:func:`.eigen.solve_band`."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+import scipy.linalg as sla
+
+from .node_mass import mass_rows
+from .quadratic_forms import quadratic_forms
+
+__all__ = []
+
+
+class _SplitSolve:
+    """``solve(B)`` for blocks, on two copies of one factorization once the second is ready.
+
+    A block of ``m >= 8`` columns is cut in two: the first half is solved here, the second
+    on the worker thread with the second copy (PARDISO releases the GIL). One thread
+    solves 8 columns in 32 ms and 16 in 47 ms on a 20 cm bowl, so a Lanczos step's solve
+    takes about two thirds of the time. PARDISO solves each column of a block of two or
+    more with the same operations whatever the others are, and the two copies factor the
+    same matrix identically, so the result is the same bit for bit whether or when the
+    second copy joins in (test). ``second`` is a future of the second ``solve``.
+    """
+
+    def __init__(self, first, pool, second):
+        self.first, self.pool, self.second = first, pool, second
+
+    def _ready(self) -> bool:
+        return self.second.done() and self.second.exception() is None
+
+    def both(self, f, g):
+        """``(f(), g())``, g on the worker thread once the second copy is done."""
+        if not self._ready():
+            return f(), g()
+        other = self.pool.submit(g)
+        return f(), other.result()
+
+    def __call__(self, B: np.ndarray) -> np.ndarray:
+        m = B.shape[1] if B.ndim == 2 else 1
+        if m < 8 or not self._ready():
+            return self.first(B)
+        h = m // 2
+        other = self.pool.submit(self.second.result(), B[:, h:])
+        X = self.first(B[:, :h])
+        return np.hstack([X, other.result()])
+
+
+
+
+#: Ritz residual ||T y - mu y||_M / mu at which a pair is accepted. The eigenvalues are
+#: Rayleigh quotients, whose error goes as the residual squared. On a 20 cm bowl (19 908
+#: dofs, 120 eigenvalues, blocks of 16) against 1e-7 (basis 368): 1e-6 -> basis 352,
+#: eigenvalues within 1.4e-11; 1e-5 -> 336, 1.3e-9 (2e-6 cent), mode shapes spanning the
+#: same subspaces to 1e-11 (1 - |cos|); 1e-4 -> 320, 6e-8. Each step saved is a block
+#: solve and a Gram-Schmidt pass (0.1..0.15 s for 1e-5).
+BLOCK_TOL = 1e-5
+#: block Krylov basis memory cap [bytes] (basis and its M-image, float64)
+BLOCK_MAX_BYTES = 1.5e9
+
+
+def _in_turn(f, g):
+    return f(), g()
+
+
+#: a Gram-Schmidt pass over at least this many basis vectors is cut in two halves
+PROJECT_SPLIT_MIN = 64
+
+
+def _project_out(F, Q, MQ, both=_in_turn):
+    """``C = MQ F^T`` and ``F -= C^T Q`` (in place): F's rows M-orthogonalised against Q's.
+
+    Over a long basis each product is cut in two, C by rows and F by columns, and
+    ``both`` may run the halves on two cores (on the bowl's 19 908 dofs and 300 vectors:
+    24 ms on one core, 14 on two). The cut depends only on the sizes, never on whether
+    the second core is free, so the result is the same bit for bit either way. Returns C.
+    """
+    k = Q.shape[0]
+    if k < PROJECT_SPLIT_MIN:
+        C = MQ @ F.T
+        F -= C.T @ Q
+        return C
+    h, m = k // 2, F.shape[1] // 2
+    C = np.vstack(both(lambda: MQ[:h] @ F.T, lambda: MQ[h:] @ F.T))
+    Ct = C.T
+
+    def left():
+        F[:, :m] -= Ct @ Q[:, :m]
+
+    def right():
+        F[:, m:] -= Ct @ Q[:, m:]
+
+    both(left, right)
+    return C
+
+
+def _tol_scale(lam, lam_max):
+    """Per-pair factor on the Ritz tolerance: ``sqrt(lam / lam_max)``, at least 1e-3.
+
+    What a Ritz vector keeps of the modes near the top of the spectrum raises its
+    Rayleigh quotient by about ``(residual)^2 lam_max``, which is a relative error of
+    ``tol^2 lam_max / lam``: low modes need a tighter residual for the same relative
+    accuracy, and the rigid modes (``lam ~ 0``) one that keeps them below any audible band
+    (a 2 mm steel bead with one tolerance for all got a rigid mode at 37.8 Hz). They
+    converge first, so it costs no step on the bowl. The floor 1e-3 is the 20 Hz / 20 kHz
+    band ratio.
+    """
+    return np.sqrt(np.clip(np.asarray(lam) / lam_max, 1e-6, 1.0))
+
+
+#: widest block; also the width when block Lanczos starts before the count is known
+BLOCK_MAX_WIDTH = 16
+#: with the count still under way, no convergence test before the basis has this many vectors
+EARLY_MIN_DIM = 64
+
+
+def _block_size(n_target: int) -> int:
+    """Block width: wide blocks make each PARDISO solve cheaper per vector (its
+    forward/backward substitution runs as BLAS-3: 13.7 ms for one vector, 41 ms for 12, 47
+    for 16, 60 for 24 on a 20 cm bowl's 19 908 dofs), narrow ones converge in a smaller
+    basis (same bowl, 120 eigenvalues: 8 -> basis 304, 12 -> 336, 16 -> 368, 20 -> 400).
+    16 was the fastest there with the solves split over two factorizations
+    (:class:`_SplitSolve`; medians of 4 alternated solves 2.55 s against 2.78 s for 12)."""
+    return int(np.clip(n_target // 7, 4, BLOCK_MAX_WIDTH))
+
+
+_LAST = {}
+
+
+def _full_pass(step: int) -> bool:
+    """Whether Lanczos step ``step`` (1, 2, ...) reorthogonalises against the whole basis.
+
+    Every other step: the step in between takes its second pass over the last two blocks
+    only, and what rounding leaves along the older blocks (amplified at most by one
+    application of T) goes at the next full pass. On a 20 cm bowl (basis 336) the basis
+    stayed M-orthonormal to 1.8e-12 (every step: 1.6e-13), the eigenvalues moved by 1.9e-12
+    and the Gram-Schmidt time dropped from 1.0 to ~0.55 s; every third step let the
+    orthogonality go (the block solve gave up and ARPACK took 20 s). Frequencies against
+    every step: bowl 9e-13, beam 4e-12, 30 cm plate 4e-11 relative (its analysis 25.0 ->
+    18.9 s; ``scripts/bench_modal.py --no-baseline --objects beam plate``).
+    """
+    return step % 2 == 0
+
+
+def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
+                both=None, fits=None, progress=None):
+    """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
+
+    Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
+    with full reorthogonalisation: the basis ``Q`` (M-orthonormal, stored by rows) grows
+    one block ``W`` at a time, ``W_next`` = ``T W`` M-orthogonalised twice (classical
+    Gram-Schmidt: against the last two blocks, then against ``Q``, or every other step
+    against the last two blocks again, :func:`_full_pass`) and orthonormalised within the
+    block; the projection
+    ``H = Q^T M T Q`` is filled from the Gram-Schmidt coefficients. Ritz pairs
+    ``(mu, y = Q s)`` have residual ``T y - mu y = F s_last`` where ``F = W_next R`` is
+    what the last block's image left outside ``Q``, so ``||T y - mu y||_M = ||R s_last||``
+    needs no extra operator product.
+
+    Ritz values of the largest ``mu`` never exceed the true ones (Cauchy interlacing), so
+    at most ``n_target`` Ritz values can lie below ``lam_max``; the solve stops when exactly
+    ``n_target`` do and all have ``||T y - mu y||_M <= tol mu`` (tighter for low modes,
+    :func:`_tol_scale`): every eigenvalue below
+    ``lam_max`` is then found exactly once (Sylvester). ``solve`` takes blocks (n, b);
+    ``apply_M(X) = (M X^T)^T`` for rows ``X`` (default :func:`.node_mass.mass_rows`);
+    ``both(f, g)`` returns ``(f(), g())`` and may run them side by side (default: the
+    ``both`` of ``solve``, :meth:`_SplitSolve.both`, if it has one).
+
+    ``n_target`` may also be a future of the count (it is then waited for once the basis
+    has :data:`EARLY_MIN_DIM` vectors, and no convergence test runs before that: the
+    result does not depend on when the count arrives); blocks are then
+    :data:`BLOCK_MAX_WIDTH` wide, and ``fits(count)`` says whether the block solve should
+    go on with that many. ``progress(fraction)`` hears the basis size against three times
+    the count (what the bowl needed), at most 0.95 before convergence. Returns ``(w, V)``
+    ascending, or None if the basis would outgrow ``max_dim`` or ``fits`` said no.
+    """
+    n = K.shape[0]
+    if both is None:
+        both = getattr(solve, "both", _in_turn)
+    early = not isinstance(n_target, (int, np.integer))  # a future: the count is under way
+    count = None if early else int(n_target)
+    if apply_M is None:
+        apply_M = mass_rows(M)
+    if tol is None:
+        tol = BLOCK_TOL
+    b = _block_size(count) if count is not None else BLOCK_MAX_WIDTH
+    dim_cap = max_dim
+
+    def dim_limit(count):
+        if dim_cap is not None:
+            return int(dim_cap)
+        room = min(n - b, BLOCK_MAX_BYTES / (16 * n))
+        return int(room if count is None else min(room, max(4 * count + 8 * b, 64)))
+
+    max_dim = dim_limit(count)
+    rng = np.random.default_rng(seed)
+    # storage for the largest basis at once: np.empty/zeros only reserve address space, the
+    # pages are touched as the basis grows (growing by copies cost 0.2 s on the bowl)
+    cap = int(max_dim + b)
+    Q = np.empty((cap, n))
+    MQ = np.empty((cap, n))
+    H = np.zeros((cap + b, cap + b))  # + b: room for the next block's coupling
+    mu_cut = 1.0 / (lam_max - sigma)
+
+    def orthonormal(F, MF):
+        """M-orthonormal rows spanning F's (drops directions already in Q); F = X^T W."""
+        G = F @ MF.T
+        g, U = np.linalg.eigh(0.5 * (G + G.T))
+        keep = g > 1e-13 * max(g.max(), 1e-300)
+        X = U[:, keep] / np.sqrt(g[keep])
+        return X.T @ F, X.T @ MF, np.sqrt(g[keep])[:, None] * U[:, keep].T
+
+    W = rng.standard_normal((b, n))
+    W, MW, _ = orthonormal(W, apply_M(W))
+    d = 0
+    b_prev = 0
+    steps = 0
+    while True:
+        bb = W.shape[0]
+        Q[d:d + bb] = W
+        MQ[d:d + bb] = MW
+        d0, d = d, d + bb
+        P = np.ascontiguousarray(solve(MW.T).T)  # T W, rows
+        # Lanczos: T W lies in the last two blocks and the next one, so those two are
+        # removed first (cheap), then a second Gram-Schmidt pass takes out what rounding
+        # left: over the whole basis every other step, over the last two blocks between
+        # (:func:`_full_pass`)
+        steps += 1
+        dl = max(0, d0 - b_prev)
+        lo = 0 if _full_pass(steps) else dl
+        C = MQ[dl:d] @ P.T
+        F = P - C.T @ Q[dl:d]
+        C2 = _project_out(F, Q[lo:d], MQ[lo:d], both)
+        C2[dl - lo:d - lo] += C
+        Hjj = C2[d0 - lo:d - lo]
+        H[d0:d, d0:d] = 0.5 * (Hjj + Hjj.T)
+        MF = apply_M(F)
+        W, MW, R = orthonormal(F, MF)
+        b_prev = bb
+        # F is what is left of T W after removing Q: when that is a tiny part of T W
+        # (converged directions, rigid modes with their larger mu) one pass leaves W
+        # orthogonal only to ~eps |T W| / |F|: then once more.
+        left = np.einsum("ij,ij->i", F, MF) / np.maximum(np.einsum("ij,ij->j", C2, C2) + np.einsum("ij,ij->i", F, MF), 1e-300)
+        if left.size and left.min() < 1e-8:
+            C3 = MQ[:d] @ W.T
+            W -= C3.T @ Q[:d]
+            MW -= C3.T @ MQ[:d]
+            W, MW, R2 = orthonormal(W, MW)
+            R = R2 @ R
+        # block tridiagonal, as in Lanczos: T W = W H_jj + W_prev H_(j-1)j + W_next R (what
+        # reorthogonalisation removes beyond that is rounding and is dropped, not projected:
+        # keeping it, the solves' error on the rigid modes (mu 1e6 x the top of the band)
+        # leaked into the small Ritz values)
+        H[d:d + R.shape[0], d0:d] = R
+        H[d0:d, d:d + R.shape[0]] = R.T
+        if W.shape[0] < bb:  # the Krylov space closed up (or nearly): restart with fresh directions
+            Z = rng.standard_normal((bb - W.shape[0], n))
+            for _ in range(2):
+                Z -= (Z @ MQ[:d].T) @ Q[:d]
+                if W.shape[0]:
+                    Z -= (Z @ MW.T) @ W
+            Z, MZ, _ = orthonormal(Z, apply_M(Z))
+            W, MW = np.vstack([W, Z]), np.vstack([MW, MZ])
+        if count is None:
+            if d < EARLY_MIN_DIM and d + W.shape[0] <= max_dim:
+                continue
+            count = n_target.result()
+            if fits is not None and not fits(count):
+                return None
+            max_dim = dim_limit(count)
+        if progress is not None:
+            progress(min(0.95, d / (3.0 * max(count, 1))))
+        if d < max(2 * count, EARLY_MIN_DIM if early else 0):
+            # no basis this small held all of them (bowl 3.1 n, beam 2.4 n)
+            if d + W.shape[0] > max_dim:
+                return None
+            continue
+        # the count first, from the eigenvalues alone (LAPACK syev without vectors: 10 ms
+        # at d = 372 against 47 for selected pairs by syevr); the pairs (syevd, 22 ms) only
+        # when the count is complete
+        mu = sla.eigh(H[:d, :d], eigvals_only=True, driver="ev")
+        ok = np.sum(mu > mu_cut) == count
+        if ok:
+            mu, S = sla.eigh(H[:d, :d], driver="evd")
+            want = mu > mu_cut
+            ok = np.sum(want) == count
+            mu, S = mu[want], S[:, want]
+        if ok:
+            est = np.linalg.norm(R @ S[d0:d], axis=0)
+            if np.all(est <= tol * mu * _tol_scale(sigma + 1.0 / mu, lam_max)):
+                _LAST["dim"] = d
+                # Ritz vectors as rows, in two halves (the cut depends on the count only)
+                h = S.shape[1] // 2
+                Qd = Q[:d]
+                Y = np.vstack(both(partial(np.matmul, S[:, :h].T, Qd), partial(np.matmul, S[:, h:].T, Qd)))
+                # Eigenvalues as Rayleigh quotients of the vectors (error ~ residual^2): the
+                # Ritz values sigma + 1/mu carry rounding of order eps * mu_max / mu, and
+                # mu_max (rigid modes, 1/|sigma|) is ~1e6 x the mu at the top of the band:
+                # 1e-6 relative errors there, where the quotients agree to 1e-10.
+                # y^T M y = s^T (Q M Q^T) s = 1 up to the basis' loss of M-orthonormality
+                # (2e-12 on the bowl), so the quotient needs only K (the mass products
+                # of the 120 vectors took 0.12..0.18 s; eigenvalues moved by 2e-12). The
+                # forms run on two threads (0.25 s on one).
+                lam = quadratic_forms(K, Y, threads=2)
+                order = np.argsort(lam)
+                return lam[order], Y[order].T  # mass-normalised
+        if d + W.shape[0] > max_dim:
+            return None
