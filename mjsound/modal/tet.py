@@ -323,35 +323,44 @@ def _geometry(nodes: np.ndarray, tets: np.ndarray):
     return det / 6.0, g
 
 
-def _assemble_K(conn, vol, gradL, lam, mu, order, n_nodes, chunk=6000):
-    """Stiffness matrix, (3 n_nodes, 3 n_nodes) csr [N/m]; batched over elements."""
+def _assemble_K(conn, vol, gradL, lam, mu, order, n_nodes, chunk=4000):
+    """Stiffness matrix, (3 n_nodes, 3 n_nodes) csr [N/m]; batched over elements.
+
+    With the weighted gradient products summed over the quadrature points first,
+    ``A[a i, b j] = sum_q w_q dN_a/dx_i dN_b/dx_j`` (one batched matrix product), the
+    element matrix is ``V (lambda A + mu A^swap + mu delta_ij sum_k A[a k, b k])`` where
+    ``A^swap[a i, b j] = A[a j, b i]``. Blocks of equal node pairs are summed after one sort
+    of their keys (:func:`.hex._sum_blocks`), 3x3 blocks at a time.
+    """
+    from .hex import _sum_blocks
+
     nn = conn.shape[1]
     if order == 1:
         pts, wts = np.full((1, 4), 0.25), np.ones(1)
     else:
         pts, wts = _Q4_POINTS, _Q4_WEIGHTS
-    dNdL = [_shape_dL(p, order) for p in pts]
+    dNdL = np.stack([_shape_dL(p, order) for p in pts])  # (q, nn, 4)
     eye = np.eye(3)
-    ndof = 3 * n_nodes
-    K = sp.csr_matrix((ndof, ndof))
-    for s in range(0, len(conn), chunk):
-        c, v, g = conn[s:s + chunk], vol[s:s + chunk], gradL[s:s + chunk]
-        Ke = np.zeros((len(c), nn, 3, nn, 3))
-        for dq, w in zip(dNdL, wts):
-            dN = np.einsum("ak,ekj->eaj", dq, g)  # (e, nn, 3) grad N_a at the point
-            wv = (w * v)[:, None, None, None, None]
-            gg = np.einsum("eak,ebk->eab", dN, dN)
-            Ke += wv * (
-                lam * np.einsum("eai,ebj->eaibj", dN, dN)
-                + mu * np.einsum("eaj,ebi->eaibj", dN, dN)
-                + mu * gg[:, :, None, :, None] * eye[None, None, :, None, :]
-            )
-        dof = (3 * c[:, :, None] + np.arange(3)).reshape(len(c), 3 * nn)
-        rows = np.broadcast_to(dof[:, :, None], (len(c), 3 * nn, 3 * nn))
-        cols = np.broadcast_to(dof[:, None, :], (len(c), 3 * nn, 3 * nn))
-        K = K + sp.csr_matrix(
-            (Ke.reshape(-1), (rows.reshape(-1), cols.reshape(-1))), shape=(ndof, ndof)
-        )
+    keys, blocks = [], []
+    for s0 in range(0, len(conn), chunk):
+        c, v, g = conn[s0:s0 + chunk], vol[s0:s0 + chunk], gradL[s0:s0 + chunk]
+        dN = np.einsum("qak,ekj->eqaj", dNdL, g)  # (e, q, nn, 3) grad N_a at each point
+        Y = dN.reshape(len(c), len(wts), 3 * nn)
+        A = np.swapaxes(Y * wts[None, :, None], 1, 2) @ Y  # (e, 3nn, 3nn)
+        A = A.reshape(len(c), nn, 3, nn, 3)
+        tr = np.einsum("eakbk->eab", A)
+        Ke = lam * A + mu * np.swapaxes(A, 2, 4) + mu * tr[:, :, None, :, None] * eye[None, None, :, None, :]
+        Ke *= v[:, None, None, None, None]
+        key = (c[:, :, None].astype(np.int64) * n_nodes + c[:, None, :]).ravel()  # (e nn nn)
+        Kb = np.ascontiguousarray(Ke.transpose(0, 1, 3, 2, 4)).reshape(-1, 9)
+        key, Kb = _sum_blocks(key, Kb)
+        keys.append(key)
+        blocks.append(Kb)
+    key, Kb = _sum_blocks(np.concatenate(keys), np.concatenate(blocks))
+    brow = key // n_nodes
+    indptr = np.searchsorted(brow, np.arange(n_nodes + 1))
+    bcol = (key - brow * n_nodes).astype(np.int32)
+    K = sp.bsr_matrix((Kb.reshape(-1, 3, 3), bcol, indptr), shape=(3 * n_nodes, 3 * n_nodes)).tocsr()
     K = (K + K.T) * 0.5  # exact symmetry
     return K.tocsr()
 
