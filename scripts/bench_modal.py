@@ -1,6 +1,8 @@
 """Benchmark: modal analysis of the beam, a bowl and a plate against a plain scipy baseline.
 
-For each object at default quality (hex) it prints degrees of freedom, modes found, seconds
+For each object and method (``--methods``, default ``auto hex``: the per-object choice and the
+voxel hexahedra in the same run) at default quality it prints degrees of freedom, modes found,
+the bowl's error (RMS cents of its first eight modes against the converged reference), seconds
 for the whole analysis (wall and CPU: the machine may be shared), the eigen solve alone, peak
 memory, model file size, and the same
 eigenproblem (same K and M, same number of modes) solved in the same run by a plain
@@ -9,6 +11,7 @@ baseline: ``scipy.sparse.linalg.eigsh(K, k, M, sigma)`` with its default SuperLU
     python scripts/bench_modal.py            # table
     python scripts/bench_modal.py --json     # {"objects": [{name, dofs, n_modes, seconds, ...}]}
     python scripts/bench_modal.py --no-baseline --objects bowl
+    python scripts/bench_modal.py --no-baseline --objects bowl --methods auto hex --f-max 3500
 
 Each object runs in its own process so that peak memory is its own.
 """
@@ -31,7 +34,7 @@ OBJECTS = {
 }
 
 
-def _one(name, quality, baseline, queue):
+def _one(name, quality, baseline, queue, method="auto", f_max=None):
     import numpy as np
     import scipy.sparse.linalg as spla
 
@@ -41,14 +44,21 @@ def _one(name, quality, baseline, queue):
     mesh, mat = OBJECTS[name]
     A.analyze("box:0.05,0.01,0.01", mat, quality="draft", cache=False, error_estimate=False)  # warm-up: imports, JIT
     t0, c0 = time.perf_counter(), time.process_time()
-    model = A.analyze(mesh, mat, quality=quality, cache=False, error_estimate=False)
+    model = A.analyze(mesh, mat, method=method, quality=quality, f_max=f_max, cache=False, error_estimate=False)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     with tempfile.TemporaryDirectory() as d:
         p = os.path.join(d, "m.npz")
         model.save(p)
         model_mb = os.path.getsize(p) / 2**20
-    row = dict(name=name, mesh=mesh, material=mat, dofs=int(model.dofs), n_modes=int(model.n_modes),
+    cents = None
+    if name == "bowl":
+        from mjsound.report.accuracy_modal import BOWL_REFERENCE
+
+        f8 = model.frequencies_hz[:8]
+        cents = float(np.sqrt(np.mean((1200 * np.log2(f8 / BOWL_REFERENCE[:len(f8)])) ** 2)))
+    row = dict(name=name, method=model.method, bowl_rms_cents=cents, mesh=mesh, material=mat, dofs=int(model.dofs),
+               n_modes=int(model.n_modes),
                seconds=seconds, cpu_seconds=cpu_seconds, solve_seconds=model.info["solve_seconds"], solver=model.info["solver"],
                slices=model.info["slices"], peak_mb=peak_mb, model_mb=model_mb,
                first_hz=[round(float(f), 1) for f in model.frequencies_hz[:4]])
@@ -59,7 +69,9 @@ def _one(name, quality, baseline, queue):
         # smaller elements than the quadratic analysis used: another, 3x larger problem)
         h = model.info["h_target"]
         pts, _ = A.surface_samples(tm)
-        disc = A._discretize("hex", tm, material, h, pts, quality, None, 2, None)
+        kind = "tet" if model.method.startswith("tet") else "hex"
+        disc = A._discretize(kind, tm, material, h, pts, model.info["quality_used"], None, 2, None,
+                             not model.method.endswith("-wall"))
         assert disc.dofs == model.dofs, (disc.dofs, model.dofs)
         k = model.n_modes + model.info["n_rigid"]
         lam = (2 * np.pi * A.F_MIN_HZ) ** 2
@@ -83,18 +95,22 @@ def main(argv=None):
     ap.add_argument("--quality", default="default")
     ap.add_argument("--objects", nargs="*", default=list(OBJECTS), choices=list(OBJECTS))
     ap.add_argument("--no-baseline", action="store_true")
+    ap.add_argument("--methods", nargs="*", default=["auto", "hex"], choices=["auto", "hex", "tet"])
+    ap.add_argument("--f-max", type=float, default=None, help="band top [Hz] (default 20 kHz)")
     args = ap.parse_args(argv)
     ctx = mp.get_context("spawn")
     rows = []
-    for name in args.objects:
+    for name, method in ((n, m) for n in args.objects for m in args.methods):
         q = ctx.Queue()
-        p = ctx.Process(target=_one, args=(name, args.quality, not args.no_baseline, q))
+        p = ctx.Process(target=_one, args=(name, args.quality, not args.no_baseline, q, method, args.f_max))
         p.start()
         row = q.get()
         p.join()
         rows.append(row)
         if not args.json:
-            line = (f"{name:6s} dofs {row['dofs']:7d}  modes {row['n_modes']:5d}  analysis {row['seconds']:7.2f} s "
+            err = "" if row["bowl_rms_cents"] is None else f"  first 8 {row['bowl_rms_cents']:5.1f} c RMS"
+            line = (f"{name:6s} {row['method']:10s} dofs {row['dofs']:7d}  modes {row['n_modes']:5d}{err}  "
+                    f"analysis {row['seconds']:7.2f} s "
                     f"(cpu {row['cpu_seconds']:.2f} s) "
                     f"(solve {row['solve_seconds']:.2f} s, {row['solver']}, {row['slices']} slices)  "
                     f"peak {row['peak_mb']:6.0f} MB  model {row['model_mb']:.2f} MB")
@@ -104,7 +120,8 @@ def main(argv=None):
                          f"{row['max_rel_diff_vs_baseline']:.1e})")
             print(line, flush=True)
     if args.json:
-        keys = ["name", "dofs", "n_modes", "seconds", "peak_mb", "model_mb", "baseline_seconds", "speedup"]
+        keys = ["name", "method", "dofs", "n_modes", "bowl_rms_cents", "seconds", "peak_mb", "model_mb",
+                "baseline_seconds", "speedup"]
         print(json.dumps({"objects": [{k: r.get(k) for k in keys} | r for r in rows]}))
     return 0
 

@@ -69,11 +69,11 @@ THIN_WALL_RATIO = 0.25
 #: longest side, which bounds the error of the lowest modes whatever f_max is.
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2,
-              "wall_per_wavelength": 3.0, "wall_min_per_side": 8},
+              "wall_per_wavelength": 3.0, "wall_min_per_side": 12},
     "default": {"per_wavelength": 6.0, "min_per_side": 8, "refine": 3, "min_across": 4,
-                "wall_per_wavelength": 5.0, "wall_min_per_side": 16},
+                "wall_per_wavelength": 5.0, "wall_min_per_side": 24},
     "high": {"per_wavelength": 10.0, "min_per_side": 16, "refine": 4, "min_across": 6,
-             "wall_per_wavelength": 8.0, "wall_min_per_side": 32},
+             "wall_per_wavelength": 8.0, "wall_min_per_side": 48},
 }
 QUALITY_ORDER = ("high", "default", "draft")
 
