@@ -64,7 +64,7 @@ def recorded(monkeypatch):
     calls = []
 
     def fake(mesh, material, **kw):
-        calls.append({"mesh": mesh, "material": material.name, **kw})
+        calls.append({"mesh": mesh, "material": material.name, "wall": material.wall, **kw})
         return stub_model(mesh, material, 4, 900.0)
 
     monkeypatch.setattr(an, "analyze", fake)
@@ -276,3 +276,18 @@ def test_cli_materials_take_the_star_and_report_objects(tmp_path, capsys):
     rc = main(["sonify", str(xml), "-o", str(tmp_path / "out.wav"), "--duration", "0.1", "--materials",
                json.dumps({"tary": "aluminium"})])
     assert rc == 2 and "no geom or body named 'tary'; closest: 'tray'" in capsys.readouterr().err
+
+
+def test_a_wall_in_the_material_reaches_the_analysis(recorded):
+    """``wall=`` (hollow objects given by their outer surface) passes through to ``analyze``, and a
+    hollow object gets no large-solid mode budget (it is not a solid)."""
+    xml = """<mujoco><worldbody><body name="tank" pos="0 0 1"><freejoint/>
+      <geom type="cylinder" size=".4 .5"/><geom type="box" size=".1 .1 .1" pos="0 0 .6"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    SoundScene.from_model(model, materials={"tank": "steel,wall=2mm"}, sample_rate=48000, progress=False)
+    (call,) = recorded
+    assert call["wall"] == pytest.approx(0.002) and call["material"] == "steel"
+    assert call["max_modes"] is None and call["f_max"] is None
+    recorded.clear()
+    SoundScene.from_model(model, materials={"tank": "steel"}, sample_rate=48000, progress=False)
+    assert recorded[0]["wall"] is None and recorded[0]["max_modes"] == AUTO_MAX_MODES
