@@ -150,7 +150,8 @@ def test_material_keys_are_checked_and_every_form_works(recorded):
     model = mujoco.MjModel.from_xml_string(xml)
     scene = SoundScene.from_model(model, materials={"geom0": "steel", 1: "glass", "*": "oak"}, progress=False)
     got = {s.name: (s.material.name, s.source) for s in scene.sounding}
-    assert got == {"geom0": ("steel", "mapping"), "geom1": ("glass", "mapping"), "named": ("oak", "default")}
+    # (an unnamed geom alone in a named body is named like the body)
+    assert got == {"b1": ("steel", "mapping"), "b2": ("glass", "mapping"), "named": ("oak", "default")}
     with pytest.raises(ValueError, match=r"no geom or body named 'nmaed'.*closest: 'named'"):
         SoundScene.from_model(model, materials={"nmaed": "steel"}, progress=False)
     with pytest.raises(ValueError, match="geom id 7 out of range"):

@@ -293,13 +293,20 @@ def custom_texts(model, prefix: str) -> dict:
     return out
 
 
-def plan_object(model, members, sound_meshes, material, source) -> dict:
-    """Name, surface and label of one object (:mod:`mjsound.sim.objects`)."""
+def plan_object(model, members, sound_meshes, material, source, alone: bool = False) -> dict:
+    """Name, surface and label of one object (:mod:`mjsound.sim.objects`).
+
+    The name: the body's for several geoms; for one geom, the geom's name, or, when the geom is
+    unnamed and the only object of a named body (Fetch's table: an unnamed box in ``table0``),
+    the body's; else MuJoCo's fallback ``geom<ID>``."""
     mujoco = _mujoco()
     anchor = members[0]
     body = int(model.geom_bodyid[anchor])
     bname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body{body}"
     name = geom_name(model, anchor) if len(members) == 1 else bname
+    named_body = body != 0 and mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    if len(members) == 1 and alone and named_body and not mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, anchor):
+        name = bname
     override = None
     for key in (geom_name(model, anchor), anchor, bname):
         if key in sound_meshes:

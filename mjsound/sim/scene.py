@@ -296,7 +296,9 @@ class SoundScene:
 
         # ---------------------------------------------------------------- objects
         groups = group_objects(model, todo, scene.geom_material, objects)
-        plans = [plan_object(model, members, sound_meshes, scene.geom_material[members[0]], sources[members[0]])
+        per_body = np.bincount([int(model.geom_bodyid[m[0]]) for m in groups], minlength=model.nbody)
+        plans = [plan_object(model, members, sound_meshes, scene.geom_material[members[0]], sources[members[0]],
+                             alone=per_body[int(model.geom_bodyid[members[0]])] == 1)
                  for members in groups]
         unique_names(plans)
         unknown = set(models) - {p["name"] for p in plans}
