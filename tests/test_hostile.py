@@ -315,3 +315,10 @@ def test_streamed_file_equals_the_whole_take(scene, tmp_path, normalize):
     np.testing.assert_array_equal(got.T, want)
     assert 0 < s["warmup_seconds"] < s["wall_seconds"] and np.isfinite(s["realtime_factor"])
     assert not [n for n in os.listdir(tmp_path) if n.startswith(".mjsound-tmp")]
+
+
+def test_analyze_checks_its_options_first(tmp_path, capsys):
+    err = cli_error(capsys, ["analyze", "box:0.1,0.1,0.1", "--sample-rate", "100"])
+    assert "--sample-rate=100 Hz" in err and "1000..768000" in err
+    err = cli_error(capsys, ["analyze", "box:0.1,0.1,0.1", "-o", str(tmp_path / "m.txt")])
+    assert "'.txt' is not supported; use .npz" in err

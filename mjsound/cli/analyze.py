@@ -43,6 +43,10 @@ def run(args) -> int:
 
     if args.output:
         check_output_file(args.output, (".npz",), "-o")
+    if args.sample_rate is not None:
+        from ..limits import check_sample_rate
+
+        check_sample_rate(args.sample_rate, "--sample-rate")
     t0 = time.perf_counter()
     model = analyze(
         args.mesh, args.material, method=args.method, quality=args.quality, f_max=args.f_max,
