@@ -74,7 +74,8 @@ def _synth_model(quick):
     from ..modal.analyze import analyze
 
     t0 = time.perf_counter()
-    m = analyze("bowl:0.1,0.004", ALU, quality="draft" if quick else "default", sample_rate=48000, error_estimate=False)
+    m = analyze("bowl:0.1,0.004", ALU, method="hex", quality="draft" if quick else "default", sample_rate=48000,
+                error_estimate=False)
     return m, time.perf_counter() - t0
 
 
@@ -251,7 +252,7 @@ def _plots(outdir, modal, synth, e2e, fmax):
     except ImportError:
         return []
     files = []
-    markers = {"hex": "s", "tet": "^", "shell": "x", "peer": "o"}
+    markers = {"hex": "s", "tet": "^", "shell": "x", "peer": "o", "auto": "D"}
     shapes = sorted({r["shape"] for r in modal}, key=list(SHAPES).index)
     if not shapes:
         modal = []
@@ -404,13 +405,18 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
         w("![modal error vs wall time](accuracy_modal.png)")
         w("")
     if fmax:
-        w("### What f_max costs in the analysis (bowl, hex default)")
+        w("### What f_max costs in the analysis, and what the first modes get (bowl, default quality)")
         w("")
-        w("| f_max [Hz] | modes | dofs | wall [s] | peak mem [MB] |")
-        w("|---:|---:|---:|---:|---:|")
+        w("First-eight error: the bowl's first eight modes (those below f_max) against the converged "
+          "reference; estimate: the model's own `error_estimate_cents`. auto = the per-object choice "
+          "(tet10 through the wall for the bowl).")
+        w("")
+        w("| method | f_max [Hz] | modes | dofs | wall [s] | peak mem [MB] | first-eight RMS [c] | max [c] | estimate [c] |")
+        w("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
         for r in fmax:
-            w(f"| {r['f_max']:.0f} | {r['n_modes']} | {r['dofs']} | {_f(r['wall_s'], '{:.2f}')} | "
-              f"{_f(r['peak_mb'], '{:.0f}')} |")
+            w(f"| {r.get('method', 'hex')} | {r['f_max']:.0f} | {r['n_modes']} | {r['dofs']} | {_f(r['wall_s'], '{:.2f}')} | "
+              f"{_f(r['peak_mb'], '{:.0f}')} | {_f(r.get('rms_cents', float('nan')))} | "
+              f"{_f(r.get('max_cents', float('nan')))} | {_f(r.get('estimate_cents', float('nan')))} |")
         w("")
     # ---------------- synth
     if synth:
@@ -480,21 +486,22 @@ def _knobs(modal, fmax, synth, e2e):
     q = []
     for shape in ("beam", "rod", "sphere", "bowl"):
         parts = []
-        for lab in ("hex draft", "hex default", "hex high", "tet10 h=16mm", "tet10 h=10mm", "tet10 h=20mm"):
+        for lab in ("hex draft", "hex default", "hex high", "auto draft", "auto default", "auto high", "tet10 h=16mm",
+                    "tet10 h=10mm", "tet10 h=20mm"):
             r = _best(modal, shape, lab)
             if r is not None:
                 parts.append(f"{lab} {_f(r['rms_cents'])} c / {_f(r['wall_s'], '{:.1f}')} s")
         if parts:
             q.append(f"{shape}: " + "; ".join(parts))
-    out.append("* **quality** (hex draft / default / high; RMS cents / wall time): " + " — ".join(q) + ". "
-               "Draft is for previews and training at scale; default is the recommended setting for "
-               "compact and bar-like objects; for thin curved shells such as bowls compare the bowl table: hex "
-               "needs `high` (or an explicit resolution) there, and quadratic tets (`method='tet'`) at default "
-               "quality are the more accurate choice per second when the mesh is watertight; `high` for final "
-               "renders of solids.")
-    if fmax:
-        s = ", ".join(f"{r['f_max']:.0f} Hz: {r['n_modes']} modes in {_f(r['wall_s'], '{:.1f}')} s" for r in fmax)
-        out.append(f"* **f_max** (bowl, hex default): {s}. It buys the modes above; leave it at the default "
+    out.append("* **quality** (RMS cents / wall time): " + " — ".join(q) + ". "
+               "Draft is for previews and training at scale; default is the recommended setting; the default "
+               "method (auto) uses hex for compact and bar-like objects and one quadratic tet through the wall "
+               "for thin curved walls such as bowls, where hex is a staircase; `high` for final renders.")
+    for method in dict.fromkeys(r.get("method", "hex") for r in fmax):
+        rows = [r for r in fmax if r.get("method", "hex") == method]
+        s = ", ".join(f"{r['f_max']:.0f} Hz: {r['n_modes']} modes in {_f(r['wall_s'], '{:.1f}')} s, first eight "
+                      f"{_f(r.get('rms_cents', float('nan')))} c RMS" for r in rows)
+        out.append(f"* **f_max** (bowl, {method} default): {s}. It buys the modes above; leave it at the default "
                    "min(20 kHz, 0.45 fs) unless the analysis time matters more than the top octave.")
     if synth:
         rows = {r["label"]: r for r in synth["rows"]}
@@ -532,8 +539,9 @@ def _knobs(modal, fmax, synth, e2e):
                        f"{r['label']}: RTF {_f(r['rtf'], '{:.0f}')}, bands {_f(r['band_rms_db'], '{:.2f}')} dB RMS"
                        for r in ts) + ".")
     out.append("")
-    out.append("**Recommended defaults**: `quality='default'`, hex for solids and bars (tet10 for thin "
-               "curved shells), `f_max` = min(20 kHz, 0.45 fs), float32 state, `cull_db=-100`, all modes "
+    out.append("**Recommended defaults**: `quality='default'`, `method='auto'` (hex for solids and bars, one "
+               "quadratic tet through thin curved walls), `f_max` = min(20 kHz, 0.45 fs), float32 state, "
+               "`cull_db=-100`, all modes "
                "(a `budget_modes` only for scenes with many objects).")
     return out
 
