@@ -2,15 +2,20 @@
 
 Any gymnasium environment built on MuJoCo (``env.unwrapped.model`` / ``env.unwrapped.data``)
 gets an ``"audio"`` entry in its observation: the sound the simulation made, computed from the
-contacts of *every* physics substep inside the env's ``frame_skip`` (the wrapper replaces
-``MujocoEnv._step_mujoco_simulation`` on the unwrapped instance with
-:meth:`mjsound.sim.AudioSimulator.substeps`: ``frame_skip`` single ``mj_step`` calls, each
-followed by reading its contacts, run in one numba call (:mod:`mjsound.sim.fused`), then
-``mj_rnePostConstraint`` as gymnasium does).
+contacts of *every* physics substep of an env step. The wrapper replaces the env's stepping
+method on the unwrapped instance with :meth:`mjsound.sim.AudioSimulator.substeps` (single
+``mj_step`` calls, each followed by reading its contacts, run in one numba call,
+:mod:`mjsound.sim.fused`): gymnasium's ``MujocoEnv._step_mujoco_simulation`` (``frame_skip``
+substeps, then ``mj_rnePostConstraint`` as gymnasium does) and gymnasium-robotics'
+``MujocoRobotEnv._mujoco_step`` (``n_substeps``). An env whose stepping it cannot find is
+refused at construction (``substeps="manual"`` lets you call :meth:`AudioObservation.on_substep`
+yourself). :class:`EnvAudio` is the part shared with the dm_control wrapper
+(:mod:`mjsound.dmc`).
 
-Works unmodified on gymnasium's own Ant-v5, Humanoid-v5, HalfCheetah-v5, Pusher-v5, ...: geoms
-with no acoustic material get ``default_material`` (aluminium unless told otherwise), so the
-robot's links ring like machined aluminium parts.
+Works unmodified on gymnasium's own Ant-v5, Humanoid-v5, HalfCheetah-v5, Pusher-v5, ... and on
+gymnasium-robotics' Fetch and Shadow-hand envs: geoms with no acoustic material get
+``default_material`` (aluminium unless told otherwise), so the robot's links ring like machined
+aluminium parts.
 
 Example
 -------
