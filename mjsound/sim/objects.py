@@ -307,16 +307,16 @@ def plan_object(model, members, sound_meshes, material, source, alone: bool = Fa
     named_body = body != 0 and mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)
     if len(members) == 1 and alone and named_body and not mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, anchor):
         name = bname
-    override = None
+    override = key_used = None
     for key in (geom_name(model, anchor), anchor, bname):
         if key in sound_meshes:
-            override = sound_meshes[key]
+            override, key_used = sound_meshes[key], key
             break
     if override is not None and body == 0:
         raise ValueError(f"sound mesh for {name!r}: the world body's geoms are separate objects; name the geom")
     mesh, label = object_surface(model, members, override)
     return {"name": name, "members": list(members), "material": material, "source": source, "mesh": mesh,
-            "label": label, "sound_mesh": override, "body": bname}
+            "label": label, "sound_mesh": override, "body": bname, "sound_key": key_used}
 
 
 def unique_names(plans) -> None:

@@ -53,7 +53,6 @@ from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, _analyze_with_fallb
                              _finite_or_none, _mode_cap,
                              _sphere_inaudible, _surface_notes, check_masses, warn_unheard)
 
-_custom_materials = custom_materials  # (older name, used by mjsound.wrappers)
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
 
@@ -240,10 +239,15 @@ class SoundScene:
             model = mujoco.MjModel.from_xml_path(os.fspath(model))
         scene = cls(model=model, budget_modes=budget_modes, sample_rate=int(sample_rate))
         materials = checked_mapping(model, materials, "materials", allow_star=True)
-        sound_meshes = {**custom_texts(model, "mjsound-mesh:"),
-                        **checked_mapping(model, sound_meshes, "sound_meshes", allow_star=False)}
+        sound_meshes = checked_mapping(model, {**custom_texts(model, "mjsound-mesh:"), **(sound_meshes or {})},
+                                       "sound_meshes", allow_star=False)
         models = dict(models or {})
         custom = custom_materials(model)
+        for key in custom:  # an MJCF text naming no geom (a typo) would silently do nothing
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, key) < 0:
+                named = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(model.ngeom)]
+                raise ValueError(f"MJCF custom text 'mjsound:{key}': no geom named {key!r}"
+                                 f"{close_names(key, [n for n in named if n])}")
         star = materials.pop("*", None)
 
         # ---------------------------------------------------------------- materials
@@ -301,6 +305,11 @@ class SoundScene:
                              alone=per_body[int(model.geom_bodyid[members[0]])] == 1)
                  for members in groups]
         unique_names(plans)
+        unused = set(sound_meshes) - {p["sound_key"] for p in plans}
+        if unused:
+            k = sorted(unused, key=str)[0]
+            raise ValueError(f"sound mesh for {k!r}: no sounding object is named so (the geom or body has no acoustic "
+                             f"material or cannot collide; see the keys of materials=){close_names(str(k), [p['name'] for p in plans])}")
         unknown = set(models) - {p["name"] for p in plans}
         if unknown:
             names = [p["name"] for p in plans]
