@@ -142,8 +142,9 @@ def test_sound_mesh_named_in_mjcf_or_python(recorded):
     with pytest.raises(ValueError, match="sound mesh for 'ball': no sounding object"):  # the ball has no material
         SoundScene.from_model(model, materials={"table": "steel"}, progress=False, sound_meshes={"ball": "look"})
     typo = table_model(custom='<text name="mjsound-mesh:tabel" data="look"/>')  # a typo in the MJCF
-    with pytest.raises(ValueError, match="closest: 'table'"):
-        SoundScene.from_model(typo, materials={"table": "steel"}, progress=False)
+    with pytest.warns(UserWarning, match="'mjsound-mesh:tabel' names nothing.*closest: 'table'"):
+        scene = SoundScene.from_model(typo, materials={"table": "steel"}, progress=False)
+    assert scene.sounding[0].mesh.startswith("union")  # (ignored)
 
 
 def test_material_keys_are_checked_and_every_form_works(recorded):
@@ -165,7 +166,7 @@ def test_material_keys_are_checked_and_every_form_works(recorded):
         SoundScene.from_model(model, materials={"*": "stele"}, progress=False)
     typo = mujoco.MjModel.from_xml_string(xml.replace("<worldbody>", '<custom><text name="mjsound:nmaed" '
                                                                       'data="steel"/></custom><worldbody>'))
-    with pytest.raises(ValueError, match="custom text 'mjsound:nmaed': no geom named 'nmaed'; closest: 'named'"):
+    with pytest.warns(UserWarning, match="custom text 'mjsound:nmaed' names nothing in this model.*closest: 'named'"):
         SoundScene.from_model(typo, progress=False)
     with pytest.raises(ValueError, match="models: no sounding object named 'nam'"):
         SoundScene.from_model(model, materials={"*": "oak"}, progress=False, models={"nam": stub_model()})

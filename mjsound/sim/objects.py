@@ -32,7 +32,7 @@ import os
 import numpy as np
 
 __all__ = ["group_objects", "object_surface", "geom_pose_in_body", "close_names", "solid_mode_count", "geom_name",
-           "geom_mesh_spec", "plan_object", "checked_mapping", "custom_texts"]
+           "geom_mesh_spec", "plan_object", "checked_mapping", "checked_names", "custom_texts"]
 
 
 def _mujoco():
@@ -253,16 +253,22 @@ def geom_mesh_spec(model, g: int):
     raise ValueError(f"geom {geom_name(model, g)!r}: type {t} has no mesh to analyse")
 
 
+def checked_names(model) -> set:
+    """Names a mapping may use: geom names and fallback names ``geom<ID>``, body names."""
+    mujoco = _mujoco()
+    valid = {geom_name(model, g) for g in range(model.ngeom)}
+    valid |= {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)}
+    valid.discard("")
+    return valid
+
+
 def checked_mapping(model, mapping, what: str, allow_star: bool) -> dict:
     """``mapping`` with every key checked against the model's geoms and bodies.
 
     Keys: geom names, fallback names ``geom<ID>``, geom ids (int), body names (and ``"*"``
     when ``allow_star``). An unknown key raises ``ValueError`` with the closest names."""
-    mujoco = _mujoco()
     mapping = dict(mapping or {})
-    valid = {geom_name(model, g) for g in range(model.ngeom)}
-    valid |= {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)}
-    valid.discard("")
+    valid = checked_names(model)
     if allow_star:
         valid.add("*")
     for key in mapping:

@@ -40,13 +40,14 @@ from __future__ import annotations
 
 import heapq
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..materials import Material, get_material, parse_material
 from ..modal.model import ModalModel
-from .objects import (checked_mapping, close_names, custom_materials, custom_texts, geom_mesh_spec, geom_name,
+from .objects import (checked_mapping, checked_names, close_names, custom_materials, custom_texts, geom_mesh_spec, geom_name,
                       group_objects, plan_object, unique_names)
 
 from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, _analyze_with_fallback,  # noqa: F401 (re-exported)
@@ -239,15 +240,13 @@ class SoundScene:
             model = mujoco.MjModel.from_xml_path(os.fspath(model))
         scene = cls(model=model, budget_modes=budget_modes, sample_rate=int(sample_rate))
         materials = checked_mapping(model, materials, "materials", allow_star=True)
-        sound_meshes = checked_mapping(model, {**custom_texts(model, "mjsound-mesh:"), **(sound_meshes or {})},
-                                       "sound_meshes", allow_star=False)
+        mesh_texts = custom_texts(model, "mjsound-mesh:")
+        _warn_unknown_texts(model, mesh_texts, "mjsound-mesh:", mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
+        mesh_texts = {k: v for k, v in mesh_texts.items() if k in checked_names(model)}
+        sound_meshes = {**mesh_texts, **checked_mapping(model, sound_meshes, "sound_meshes", allow_star=False)}
         models = dict(models or {})
         custom = custom_materials(model)
-        for key in custom:  # an MJCF text naming no geom (a typo) would silently do nothing
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, key) < 0:
-                named = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(model.ngeom)]
-                raise ValueError(f"MJCF custom text 'mjsound:{key}': no geom named {key!r}"
-                                 f"{close_names(key, [n for n in named if n])}")
+        _warn_unknown_texts(model, custom, "mjsound:", mujoco.mjtObj.mjOBJ_GEOM)
         star = materials.pop("*", None)
 
         # ---------------------------------------------------------------- materials
@@ -545,6 +544,20 @@ class SoundScene:
 
 
 # ---------------------------------------------------------------------- helpers
+def _warn_unknown_texts(model, texts: dict, prefix: str, *kinds) -> None:
+    """Warn about MJCF custom texts ``PREFIX + NAME`` whose NAME is no object of ``kinds`` (a typo
+    would do nothing; a text for a geom that a templated scene left out is harmless, so a warning,
+    not an error)."""
+    mujoco = _mujoco()
+    for key in texts:
+        if all(mujoco.mj_name2id(model, kind, key) < 0 for kind in kinds):
+            names = [mujoco.mj_id2name(model, kind, i) for kind in kinds
+                     for i in range({mujoco.mjtObj.mjOBJ_GEOM: model.ngeom, mujoco.mjtObj.mjOBJ_BODY: model.nbody}[kind])]
+            warnings.warn(f"mjsound: MJCF custom text '{prefix}{key}' names nothing in this model (it is ignored)"
+                          f"{close_names(key, [n for n in names if n])}", UserWarning, stacklevel=4)
+
+
+
 def geom_contact_radius(model, g: int) -> float:
     """Radius of curvature for Hertz contact [m] (inf for planes and flat boxes)."""
     mujoco = _mujoco()
