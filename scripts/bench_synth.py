@@ -58,8 +58,8 @@ def bare_kernel(dtype, n_modes=1000, n=FS):
     wr = rng.normal(size=n_modes).astype(dt)
     wi = rng.normal(size=n_modes).astype(dt)
     out = np.zeros(n, dt)
-    kernels.bank_free(wr, wi, pr, pi, n_modes, out, 0, 16, dt.type(0))
-    return best(lambda: kernels.bank_free(wr, wi, pr, pi, n_modes, out, 0, n, dt.type(0))) / (n * n_modes) * 1e9
+    kernels.bank_free((wr, wi, pr, pi), n_modes, out, 0, 16, dt.type(0))
+    return best(lambda: kernels.bank_free((wr, wi, pr, pi), n_modes, out, 0, n, dt.type(0))) / (n * n_modes) * 1e9
 
 
 def synth_dense(dtype, n_modes=1000, seconds=1.0):

@@ -404,7 +404,8 @@ def test_deferred_rendering_of_sliding_stays_close():
 def test_reader_pair_table_grows_and_keeps_every_pair():
     """The reader's pair -> slot table (open addressing, rehashed on growth) maps thousands
     of pairs to distinct, stable slots."""
-    from mjsound.sim.contacts import _rehash, _slot_of
+    from mjsound.sim.pairs import rehash as _rehash
+    from mjsound.sim.pairs import slot_of as _slot_of
 
     rng = np.random.default_rng(0)
     keys = rng.choice(10**9, size=3000, replace=False).astype(np.int64)
@@ -471,41 +472,41 @@ def test_follow_rejects_bad_arguments():
 
 
 def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
-    """A pair struck again while its impact record is still open: the state kernel banks the
+    """A pair struck again while its impact record is still open: the state machine banks the
     old record's sum F dt, steps and end so the reader can close it with its own values."""
-    from mjsound.sim import contacts as C
+    from mjsound.sim.contacts import ImpactRecord
+    from mjsound.sim.impulses import write_records
+    from mjsound.sim.pairs import update_pairs
 
     model = mujoco.MjModel.from_xml_string(drop_xml())
     reader = ContactReader(model)
-    reader._room(1)
     key = np.array([1], np.int64)
     zeros = np.zeros(1)
 
     def step(k, vmax, f):
-        t0, t1 = 0.01 * (k - 1), 0.01 * k
-        out = C._state_kernel(key, np.array([vmax]), np.array([f]), zeros, zeros, reader._hkeys, reader._hvals,
-                              reader._SF, reader._SI, reader._nslots, t0, t1, 0.01, k, reader._params)
-        reader._nslots = out[4]
-        return bool(out[1][0]), int(out[0][0])
+        reader.counts[0]["step"] = k
+        slot, onset, kind, speed = update_pairs(reader.state(), key, np.array([vmax]), np.array([f]), zeros, zeros,
+                                                0.01 * (k - 1), 0.01 * k)
+        return bool(onset[0]), int(slot[0])
 
     onset, j = step(1, 1.0, 100.0)  # impact
     assert onset
     assert not step(2, 0.5, 50.0)[0]  # still moving: the record stays open
     onset, _ = step(3, 5.0, 300.0)  # sharp rise after the refractory time: a new impact
-    assert onset and reader._SI[C.SI_OPEN, j] == 1
-    assert reader._SF[C.SF_PRIMP, j] == pytest.approx((100.0 + 50.0) * 0.01)
-    assert reader._SI[C.SI_PRSTEPS, j] == 2
-    assert reader._SF[C.SF_PREND, j] == pytest.approx(0.02)
-    assert reader._SF[C.SF_RIMP, j] == pytest.approx(300.0 * 0.01)  # the new record's own sum
-    old = C.ImpactRecord(time=0.0, geom1=0, geom2=1, speed=1.0, impulse_pred=1.5, impulse_sim=0.0,
-                         restitution=0.5, effective_mass=1.0)
+    pair = reader.state().pairs[j]
+    assert onset and pair["open"] == 1
+    assert pair["prev_impulse"] == pytest.approx((100.0 + 50.0) * 0.01)
+    assert pair["prev_steps"] == 2
+    assert pair["prev_end"] == pytest.approx(0.02)
+    assert pair["rec_impulse"] == pytest.approx(300.0 * 0.01)  # the new record's own sum
+    old = ImpactRecord(time=0.0, geom1=0, geom2=1, speed=1.0, impulse_pred=1.5, impulse_sim=0.0,
+                       restitution=0.5, effective_mass=1.0)
     reader._open[j] = old
-    hits = np.zeros((1, C.H_COLS))
-    hits[0, C.H_G2] = 1
-    row = np.empty((1, C.REC_COLS))
-    C._record_rows(hits, np.array([0, 1]), np.array([j]), np.array([[0.5, 5.0, 3.0, 0.0]]), 0.02, reader._SF,
-                   reader._SI, row)
-    reader.add_records(row)
+    buf = reader.buffers
+    buf.hits[0]["g1"], buf.hits[0]["g2"] = 0, 1
+    buf.onsets[0]["slot"], buf.onsets[0]["first"], buf.onsets[1]["first"] = j, 0, 1
+    write_records(reader.state(), buf, 1, np.array([[0.5, 5.0, 3.0, 0.0]]), 0.02)
+    reader.take_records()
     assert not old.open and old.steps == 2
     assert old.impulse_sim == pytest.approx(1.5) and old.duration == pytest.approx(0.02)
     new = reader._open[j]
@@ -527,9 +528,10 @@ def test_impact_records_read_lazily_equal_records_read_every_step():
 
 
 def test_normal_jacobians_equal_mujoco_mj_jac():
-    """The numba contact Jacobians (_normal_jacobians) against mj_jac on a tree with free, ball,
+    """The numba contact Jacobians (normal_jacobians) against mj_jac on a tree with free, ball,
     hinge and slide joints and a welded (dof-less) child body."""
-    from mjsound.sim.contacts import H_COLS, H_G1, H_G2, H_NORMAL, H_POINT, _normal_jacobians
+    from mjsound.sim.impulses import normal_jacobians
+    from mjsound.sim.records import HIT
 
     xml = """
 <mujoco><worldbody>
@@ -557,13 +559,10 @@ def test_normal_jacobians_equal_mujoco_mj_jac():
     pos = rng.normal(size=(k, 3))
     nrm = rng.normal(size=(k, 3))
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    kin = tuple(np.asarray(a, np.int64) for a in (m.body_dofnum, m.body_dofadr, m.body_parentid, m.body_rootid,
-                                                  m.dof_parentid))
-    hits = np.zeros((k, H_COLS))
-    hits[:, H_G1:H_G2 + 1] = geom
-    hits[:, H_POINT:H_POINT + 3] = pos
-    hits[:, H_NORMAL:H_NORMAL + 3] = nrm
-    Jn = _normal_jacobians(hits, d.cdof, d.subtree_com, np.asarray(m.geom_bodyid, np.int64), *kin, m.nv)
+    hits = np.zeros(k, HIT)
+    hits["g1"], hits["g2"], hits["point"], hits["normal"] = geom[:, 0], geom[:, 1], pos, nrm
+    Jn = np.full((k, m.nv), np.nan)
+    normal_jacobians(ContactReader(m).state(), hits, k, d.cdof, d.subtree_com, Jn)
     ref = np.zeros((k, m.nv))
     J = np.zeros((3, m.nv))
     for r in range(k):
@@ -576,31 +575,39 @@ def test_normal_jacobians_equal_mujoco_mj_jac():
     np.testing.assert_allclose(Jn, ref, rtol=0, atol=1e-12)
 
 
-def test_reader_events_objects_match_the_fast_rows():
-    """ContactReader.events (objects) and events_fast (rows) give the same impacts and
-    sustained contacts on a bouncing, then rolling ball."""
-    from mjsound.sim.contacts import I_G1, I_G2, I_IMPULSE, I_SPEED, R_KIND, R_SPEED
-
-    model = mujoco.MjModel.from_xml_string(drop_xml(h=0.2))
-    data = mujoco.MjData(model)
+def test_reader_events_objects_match_the_rows_and_the_simulator():
+    """ContactReader.events (objects, a view) shows what events_fast returns, and a reader on
+    its own finds the same impacts and sustained contacts as a sounding AudioSimulator's step
+    kernel (event log) on a bouncing, then rolling ball."""
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=0.2), models)
     data.qvel[0] = 0.3  # rolls after the bounces
-    slow, fast = ContactReader(model), ContactReader(model)
+    slow, fast = (ContactReader(model, restitution=sim.reader.restitution) for _ in range(2))
     n_imp = n_sus = 0
+    seen = []
     for _ in range(1200):
         mujoco.mj_step(model, data)
+        sim.step(render=False)
+        t0 = data.time - model.opt.timestep
         imps, cons, _ = slow.events(data)
-        rows_i, rows_s = fast.events_fast(data, data.time - model.opt.timestep, data.time)
-        got = [] if rows_i is None else rows_i.tolist()
-        assert [(e.geom1, e.geom2) for e in imps] == [(int(r[I_G1]), int(r[I_G2])) for r in got]
-        np.testing.assert_allclose([e.impulse for e in imps], [r[I_IMPULSE] for r in got], rtol=1e-12)
-        np.testing.assert_allclose([e.speed for e in imps], [r[I_SPEED] for r in got], rtol=1e-12)
-        sus = [] if rows_s is None else rows_s.tolist()
-        assert [c.kind for c in cons] == ["slide" if r[R_KIND] == 1 else "roll" for r in sus]
-        np.testing.assert_allclose([c.speed for c in cons], [r[R_SPEED] for r in sus], rtol=1e-12)
+        rows_i, rows_s = fast.events_fast(data, t0, data.time)
+        got = [] if rows_i is None else rows_i
+        assert [(e.geom1, e.geom2) for e in imps] == [(int(r["g1"]), int(r["g2"])) for r in got]
+        np.testing.assert_array_equal([e.impulse for e in imps], [r["impulse"] for r in got])
+        np.testing.assert_array_equal([e.speed for e in imps], [r["speed"] for r in got])
+        sus = [] if rows_s is None else rows_s
+        assert [c.kind for c in cons] == ["slide" if r["kind"] == 1 else "roll" for r in sus]
+        np.testing.assert_array_equal([c.speed for c in cons], [r["speed"] for r in sus])
+        seen += [(pytest.approx(t0, abs=1e-12), "impact", e.geom1, e.geom2, e.impulse) for e in imps]
+        seen += [(pytest.approx(t0, abs=1e-12), c.kind, c.geom1, c.geom2, c.speed) for c in cons]
         n_imp += len(imps)
         n_sus += len(cons)
     assert n_imp >= 2 and n_sus > 100
+    assert sim.event_log == seen
     assert [(r.time, r.impulse_sim) for r in slow.impacts] == [(r.time, r.impulse_sim) for r in fast.impacts]
+    # (the simulator's step times come from its exact clock, the reader's from data.time - dt)
+    assert [(pytest.approx(r.time, abs=1e-12), pytest.approx(r.impulse_sim, rel=1e-9)) for r in slow.impacts] == [
+        (r.time, r.impulse_sim) for r in sim.impacts]
 
 
 def test_a_contact_that_slides_then_rolls_keeps_one_stream():
@@ -610,7 +617,7 @@ def test_a_contact_that_slides_then_rolls_keeps_one_stream():
     audio = sim.run(1.5)
     ev = sim.events
     assert ev["slide"] > 0 and ev["roll"] > 0, ev
-    assert list(sim.synth._st_keys) == [(0, 1, 1)]  # (floor, ball, struck geom): one stream
+    assert sim.synth.n_streams == 1  # (floor, ball, struck geom): one stream
     assert np.isfinite(audio).all() and np.abs(audio).max() > 0
 
 
@@ -627,3 +634,42 @@ def test_reader_keeps_the_last_keep_records_impacts():
     assert full.n_impacts >= 3 and short.n_impacts == full.n_impacts
     key = [(r.time, r.impulse_pred, r.impulse_sim, r.open) for r in full.impacts]
     assert [(r.time, r.impulse_pred, r.impulse_sim, r.open) for r in short.impacts] == key[-2:]
+
+
+@pytest.mark.parametrize("path", ["step", "substeps"])
+def test_an_external_reset_clears_the_ringing(path):
+    """``data.time`` going backwards (an environment reset the simulator was not told about):
+    the simulator resets itself, so what follows sounds exactly like a fresh simulator from
+    that state, and the samples counted before the reset still come out first."""
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=0.1), models)
+
+    def play(m, d, s, n):
+        if path == "substeps":
+            s.substeps(n)
+        else:
+            for _ in range(n):
+                mujoco.mj_step(m, d)
+                s.step(render=False)
+        return s.flush()
+
+    before = play(model, data, sim, 400)  # the ball hit the floor: it rings
+    assert sim.n_impacts >= 1 and np.abs(before[:, -100:]).max() > 0
+    held = play(model, data, sim, 10)[:, :0]  # (nothing held yet)
+    pending = sim.clock.n
+    if path == "substeps":
+        sim.substeps(7)
+    else:
+        for _ in range(7):
+            mujoco.mj_step(model, data)
+            sim.step(render=False)
+    n_pending = sim.clock.n - pending
+    mujoco.mj_resetData(model, data)  # back to t = 0, behind the simulator's back
+    data.qpos[2] += 0.05  # (a different start: the ball falls from 0.15 m)
+    ref_model, ref_data, ref = make_sim(drop_xml(h=0.1), models)
+    ref_data.qpos[:] = data.qpos
+    after = play(model, data, sim, 500)
+    expect = play(ref_model, ref_data, ref, 500)
+    assert held.shape[1] == 0 and after.shape[1] == n_pending + expect.shape[1]
+    np.testing.assert_array_equal(after[:, n_pending:], expect)
+    assert sim.n_impacts == ref.n_impacts >= 1 and sim.clock.k == ref.clock.k == 500

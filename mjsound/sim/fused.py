@@ -1,13 +1,11 @@
-r"""Several physics substeps in one numba call: ``mj_step`` called from numba, each followed
-by the reader's and the drive's kernels (:func:`.drive.read_and_drive`) and, where impacts
-start, their impulses and synthesizer events (:func:`_impact_events`).
+r"""MuJoCo reached from numba: ``mj_step`` / ``mj_solveM`` through their C addresses and the
+step's contacts read from the ``mjData`` struct, so that the step kernel (:mod:`.step`) can
+run several physics substeps in one numba call.
 
 Why: a gymnasium MuJoCo env steps ``frame_skip`` times per ``env.step``, and the sound must
 read the contacts of every substep. Done from Python, each substep costs a Python loop turn,
 the bindings' ``mj_step``, the contact views (``data.contact.geom`` ... are new numpy arrays on
-every access) and one numba dispatch with ~40 arguments: about 25..30 us per substep on the
-2-core machine of ``scripts/bench_env.py``, next to the ~50 us of an Ant-v5 ``mj_step``.
-Here one numba call runs all substeps of an env step.
+every access) and a numba dispatch; here one numba call runs all substeps of an env step.
 
 How:
 
@@ -21,21 +19,16 @@ How:
   follow from MuJoCo's own description of its structs (``mujoco.introspect``) with C's
   alignment rules (:func:`struct_layout`), and :func:`mjdata_layout` checks every offset against
   the bindings' views of a live ``MjData`` with contacts before anything uses them. If any
-  differs (a MuJoCo build whose struct differs from its description) the layout is None and
-  :class:`mjsound.sim.AudioSimulator` keeps its per-substep Python path.
-* Impact records are written as rows (``ContactReader.add_records`` makes the objects after
-  the call), and sliding / rolling rows for the event log likewise.
-* A substep that needs Python stops the loop and is finished there: a sliding pair without a
-  stream yet, a Hertz coefficient not known yet, a ring buffer too short, clamped forces (a
-  warning), buffers too small, a clock that no longer matches ``data.time``, impacts while the
-  event log fills. :func:`run_substeps` returns which substep and why.
+  differs (a MuJoCo build whose struct differs from its description) the layout is None,
+  :func:`mj_link` says so (``layout_ok`` 0) and Python copies each step's contacts in and
+  calls ``mj_step`` itself (the same kernel then runs one substep per call).
 
 Limitation: an ``mju_error`` inside ``mj_step`` (MuJoCo's fatal errors) cannot become a Python
 exception through numba and ends the process; the bindings' path raises
 ``mujoco.FatalError`` instead. A full arena (too many contacts or constraints) is a MuJoCo
 warning, not an error: checked with a 6 KB arena and six boxes, which step on with warnings.
 ``AudioSimulator(fused=False)`` (or the environment variable ``MJSOUND_FUSED=0``) keeps every
-substep in Python.
+``mj_step`` and contact read in Python.
 """
 
 from __future__ import annotations
@@ -50,20 +43,13 @@ from llvmlite import ir
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
-from ..synth.synthesizer import MAX_AMPLITUDE
-from .contacts import I_COLS, SI_OPEN, _impulses_grouped, _normal_jacobians, _record_rows
-from .drive import follow_rows, impacts_to_synth, pose_rows, read_and_drive
+from .records import MJ
 
-__all__ = ["DONE", "PYTHON_AFTER", "PYTHON_DRIVE", "PYTHON_STEP", "mj_function_address", "mjdata_layout", "run_substeps",
-           "struct_layout"]
+__all__ = ["mj_function_address", "mjdata_layout", "mj_link", "struct_layout", "gather_contacts", "data_ncon",
+           "data_time", "data_efc_force", "mj_step_now", "mj_solve_now"]
 
-#: :func:`run_substeps` codes: every substep done; substep ``i`` stepped but not read (Python
-#: reads it: ``AudioSimulator.step``); substep ``i`` read, Python makes its impacts and the
-#: rest; substep ``i`` read and its impacts made, Python queues what could not be queued
-#: here (returned) and drives the pairs without a stream
-DONE, PYTHON_STEP, PYTHON_AFTER, PYTHON_DRIVE = 0, 1, 2, 3
-
-# layout vector L: mjData offsets, then mjContact's size and field offsets [bytes]
+# the offsets vector of mjdata_layout (checked there; mj_link names them in an MJ record):
+# mjData offsets, then mjContact's size and field offsets [bytes]
 L_NCON, L_NEFC, L_TIME, L_CONTACT, L_EFC_FORCE, L_CSIZE, L_CPOS, L_CFRAME, L_CGEOM, L_CDIM, L_CEFCADR = range(11)
 _DATA_FIELDS = ("ncon", "nefc", "time", "contact", "efc_force")
 _CONTACT_FIELDS = ("pos", "frame", "geom", "dim", "efc_address")
@@ -229,191 +215,85 @@ _u64_at = _pointer_cast(types.uint64)
 
 
 @njit(cache=True)
-def _gather_contacts(cp, ncon, L, geom, pos, frame, adr, dim):
-    """Copy the fields the reader needs of ``ncon`` contacts at address ``cp`` (mjContact
-    array) into contiguous buffers."""
-    size = L[L_CSIZE]
+def gather_contacts(mj, buf, ncon):
+    """Copy the fields the reader needs of the mjData's first ``ncon`` contacts (read from
+    the struct at ``mj.data`` with the offsets of :func:`mj_link`) into the buffers ``buf``."""
+    L = mj[0]
+    cp = carray(_u64_at(L.data + L.contact), 1)[0]
+    size = L.contact_size
     f = carray(_f64_at(cp), (ncon * size) // 8)
     i = carray(_i32_at(cp), (ncon * size) // 4)
+    geom, pos, frame, adr, dim = buf.geom, buf.pos, buf.frame, buf.efc_address, buf.dim
     for c in range(ncon):
-        of = (c * size + L[L_CPOS]) // 8
+        of = (c * size + L.c_pos) // 8
         for j in range(3):
             pos[c, j] = f[of + j]
-        of = (c * size + L[L_CFRAME]) // 8
+        of = (c * size + L.c_frame) // 8
         for j in range(9):
             frame[c, j] = f[of + j]
-        oi = (c * size + L[L_CGEOM]) // 4
+        oi = (c * size + L.c_geom) // 4
         geom[c, 0] = i[oi]
         geom[c, 1] = i[oi + 1]
-        dim[c] = i[(c * size + L[L_CDIM]) // 4]
-        adr[c] = i[(c * size + L[L_CEFCADR]) // 4]
+        dim[c] = i[(c * size + L.c_dim) // 4]
+        adr[c] = i[(c * size + L.c_efc_address) // 4]
 
 
 @njit(cache=True)
-def _sync_poses(mic_mode, mic_src, mic_rows, mic_off, mics, gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR):
-    """``AudioSimulator._sync_poses`` in numba: the microphones (``AudioSimulator._mic_args``)
-    and the moving objects' poses to where they are now."""
-    if mic_mode:
-        follow_rows(mic_src, mic_rows, mic_off, mics)
-    if dyn_idx.shape[0]:
-        pose_rows(gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
+def data_ncon(mj):
+    """``mjData.ncon`` read from the struct."""
+    L = mj[0]
+    return carray(_i32_at(L.data + L.ncon), 1)[0]
 
 
 @njit(cache=True)
-def _impact_events(fn_solve, mp, dp, hits, starts, slots, t0, n0, kin, nv, cdof, scom, gbody, e_geom, tree_mass,
-                   root_mass, jmax, CF, CI, rec, st, origin, fsi, mic_mode, mic_src, mic_rows, mic_off, mics, gxpos,
-                   gxmat, dyn_geoms, dyn_idx, ppos, pR, geom_obj, coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim,
-                   qs):
-    """A substep's impact events, as ``ContactReader._impacts`` and
-    ``AudioSimulator._queue_impacts`` make them: impulses from one ``mj_solveM``, a record row
-    each (``rec``, taken by :meth:`ContactReader.add_records` after the call), poses and
-    microphones synced, the sounding sides queued (``qs``: the queue's count, pool used, next
-    sample). Returns the impacts (columns ``I_*``) and whether they were queued (not when a
-    Hertz coefficient is still unknown or an amplitude is out of range: Python does it)."""
-    k = hits.shape[0]
-    Jn = _normal_jacobians(hits, cdof, scom, gbody, kin[0], kin[1], kin[2], kin[3], kin[4], nv)
-    MinvJt = np.empty((k, nv))
-    if nv > 0 and k > 0:
-        _call_solve(fn_solve, mp, dp, MinvJt.ctypes.data, Jn.ctypes.data, k)
-    lam, stats, imp = _impulses_grouped(hits, Jn, MinvJt, starts, e_geom, tree_mass, root_mass, gbody, jmax)
-    q = stats.shape[0]
-    _record_rows(hits, starts, slots, stats, t0, CF, CI, rec[st[3]:st[3] + q])
-    st[3] += q
-    st[1] = 1  # an impact is open
-    _sync_poses(mic_mode, mic_src, mic_rows, mic_off, mics, gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
-    t_ev = max(t0 - origin / fsi, (n0 - origin) / fsi)
-    pts, pts_off, shk, shk_off, mode_off, wd, w, lam_m, leps = gain_data
-    c, fs, rmin, tol, rendered, grid = pts_c
-    count, used, nxt, amax, missing = impacts_to_synth(imp, geom_obj, coef_row, coef, t_ev, pts, pts_off, shk,
-                                                       shk_off, mode_off, wd, w, lam_m, leps, ppos, pR, mics, c, fs,
-                                                       rmin, tol, rendered, grid, QI, qkind, qre, qim, qs[0], qs[1])
-    if missing.shape[0] or not amax <= MAX_AMPLITUDE:
-        return imp, False
-    qs[0], qs[1] = count, used
-    qs[2] = min(qs[2], nxt)
-    st[4] += imp.shape[0]
-    return imp, True
+def data_time(mj):
+    """``mjData.time`` read from the struct [s]."""
+    L = mj[0]
+    return carray(_f64_at(L.data + L.time), 1)[0]
 
 
 @njit(cache=True)
-def run_substeps(fn_step, mp, dp, L, nstep, clk, clf, st, want_log,
-                 pyramidal, cvel, scom, gxpos, gbody, broot, plane, ngeom, hkeys, hvals, CF, CI, prm, counts,
-                 rows, srows, hits, onsets,
-                 sidx, geom_obj, rough, length, fs, regain, rendered, slack, SF, SI, D, ring, missing,
-                 geom, pos, frame, adr, dim,
-                 fn_solve, kin, nv, cdof, e_geom, tree_mass, root_mass, jmax, rec,
-                 mic_mode, mic_src, mic_rows, mic_off, mics, gxmat, dyn_geoms, dyn_idx, ppos, pR,
-                 coef_row, coef, gain_data, pts_c, QI, qkind, qre, qim, qs, q_room, log_rows, log_t):
-    """``mj_step`` then read, drive and make the impacts, ``nstep`` times, until a substep
-    needs Python.
+def data_efc_force(mj):
+    """``mjData.efc_force`` (nefc,) read from the struct (a view of MuJoCo's array)."""
+    L = mj[0]
+    nefc = carray(_i32_at(L.data + L.nefc), 1)[0]
+    return carray(_f64_at(carray(_u64_at(L.data + L.efc_force), 1)[0]), max(nefc, 0))
 
-    Parameters
-    ----------
-    fn_step, mp, dp : int
-        Address of ``mj_step``, of the ``mjModel`` and the ``mjData``.
-    L : (11,) int64
-        :func:`mjdata_layout`.
-    clk : (6,) int64
-        The sample clock (``SampleClock``): ``a0, b, den, fs`` (step ``k`` starts at
-        ``(a0 + k b) / den`` seconds, its first sample is ``ceil((a0 + k b) fs / den)``), the
-        step count ``k`` before the first substep, and the synthesizer's origin sample.
-    clf : (2,) float
-        ``t_start, timestep`` [s] (``data.time`` must stay within a quarter step of the count).
-    st : (6,) int64, updated
-        The reader's ``nslots``, ``any_open`` (0/1) and step counter; record rows written to
-        ``rec``; impacts queued; sustained rows logged.
-    want_log : bool
-        The event log is not full: each substep's sustained rows are copied to ``log_rows``
-        (with their time in ``log_t``) for ``AudioSimulator.event_log``, and substeps with
-        impacts are finished in Python (which logs those).
-    pyramidal ... onsets
-        The reader's arguments of ``contacts._fused_kernel`` (its state and buffers).
-    sidx ... missing
-        The drive's arguments of :func:`.drive.drive_rows`.
-    geom, pos, frame, adr, dim : buffers of at least ``len(rows)`` contacts
-    fn_solve ... rec
-        For impacts: the address of ``mj_solveM``, the reader's kinematic tree and masses
-        (``ContactReader._impacts``), the record rows buffer (``REC_COLS`` wide).
-    mic_mode ... pR
-        ``AudioSimulator._sync_poses``: microphones (mode 0: fixed, 1: ``follow_rows`` of
-        ``mic_src``) and the moving objects' poses.
-    coef_row ... q_room
-        ``AudioSimulator._queue_impacts``: Hertz coefficients, the synthesizer's gain data
-        (9 arrays) and constants (6), its event queue arrays, ``qs`` (count, pool used, next
-        sample; updated) and ``q_room`` (rows and pool entries per impacting contact).
-    log_rows, log_t : (cap, R_COLS), (cap,) float
-        Buffers for the logged sustained rows (a substep that does not fit goes to Python).
 
-    Returns
-    -------
-    i : int
-        Substeps finished here (``i < nstep``: substep ``i`` was stepped and needs Python;
-        ``i == nstep``: the poses and microphones are synced to the last one).
-    code : int
-        :data:`DONE`, :data:`PYTHON_STEP` (read it from the start), :data:`PYTHON_AFTER`
-        (read here; make its impacts and the rest) or :data:`PYTHON_DRIVE` (its impacts
-        made here; queue ``imp`` if not empty, drive the pairs without a stream).
-    out : tuple of 9 ints
-        :func:`.drive.read_and_drive`'s outputs of substep ``i``.
-    imp : (k, I_COLS) float
-        Substep ``i``'s impacts that Python must queue (:data:`PYTHON_DRIVE`).
-    """
-    a0, b, den, fsi, k_start, origin = clk[0], clk[1], clk[2], clk[3], clk[4], clk[5]
-    t_start, dt = clf[0], clf[1]
-    none = (0, 0, 0, 0, 0, 0, 0, 0, 0)
-    no_imp = np.empty((0, I_COLS))
-    cap = min(rows.shape[0], geom.shape[0])
-    for i in range(nstep):
-        _call2(fn_step, mp, dp)
-        k = k_start + i + 1
-        if abs(carray(_f64_at(dp + L[L_TIME]), 1)[0] - (t_start + k * dt)) > 0.25 * dt:
-            return i, PYTHON_STEP, none, no_imp  # data.time jumped: the clock re-anchors in Python
-        ncon = carray(_i32_at(dp + L[L_NCON]), 1)[0]
-        if ncon == 0:
-            st[2] += 1
-            if st[1]:  # an open impact closes: nothing touches
-                for j in range(st[0]):
-                    CI[SI_OPEN, j] = 0
-                st[1] = 0
-            continue
-        if ncon > cap or st[0] + ncon > CF.shape[1]:
-            return i, PYTHON_STEP, none, no_imp  # buffers grow in Python
-        _gather_contacts(carray(_u64_at(dp + L[L_CONTACT]), 1)[0], ncon, L, geom, pos, frame, adr, dim)
-        nefc = carray(_i32_at(dp + L[L_NEFC]), 1)[0]
-        efc = carray(_f64_at(carray(_u64_at(dp + L[L_EFC_FORCE]), 1)[0]), max(nefc, 0))
-        st[2] += 1
-        num0 = (a0 + (k - 1) * b)
-        num1 = num0 + b
-        n0 = -((-num0 * fsi) // den)
-        n1 = -((-num1 * fsi) // den)
-        t0 = num0 / den
-        out = read_and_drive(geom[:ncon], pos[:ncon], frame[:ncon], adr[:ncon], dim[:ncon], efc, pyramidal, cvel,
-                             scom, gxpos, gbody, broot, plane, ngeom, hkeys, hvals, CF, CI, st[0], t0, num1 / den,
-                             st[2], prm, counts, rows, srows, hits, onsets,
-                             sidx, geom_obj, rough, length, fs, n0 - origin, n1 - origin, regain, rendered, slack,
-                             SF, SI, D, ring, missing)
-        st[0] = out[6]
-        ns, nh, n_onset = out[1], out[2], out[5]
-        if out[3] or out[4] or (want_log and (n_onset or st[5] + ns > log_rows.shape[0])):
-            return i, PYTHON_AFTER, out, no_imp  # clamped forces (a warning), or the event log
-        if want_log:
-            for j in range(ns):
-                log_rows[st[5] + j] = srows[j]
-                log_t[st[5] + j] = t0
-            st[5] += ns
-        queued = True
-        imp = no_imp
-        if n_onset:
-            if (st[3] + n_onset > rec.shape[0] or qs[0] + q_room[0] * nh > QI.shape[1]
-                    or qs[1] + q_room[1] * nh > qre.shape[0]):
-                return i, PYTHON_AFTER, out, no_imp  # (buffers grow in Python)
-            imp, queued = _impact_events(fn_solve, mp, dp, hits[:nh], onsets[:n_onset + 1, 1], onsets[:n_onset, 0],
-                                         t0, n0, kin, nv, cdof, scom, gbody, e_geom, tree_mass, root_mass, jmax, CF,
-                                         CI, rec, st, origin, fsi, mic_mode, mic_src, mic_rows, mic_off, mics, gxpos,
-                                         gxmat, dyn_geoms, dyn_idx, ppos, pR, geom_obj, coef_row, coef, gain_data,
-                                         pts_c, QI, qkind, qre, qim, qs)
-        if not queued or out[7] or out[8]:
-            return i, PYTHON_DRIVE, out, (no_imp if queued else imp)
-    # poses and microphones current for the render's stream gains (Synthesizer.poses_current)
-    _sync_poses(mic_mode, mic_src, mic_rows, mic_off, mics, gxpos, gxmat, dyn_geoms, dyn_idx, ppos, pR)
-    return nstep, DONE, none, no_imp
+@njit(cache=True)
+def mj_step_now(mj):
+    """``mj_step(model, data)`` through its C address."""
+    L = mj[0]
+    _call2(L.step_fn, L.model, L.data)
+
+
+@njit(cache=True)
+def mj_solve_now(mj, x, y, n):
+    """``mj_solveM(model, data, x, y, n)``: ``x = M^-1 y`` for ``n`` rows (C-contiguous
+    (n, nv) float64 arrays), through its C address."""
+    L = mj[0]
+    _call_solve(L.solve_fn, L.model, L.data, x.ctypes.data, y.ctypes.data, n)
+
+
+def mj_link(model, data, use_c: bool = True) -> np.ndarray:
+    """The :data:`.records.MJ` record of ``model`` / ``data``: C addresses (0 where not
+    available or ``use_c`` is False) and the struct offsets (``layout_ok`` 0 when they could
+    not be checked: Python then copies the contacts in and steps)."""
+    rec = np.zeros(1, MJ)
+    r = rec[0]
+    r["model"], r["data"] = model._address, data._address
+    if not use_c:
+        return rec
+    try:
+        r["step_fn"], r["solve_fn"] = mj_function_address("mj_step"), mj_function_address("mj_solveM")
+    except (OSError, TypeError, KeyError, AttributeError):
+        return rec
+    L = mjdata_layout()
+    if L is not None:
+        for name, i in (("ncon", L_NCON), ("nefc", L_NEFC), ("time", L_TIME), ("contact", L_CONTACT),
+                        ("efc_force", L_EFC_FORCE), ("contact_size", L_CSIZE), ("c_pos", L_CPOS),
+                        ("c_frame", L_CFRAME), ("c_geom", L_CGEOM), ("c_dim", L_CDIM),
+                        ("c_efc_address", L_CEFCADR)):
+            r[name] = L[i]
+        r["layout_ok"] = 1
+    return rec

@@ -14,13 +14,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .records import EVENT, QUEUE, EventRows, QueueState
+
 __all__ = ["EventQueue"]
 
 NONE = 2**62  # "no pending event" sample
 
 
 class EventQueue:
-    """Growable flat store of pending events (see the module docstring).
+    """Growable flat store of pending events (see the module docstring): a table of
+    :data:`.records.EVENT` rows, an amplitude pool and the :data:`.records.QUEUE` counters
+    (:attr:`state`: what numba kernels append to).
 
     Example
     -------
@@ -31,36 +35,57 @@ class EventQueue:
     """
 
     def __init__(self, capacity: int = 64):
-        self.count = 0
-        self.pool_used = 0
-        self.next_sample = NONE
+        self.counts = np.zeros(1, QUEUE)
+        self.counts[0]["next_sample"] = NONE
+        self.state = None
         self._alloc(int(capacity), 16 * int(capacity))
+
+    @property
+    def count(self) -> int:
+        """Events waiting."""
+        return int(self.counts[0]["count"])
+
+    @property
+    def pool_used(self) -> int:
+        """Pool entries in use."""
+        return int(self.counts[0]["pool_used"])
+
+    @property
+    def next_sample(self) -> int:
+        """Earliest pending sample (:data:`NONE` when empty)."""
+        return int(self.counts[0]["next_sample"])
 
     def _alloc(self, rows: int, pool: int) -> None:
         """Room for ``rows`` events and ``pool`` amplitudes (the queued ones kept)."""
         k, u = self.count, self.pool_used
-        I, kind = np.zeros((5, rows), np.int64), np.zeros(rows, np.int8)  # I: object, mic, sample, offset, width
+        events = np.zeros(rows, EVENT)
         re, im = np.zeros(pool), np.zeros(pool)
         if k:
-            I[:, :k] = self.I[:, :k]
-            kind[:k] = self.kind[:k]
+            events[:k] = self.events[:k]
             re[:u] = self.re[:u]
             im[:u] = self.im[:u]
-        self.I, self.kind, self.re, self.im = I, kind, re, im
+        self.events, self.re, self.im = events, re, im
+        self.state = QueueState(events, re, im, self.counts)
 
     def __len__(self) -> int:
         return self.count
 
     def clear(self) -> None:
-        self.count = 0
-        self.pool_used = 0
-        self.next_sample = NONE
+        self._set(0, 0, NONE)
+
+    def _set(self, count, used, nxt) -> None:
+        c = self.counts[0]
+        c["count"], c["pool_used"], c["next_sample"] = count, used, nxt
 
     def reserve(self, rows: int, pool: int) -> None:
         """Make room for ``rows`` more events with ``pool`` more amplitudes (numba kernels
         then append in place: :func:`.kernels.impacts_to_queue`)."""
-        if self.count + rows > self.I.shape[1] or self.pool_used + pool > self.re.shape[0]:
-            self._alloc(max(2 * self.I.shape[1], self.count + rows), max(2 * self.re.shape[0], 2 * (self.pool_used + pool)))
+        if self.count + rows > len(self.events) or self.pool_used + pool > self.re.shape[0]:
+            self._alloc(max(2 * len(self.events), self.count + rows), max(2 * self.re.shape[0], 2 * (self.pool_used + pool)))
+
+    def room(self, rows: int, pool: int) -> bool:
+        """Whether ``rows`` more events with ``pool`` more amplitudes fit without growing."""
+        return self.count + rows <= len(self.events) and self.pool_used + pool <= self.re.shape[0]
 
     def push(self, obj: int, mic: np.ndarray, sample: np.ndarray, kind: np.ndarray, amp: np.ndarray) -> None:
         """Queue ``k`` events of object index ``obj``: microphones ``mic`` (k,), samples
@@ -70,114 +95,119 @@ class EventQueue:
             return
         self.reserve(k, k * w)
         r0, u0 = self.count, self.pool_used
-        I = self.I
-        I[0, r0:r0 + k] = obj
-        I[1, r0:r0 + k] = mic
-        I[2, r0:r0 + k] = sample
-        I[3, r0:r0 + k] = u0 + w * np.arange(k)
-        I[4, r0:r0 + k] = w
-        self.kind[r0:r0 + k] = kind
+        ev = self.events[r0:r0 + k]
+        ev["obj"] = obj
+        ev["mic"] = mic
+        ev["sample"] = sample
+        ev["offset"] = u0 + w * np.arange(k)
+        ev["width"] = w
+        ev["kind"] = kind
         self.re[u0:u0 + k * w] = amp.real.ravel()
         self.im[u0:u0 + k * w] = amp.imag.ravel()
-        self.count += k
-        self.pool_used += k * w
-        self.next_sample = min(self.next_sample, int(sample.min()))
+        self._set(r0 + k, u0 + k * w, min(self.next_sample, int(sample.min())))
 
     def keep(self, mask: np.ndarray) -> None:
         """Keep only the rows where ``mask`` (count,) is true (pool compacted)."""
-        self.count, self.pool_used, self.next_sample = _compact(self.I, self.kind, self.re, self.im, self.count,
-                                                                 np.ascontiguousarray(mask, np.bool_))
+        _compact(self.state, np.ascontiguousarray(mask, np.bool_))
 
     def drop_object(self, obj: int) -> None:
         if self.count:
-            self.keep(self.I[0, : self.count] != obj)
+            self.keep(self.events["obj"][: self.count] != obj)
 
     def drop_mics(self, n_mics: int) -> None:
         """Forget events of microphones ``>= n_mics``."""
         if self.count:
-            self.keep(self.I[1, : self.count] < n_mics)
+            self.keep(self.events["mic"][: self.count] < n_mics)
 
-    def take(self, end: int, vbase: np.ndarray, v_rel: np.ndarray, v_len: np.ndarray, n_mics: int, width: int):
+    def take(self, end: int, vbase: np.ndarray, v_rel: np.ndarray, v_len: np.ndarray, n_mics: int,
+             width: int) -> EventRows:
         """Remove the events before sample ``end`` and return them for ``render_all``:
-        ``(ptr (n_mics + 1,), sample (k,), kind (k,), re (k, width), im (k, width))``, rows sorted
-        by (microphone, sample), ties in queue order; row ``i``'s amplitudes sit at columns
-        ``v_rel[voice] ...`` of its microphone bank (voice = ``vbase[obj] + mic``)."""
-        out = _take(self.I, self.kind, self.re, self.im, self.count, end, vbase, v_rel, v_len, n_mics, width)
-        ptr, na, kd, re, im, self.count, self.pool_used, self.next_sample = out
-        return ptr, na, kd, re, im
+        :class:`.records.EventRows` ``(ptr (n_mics + 1,), sample (k,), kind (k,), re (k, width),
+        im (k, width))``, rows sorted by (microphone, sample), ties in queue order; row ``i``'s
+        amplitudes sit at columns ``v_rel[voice] ...`` of its microphone bank (voice =
+        ``vbase[obj] + mic``)."""
+        return _take(self.state, end, vbase, v_rel, v_len, n_mics, width)
 
 
 @njit(cache=True)
-def _compact(I, kind, re, im, count, keep):
-    """Move the kept rows (and their pool slices) to the front, in order. Returns
-    ``(count, pool_used, next_sample)``."""
+def _compact(q, keep):
+    """Move the kept rows (and their pool slices) to the front, in order; updates the
+    counters."""
+    ev, re, im = q.events, q.re, q.im
+    count = q.counts[0].count
     k = 0
     u = 0
     nxt = NONE
     for i in range(count):
         if not keep[i]:
             continue
-        o, w = I[3, i], I[4, i]
+        o, w = ev[i].offset, ev[i].width
         for j in range(w):  # o >= u: moving down never overwrites a later row's values
             re[u + j] = re[o + j]
             im[u + j] = im[o + j]
-        for c in range(3):
-            I[c, k] = I[c, i]
-        I[3, k] = u
-        I[4, k] = w
-        kind[k] = kind[i]
-        if I[2, k] < nxt:
-            nxt = I[2, k]
+        ev[k].obj = ev[i].obj
+        ev[k].mic = ev[i].mic
+        ev[k].sample = ev[i].sample
+        ev[k].offset = u
+        ev[k].width = w
+        ev[k].kind = ev[i].kind
+        if ev[k].sample < nxt:
+            nxt = ev[k].sample
         u += w
         k += 1
-    return k, u, nxt
+    c = q.counts[0]
+    c.count = k
+    c.pool_used = u
+    c.next_sample = nxt
 
 
 @njit(cache=True)
-def _take(I, kind, re, im, count, end, vbase, v_rel, v_len, n_mics, width):
+def _take(q, end, vbase, v_rel, v_len, n_mics, width):
+    ev, re, im = q.events, q.re, q.im
+    count = q.counts[0].count
     due = np.zeros(count, np.bool_)
     nd = 0
     lo = NONE
     for i in range(count):
-        if I[2, i] < end:
+        if ev[i].sample < end:
             due[i] = True
-            if vbase[I[0, i]] >= 0 and I[1, i] < n_mics:
+            if vbase[ev[i].obj] >= 0 and ev[i].mic < n_mics:
                 nd += 1
-                if I[2, i] < lo:
-                    lo = I[2, i]
+                if ev[i].sample < lo:
+                    lo = ev[i].sample
     rows = np.empty(nd, np.int64)
     key = np.empty(nd, np.int64)
     span = 0
     j = 0
     for i in range(count):
-        if due[i] and vbase[I[0, i]] >= 0 and I[1, i] < n_mics:
+        if due[i] and vbase[ev[i].obj] >= 0 and ev[i].mic < n_mics:
             rows[j] = i
             j += 1
-            if I[2, i] - lo + 1 > span:
-                span = I[2, i] - lo + 1
+            if ev[i].sample - lo + 1 > span:
+                span = ev[i].sample - lo + 1
     for j in range(nd):
         i = rows[j]
-        key[j] = I[1, i] * span + (I[2, i] - lo)
+        key[j] = ev[i].mic * span + (ev[i].sample - lo)
     order = np.argsort(key, kind="mergesort")  # stable: ties keep queue order
     ptr = np.zeros(n_mics + 1, np.int64)
     na = np.empty(nd, np.int64)
     kd = np.empty(nd, np.int8)
     out_re = np.zeros((nd, width))
     out_im = np.zeros((nd, width))
-    for q in range(nd):
-        i = rows[order[q]]
-        m = I[1, i]
+    for p in range(nd):
+        i = rows[order[p]]
+        m = ev[i].mic
         ptr[m + 1] += 1
-        na[q] = I[2, i]
-        kd[q] = kind[i]
-        v = vbase[I[0, i]] + m
+        na[p] = ev[i].sample
+        kd[p] = ev[i].kind
+        v = vbase[ev[i].obj] + m
         c0 = v_rel[v]
-        w = min(I[4, i], v_len[v])
-        o = I[3, i]
+        w = min(ev[i].width, v_len[v])
+        o = ev[i].offset
         for c in range(w):
-            out_re[q, c0 + c] = re[o + c]
-            out_im[q, c0 + c] = im[o + c]
+            out_re[p, c0 + c] = re[o + c]
+            out_im[p, c0 + c] = im[o + c]
     for m in range(n_mics):
         ptr[m + 1] += ptr[m]
-    count, used, nxt = _compact(I, kind, re, im, count, ~due)
-    return ptr, na, kd, out_re, out_im, count, used, nxt
+    _compact(q, ~due)
+    return EventRows(ptr, na, kd, out_re, out_im)

@@ -45,14 +45,17 @@ Determinism: the same calls with the same ``seed`` give bit-identical audio, how
 from __future__ import annotations
 
 import math
-import zlib
 
 import numpy as np
 
 from ..modal.model import ModalModel
 from . import kernels
 from .pulse import contact_time, effective, hertz_coefficient
+from .interrupt import interruptible
 from .queue import EventQueue
+from .records import SYNTH_CONSTS, Bank, BankLayout, EventRows, ObjectTable, SourceRows, SynthState
+from .stream_table import RING_SLACK, StreamTable
+from .streams import any_due, stream_drive, streams_bank_rows, streams_gains
 
 __all__ = ["Synthesizer", "GRID", "D_MIN_PER_S", "R_MIN_M", "TIME_TOLERANCE_S"]
 
@@ -242,6 +245,10 @@ class Synthesizer:
         self._src = []
         self._dirty = True  # voice layout must be rebuilt before rendering
         self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
+        self._consts = np.zeros(1, SYNTH_CONSTS)
+        for k, v in (("c", c), ("fs", float(self.sample_rate)), ("rmin", R_MIN_M), ("tol", _SAMPLE_TOL),
+                     ("grid", GRID), ("slack", RING_SLACK), ("cull2", self._cull2), ("floor2", FLOOR_PA**2)):
+            self._consts[0][k] = v
         self.samples_rendered = 0
         self._streams_clear()
 
@@ -253,6 +260,15 @@ class Synthesizer:
     @property
     def time(self) -> float:
         return self.samples_rendered / self.sample_rate
+
+    @property
+    def samples_rendered(self) -> int:
+        """Samples produced by :meth:`render` since construction / :meth:`reset`."""
+        return int(self._consts[0]["rendered"])
+
+    @samples_rendered.setter
+    def samples_rendered(self, n: int) -> None:
+        self._consts[0]["rendered"] = n
 
     @property
     def microphones(self) -> np.ndarray:
@@ -405,9 +421,7 @@ class Synthesizer:
         del self._objects[name]
         self._ev.drop_object(ob.index)
         self._src = [c for c in self._src if c[0] != ob.index]
-        if self._st_n:
-            SI = self._st["SI"][: self._st_n]
-            SI[SI[:, kernels.SI_OBJ] == ob.index, kernels.SI_LIVE] = 0
+        self._streams.retire_object(ob.index)
         self._dirty = True
 
     def set_pose(self, name, position, rotation) -> None:
@@ -551,43 +565,81 @@ class Synthesizer:
         ``i`` strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at
         synth time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s] (rows with
         non-finite values are skipped). State is unchanged on error."""
-        q = self._impact_queue(len(obj))
+        self.reserve_impacts(len(obj))
         f64 = np.float64
-        out = kernels.impacts_to_queue(
-            obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64), np.ascontiguousarray(t, f64),
-            np.ascontiguousarray(tau, f64), *self._impact_data(), q.I, q.kind, q.re, q.im, q.count, q.pool_used)
-        self._commit_impacts(*out, struck=lambda: obj)
+        count, used, nxt, amax = kernels.impacts_to_queue(
+            self.kernel_state(), obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64),
+            np.ascontiguousarray(t, f64), np.ascontiguousarray(tau, f64))
+        if not (amax <= MAX_AMPLITUDE):  # also catches NaN
+            raise self.amplitude_error(obj)
+        kernels.commit_queued(self._ev.state, count, used, nxt)
 
-    def _impact_queue(self, k):
-        """The event queue, with room for ``k`` more impacts (voice layout up to date)."""
+    # ------------------------------------------------------------------ for drivers (numba)
+    def kernel_state(self) -> SynthState:
+        """The arrays the per-step kernels read and write (:class:`.records.SynthState`): every
+        object's modal data, poses, microphones, constants, the event queue and the streams.
+        Valid until the synthesizer next grows a buffer or changes its objects or
+        microphones: ask again after any call into the synthesizer."""
         if self._dirty:
             self._rebuild()
-        q = self._ev
+        st = self._streams.state
+        return SynthState(self._object_table, self._poses.pos, self._poses.R, self._mics, self._consts,
+                          self._ev.state, self._streams.empty if st is None else st)
+
+    def reserve_impacts(self, k: int) -> None:
+        """Room in the event queue for ``k`` more impacts (each at every microphone)."""
+        if self._dirty:
+            self._rebuild()
         M = self.n_channels
-        q.reserve(M * k, M * k * self._nmax)
-        return q
+        self._ev.reserve(M * k, M * k * self._nmax)
 
-    def _impact_data(self) -> tuple:
-        """The arguments of :func:`.kernels.impacts_to_queue` between the impacts and the queue:
-        every object's flat modal data, the poses, microphones and constants."""
-        g = self._gain_data
-        return (g["pts"], g["pts_off"], g["shk"], g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lam"], g["leps"],
-                self._poses.pos, self._poses.R, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
-                _SAMPLE_TOL, self.samples_rendered, GRID)
+    def has_room_for_impacts(self, k: int) -> bool:
+        """Whether ``k`` more impacts fit in the event queue without growing it."""
+        M = self.n_channels
+        return not self._dirty and self._ev.room(M * k, M * k * self._nmax)
 
-    def _commit_impacts(self, count, used, nxt, amax, struck) -> None:
-        """Keep the rows :func:`.kernels.impacts_to_queue` wrote past the queue's end, unless
-        an amplitude is out of range (then they are dropped and the error names the objects
-        ``struck()`` returns: indices, called only then)."""
-        if not (amax <= MAX_AMPLITUDE):  # also catches NaN
-            names = sorted({self._by_index[int(o)].name for o in np.asarray(struck()).tolist() if int(o) in self._by_index})
-            raise ValueError(
-                f"impulse on {', '.join(map(repr, names))} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
-                "check the impulse units (N s) and magnitude"
-            )
-        q = self._ev
-        q.count, q.pool_used = count, used
-        q.next_sample = min(q.next_sample, int(nxt))
+    def amplitude_error(self, struck) -> ValueError:
+        """The error for impacts on object indices ``struck`` whose modal amplitude is out of
+        range (nothing of them was queued)."""
+        names = sorted({self._by_index[int(o)].name for o in np.asarray(struck).tolist() if int(o) in self._by_index})
+        return ValueError(
+            f"impulse on {', '.join(map(repr, names))} gives a modal amplitude above {MAX_AMPLITUDE:g} Pa; "
+            "check the impulse units (N s) and magnitude"
+        )
+
+    def object_index(self, name) -> int:
+        """Index of object ``name`` in :meth:`kernel_state`'s tables (stable while it exists)."""
+        return self._get(name).index
+
+    def hertz_coefficient(self, name, other_material, other_mass_kg, other_radius_m, radius_m=None) -> float:
+        """``coef`` [s (m/s)^(1/5)] of ``tau = coef v^(-1/5)`` for ``name`` struck by a body of
+        ``other_material`` (None: rigid), mass and radius of curvature at the contact (inf:
+        immovable / flat); ``radius_m`` None: half the object's size (:mod:`.pulse`)."""
+        return self._hertz_coef(self._get(name), other_material, float(other_mass_kg), float(other_radius_m),
+                                radius_m)[0]
+
+    def stream(self, key, name) -> int:
+        """Index of the persistent sustained-contact stream ``key`` (any hashable, e.g.
+        ``(geom1, geom2, struck geom)``) on object ``name``, created on first use (a driver
+        then drives it in numba: :func:`.streams.stream_drive`)."""
+        ob = self._get(name)
+        nmax = max([len(o.keep) for o in self._objects.values()], default=0)
+        return self._streams.index(key, ob.index, nmax, self.seed, self.samples_rendered)
+
+    def grow_stream_ring(self, need: int) -> None:
+        """Stream rings of at least ``need`` samples."""
+        self._streams.grow_ring(need)
+
+    @property
+    def streams_epoch(self) -> int:
+        """Changes whenever the synthesizer forgets its streams (stream indices held elsewhere
+        are stale then)."""
+        return self._st_epoch
+
+    @property
+    def n_streams(self) -> int:
+        """Persistent streams in use."""
+        return self._streams.n
 
     @staticmethod
     def _nearest(ob, pl):
@@ -694,17 +746,9 @@ class Synthesizer:
                       (g != 0).astype(np.complex128))
 
     # ------------------------------------------------------------------ persistent streams
-    #: Ring buffer length of a stream [samples] (power of two; grows for long blocks/delays).
-    _RING = 4096
-    #: Ring samples kept free for a stream's delay growing between gain updates [samples].
-    _RING_SLACK = 1024
-
     def _streams_clear(self) -> None:
         """Forget all sustained-contact streams (their ringing modes keep ringing)."""
-        self._st_keys: dict = {}
-        self._st_n = 0
-        self._st_dmax = 0  # largest stream delay seen [samples] (the ring must hold it)
-        self._st = None
+        self._streams = StreamTable(self.n_channels, self.dtype)
         self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
         #: optional ``on_regain()`` called once before the gains of due streams are computed
         #: (a driver updates the poses and the microphones there), unless ``poses_current``
@@ -715,129 +759,57 @@ class Synthesizer:
         #: float32 rounding: 1.5e-6 of the peak on Ant-v5; False: one call per stage)
         self.fused_streams = True
 
-    def _streams_alloc(self, cap, nmax, ring):
-        M = self.n_channels
-        old = self._st
-        n = self._st_n
-        SI = np.zeros((cap, 9), np.int64)
-        SI[:, kernels.SI_LAST] = -(2**62)
-        SI[:, kernels.SI_GUPD] = -(2**62)
-        st = {"SF": np.zeros((cap, 9)), "SI": SI, "D": np.zeros((cap, M), np.int64),
-              "gr": np.zeros((cap, M, nmax), self.dtype), "gi": np.zeros((cap, M, nmax), self.dtype),
-              "ring": np.zeros((cap, ring))}
-        if old is not None and n:
-            for k, a in old.items():
-                if k == "ring":
-                    # keep every sample's slot: ring[k & mask]
-                    ro = a.shape[1]
-                    for j in range(n):
-                        g = int(old["SI"][j, kernels.SI_GEN])
-                        ks = np.arange(max(g - ro, 0), g)
-                        st[k][j, ks & (ring - 1)] = a[j, ks & (ro - 1)]
-                elif k in ("gr", "gi"):
-                    st[k][:n, :, : a.shape[2]] = a[:n]
-                else:
-                    st[k][:n] = a[:n]
-        self._st = st
-
-    def _stream_index(self, key, ob) -> int:
-        """Index of the persistent stream ``key`` (any hashable, e.g. (geom1, geom2, kind,
-        side)) on object ``ob``, created on first use (seeded from the synthesizer seed, the
-        object and the key, so the noise does not depend on the order streams appear)."""
-        j = self._st_keys.get(key)
-        if j is not None:
-            return j
-        st = self._st
-        nmax = max([len(o.keep) for o in self._objects.values()], default=0)
-        if st is None or self._st_n == len(st["SF"]) or st["gr"].shape[2] < nmax:
-            cap = 8 if st is None else max(len(st["SF"]), 4) * (2 if self._st_n == len(st["SF"]) else 1)
-            self._streams_alloc(cap, nmax, self._RING if st is None else st["ring"].shape[1])
-            st = self._st
-        j = self._st_n
-        self._st_n += 1
-        self._st_keys[key] = j
-        SI = st["SI"]
-        SI[j, kernels.SI_LIVE] = 1
-        SI[j, kernels.SI_OBJ] = ob.index
-        seed = kernels.stream_seed(self.seed, ob.index, zlib.crc32(repr(key).encode()))  # not hash(): varies by process
-        SI[j, kernels.SI_RNG] = np.array([seed], np.uint64).view(np.int64)[0]
-        SI[j, kernels.SI_GEN] = self.samples_rendered
-        return j
-
-    def _streams_grow_ring(self, need) -> None:
-        st = self._st
-        self._streams_alloc(len(st["SF"]), st["gr"].shape[2], 1 << (int(need) - 1).bit_length())
-
     def _stream_drive(self, j, p, nv, fn, v, k0, k1, rough, length, regain) -> None:
-        """Drive stream ``j`` (:meth:`_stream_index`) on synth samples ``[k0, k1)`` with
+        """Drive stream ``j`` (:meth:`stream`) on synth samples ``[k0, k1)`` with
         sliding/rolling noise of force ``fn`` [N] and speed ``v`` [m/s] at world ``p`` along
         world unit ``nv`` (see :meth:`slide`); the noise is generated now, so several drives may
         come before one :meth:`render`. The gains follow the point every ``regain`` samples
-        (computed at the next render from the last point). Internal fast path of the per-step
-        driver (:func:`mjsound.sim.drive.drive_rows` is the numba version for many rows)."""
+        (computed at the next render from the last point). (Drivers drive many streams per
+        step in numba: :func:`.streams.stream_drive`.)"""
         fs = self.sample_rate
         amp = rough * abs(fn) * abs(v)
         fc = min(abs(v) / length, 0.45 * fs)
         alpha = 1.0 - math.exp(-2 * math.pi * fc / fs)
-        st = self._st
         args = (int(j), int(k0), int(k1), amp, alpha, np.asarray(p, np.float64), np.asarray(nv, np.float64),
-                int(regain), self.samples_rendered, self._RING_SLACK)
-        need = kernels.stream_drive(*args, st["SF"], st["SI"], st["D"], st["ring"])
+                int(regain))
+        need = stream_drive(self._streams.state, self._consts, *args)
         if need:
-            self._streams_grow_ring(need)
-            st = self._st
-            kernels.stream_drive(*args, st["SF"], st["SI"], st["D"], st["ring"])
+            self._streams.grow_ring(need)
+            stream_drive(self._streams.state, self._consts, *args)
 
     def _streams_regain(self, n) -> None:
         """Gains of the streams marked due (from their last point and normal, the objects'
-        poses and the microphones after ``on_regain``), then make sure the ring holds a block plus the delays."""
-        st = self._st
-        SI, SF = st["SI"], st["SF"]
-        if kernels.any_due(SI, self._st_n):
+        poses and the microphones after ``on_regain``), then make sure the ring holds a block
+        plus the delays."""
+        st = self._streams.state
+        if any_due(st):
             if self.on_regain is not None and not self.poses_current:
                 self.on_regain()
-            g = self._gain_data
-            dmax = kernels.streams_gains(self._st_n, SI, SF, st["D"], st["gr"], st["gi"], g["pts"], g["pts_off"], g["shk"],
-                                         g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lam"],
-                                         self._poses.pos, self._poses.R, self._mics, self.speed_of_sound,
-                                         float(self.sample_rate), R_MIN_M, _SAMPLE_TOL)
-            self._st_dmax = max(self._st_dmax, int(dmax))
-            need = self._st_dmax + n + 1
-            if need > st["ring"].shape[1]:
-                self._streams_grow_ring(need)
+            dmax = streams_gains(self.kernel_state())
+            need = int(dmax) + n + 1
+            if need > st.ring.shape[1]:
+                self._streams.grow_ring(need)
 
     def _render_streams(self, ev, start, n, out) -> bool:
         """Render a block with streams and no forcing sources in one numba call
         (:func:`.kernels.render_streams`: due gains, stream rows, :func:`.kernels.render_all`);
         the same samples as :meth:`_streams_bank_rows` then ``render_all``. Returns whether
         every sample is finite."""
-        st, g = self._st, self._gain_data
         may_regain = self.on_regain is None or self.poses_current
         while True:
-            code, dmax = kernels.render_streams(
-                self._st_n, st["SI"], st["SF"], st["D"], st["gr"], st["gi"], st["ring"], self._st_dmax, may_regain,
-                g["pts"], g["pts_off"], g["shk"], g["shk_off"], g["mode_off"], g["wd"], g["w"], g["lam"],
-                self._poses.pos, self._poses.R, self._mics, self.speed_of_sound, float(self.sample_rate), R_MIN_M,
-                _SAMPLE_TOL, self._vb_arr, self._v_rel, self._flat[9], self.n_channels, self._mic_width,
-                *self._flat[:8], self._mic_start, self._mic_len, self._mic_ids, self._live, *ev,
-                start, n, GRID, self._cull2, FLOOR_PA**2, out, self.dtype.type(0))
-            self._st_dmax = int(dmax)
+            code = kernels.render_streams(self.kernel_state(), self._bank, self._layout, ev, start, n, may_regain,
+                                          out, self.dtype.type(0))
             if code == kernels.RENDERED or code == kernels.RENDERED_NONFINITE:
                 return code == kernels.RENDERED
             if code == kernels.REGAIN_FIRST:
                 self.on_regain()
                 may_regain = True
             else:  # the ring must hold the block plus the delays
-                self._streams_grow_ring(code)
-                st = self._st
+                self._streams.grow_ring(code)
 
-    def _streams_bank_rows(self, start, end):
+    def _streams_bank_rows(self, start, end) -> SourceRows:
         self._streams_regain(end - start)
-        st = self._st
-        n = self._st_n
-        return kernels.streams_bank_rows(st["SF"][:n], st["SI"][:n], st["D"][:n], st["gr"][:n], st["gi"][:n],
-                                         st["ring"][:n], self._vb_arr, self._v_rel, self._flat[9], self.n_channels,
-                                         self._mic_width, start, end, self.dtype.type(0))
+        return streams_bank_rows(self._streams.state, self._layout, start, end, self.dtype.type(0))
 
     def _source_rows(self, srcs, start, end):
         """Forcing sources ``srcs`` (entries of ``_src`` overlapping ``[start, end)``) as
@@ -862,12 +834,12 @@ class Synthesizer:
             gi[j, : len(g)] = g.imag
             lo, hi = max(a, start), min(b, end)
             F[j, lo - start: hi - start] = f[lo - a: hi - a]
-        sm, gr, gi = kernels.place_rows(sv[order], gr, gi, self._v_rel, self._flat[9], self._flat[10],
-                                        self._mic_width)
+        lay = self._layout
+        sm, gr, gi = kernels.place_rows(sv[order], gr, gi, lay.v_rel, lay.v_len, lay.v_mic, lay.width)
         if self.n_channels > 1:  # rows by microphone (one microphone: already in order)
             order = np.argsort(sm, kind="stable")
             src_a, src_b, gr, gi, F, sm = src_a[order], src_b[order], gr[order], gi[order], F[order], sm[order]
-        return np.searchsorted(sm, self._mic_ptr), src_a, src_b, gr, gi, F
+        return SourceRows(np.searchsorted(sm, self._mic_ptr), src_a, src_b, gr, gi, F)
 
     # ------------------------------------------------------------------ rendering
     def _rebuild(self) -> None:
@@ -912,18 +884,14 @@ class Synthesizer:
                 v.zr, v.zi, v.peak2, v.active = Zr[sl], Zi[sl], P2[sl], ACT[sl]
                 PR[sl], PI[sl], CR[sl], CI[sl] = ob.pr, ob.pi, ob.corr_r, ob.corr_i
                 j += 1
-        self._flat = (Zr, Zi, P2, ACT, PR, PI, CR, CI, v_off, v_len, v_mic)
-        self._mic_off = mic_off
-        self._mic_len = np.diff(mic_off)
-        self._mic_start = mic_off[:-1].copy()
-        self._mic_ids = np.arange(M, dtype=np.int64)
+        mic_len = np.diff(mic_off)
         self._mic_ptr = np.arange(M + 1)
-        self._v_rel = v_off - mic_off[v_mic]  # offset of each voice inside its microphone's bank
-        self._mic_width = int(self._mic_len.max()) if M else 0
         live = np.zeros(M, np.bool_)
         for m in range(M):
             live[m] = ACT[mic_off[m]: mic_off[m + 1]].any()
-        self._live = live  # per microphone bank
+        # one bank per microphone (render_all renders banks)
+        self._bank = Bank(Zr, Zi, P2, ACT, PR, PI, CR, CI, mic_off[:-1].copy(), mic_len, np.arange(M, dtype=np.int64),
+                          live)
         self._vbase = {ob.index: ob.vbase for ob in obs}
         self._by_index = {ob.index: ob for ob in obs}
         # every object's gain inputs in flat arrays indexed by object index (streams_gains)
@@ -939,25 +907,28 @@ class Synthesizer:
             parts = [f(self._by_index[i]) for i in range(nidx) if i in self._by_index]
             return np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(shape))
 
-        self._gain_data = {
-            **offs,
-            "pts": cat(lambda ob: ob.pts.reshape(-1, 3), (0, 3)), "shk": cat(lambda ob: ob.shk.ravel(), (0,)),
-            "wd": cat(lambda ob: ob.wd, (0,)), "w": cat(lambda ob: np.asarray(ob.weights, np.float64), (0,)),
-            "lam": cat(lambda ob: ob.lam, (0,)).astype(np.complex128),
-            "leps": cat(lambda ob: ob.logeps, (0,)).astype(np.complex128),
-        }
+        self._object_table = ObjectTable(
+            pts=cat(lambda ob: ob.pts.reshape(-1, 3), (0, 3)), pts_off=offs["pts_off"],
+            shk=cat(lambda ob: ob.shk.ravel(), (0,)), shk_off=offs["shk_off"], mode_off=offs["mode_off"],
+            wd=cat(lambda ob: ob.wd, (0,)), w=cat(lambda ob: np.asarray(ob.weights, np.float64), (0,)),
+            lam=cat(lambda ob: ob.lam, (0,)).astype(np.complex128),
+            leps=cat(lambda ob: ob.logeps, (0,)).astype(np.complex128))
         vb_arr = np.full(self._next_index + 1, -1, np.int64)  # -1: removed (its queued events are dropped)
         for ob in obs:
             vb_arr[ob.index] = ob.vbase
-        self._vb_arr = vb_arr
+        # voice ids are object-major; v_rel: offset of each voice inside its microphone's bank
+        self._layout = BankLayout(vb_arr, v_off - mic_off[v_mic], v_len, v_mic, int(mic_len.max()) if M else 0)
         self._ev_ptr0 = np.zeros(M + 1, np.int64)
         self._nmax = max([len(ob.keep) for ob in obs], default=0)
-        self._empty_ev = (np.zeros(0, np.int64), np.zeros(0, np.int8), np.zeros((0, self._nmax)),
-                          np.zeros((0, self._nmax)))
+        self._consts[0]["nmax"] = self._nmax
+        self._consts[0]["n_mics"] = M
+        self._empty_ev = EventRows(self._ev_ptr0, np.zeros(0, np.int64), np.zeros(0, np.int8),
+                                   np.zeros((0, self._nmax)), np.zeros((0, self._nmax)))
         self._empty_src = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, self._nmax), dt),
-                           np.zeros((0, self._nmax), dt), np.zeros((0, 0), dt))
+                           np.zeros((0, self._nmax), dt))
         self._dirty = False
 
+    @interruptible
     def render(self, n_samples) -> np.ndarray:
         """Render the next ``n_samples`` samples.
 
@@ -981,49 +952,40 @@ class Synthesizer:
             self._rebuild()
         start = self.samples_rendered
         end = start + n
-        streams = self._st_n > 0
-        if self._ev.count or self._src or streams or self._live.any():
+        streams = self._streams.n > 0
+        if self._ev.count or self._src or streams or self._bank.live.any():
             # ---- events due in this block: rows placed in the microphone banks, sorted by
             # (microphone, sample), ties in order
             if self._ev.count and self._ev.next_sample < end:
-                ev_ptr, ev_n, ev_kind, ev_re, ev_im = self._ev.take(end, self._vb_arr, self._v_rel, self._flat[9],
-                                                                    self.n_channels, self._mic_width)
+                lay = self._layout
+                ev = self._ev.take(end, lay.vbase, lay.v_rel, lay.v_len, self.n_channels, lay.width)
             else:
-                ev_n, ev_kind, ev_re, ev_im = self._empty_ev
-                ev_ptr = self._ev_ptr0
+                ev = self._empty_ev
             # ---- forcing sources overlapping the block, as rows placed in the microphone banks
-            # and grouped by microphone (src_ptr)
+            # and grouped by microphone (src.ptr)
             srcs = [s for s in self._src if s[2] < end and s[3] > start] if self._src else ()
             if streams and not srcs and self.fused_streams:  # (the common case while something slides or rolls)
-                finite = self._render_streams((ev_ptr, ev_n, ev_kind, ev_re, ev_im), start, n, out)
+                finite = self._render_streams(ev, start, n, out)
                 self.samples_rendered = end
                 return _finite(out.astype(np.float32, copy=False), finite)
             if srcs:
-                src_ptr, src_a, src_b, gr, gi, F = self._source_rows(srcs, start, end)
+                src = self._source_rows(srcs, start, end)
                 self._src = [s for s in self._src if s[3] > end]
             if streams:
                 # persistent sliding / rolling streams: noise generated in numba, rows placed there
                 rows = self._streams_bank_rows(start, end)
                 if srcs:  # both: merged by microphone, the forcing sources' rows first
                     M = self.n_channels
-                    mic = np.concatenate([np.repeat(np.arange(M), np.diff(src_ptr)),
-                                          np.repeat(np.arange(M), np.diff(rows[0]))])
+                    mic = np.concatenate([np.repeat(np.arange(M), np.diff(src.ptr)),
+                                          np.repeat(np.arange(M), np.diff(rows.ptr))])
                     order = np.argsort(mic, kind="stable")
-                    src_a, src_b, gr, gi, F = (np.concatenate([x, y])[order] for x, y in
-                                               zip((src_a, src_b, gr, gi, F), rows[1:]))
-                    src_ptr = np.searchsorted(mic[order], self._mic_ptr)
+                    src = SourceRows(np.searchsorted(mic[order], self._mic_ptr),
+                                     *(np.concatenate([x, y])[order] for x, y in zip(src[1:], rows[1:])))
                 else:
-                    src_ptr, src_a, src_b, gr, gi, F = rows
+                    src = rows
             elif not srcs:
-                src_ptr = self._ev_ptr0
-                src_a, src_b, gr, gi, F = self._empty_src
-                F = np.zeros((0, n), dt)
-            Zr, Zi, P2, ACT, PR, PI, CR, CI = self._flat[:8]
-            kernels.render_all(Zr, Zi, P2, ACT, PR, PI, CR, CI, self._mic_start, self._mic_len, self._mic_ids,
-                               self._live,
-                               ev_ptr, ev_n, ev_kind, ev_re, ev_im,
-                               src_ptr, src_a, src_b, gr, gi, F,
-                               start, n, GRID, self._cull2, FLOOR_PA**2, out, dt.type(0))
+                src = SourceRows(self._ev_ptr0, *self._empty_src, np.zeros((0, n), dt))
+            kernels.render_all(self._bank, ev, src, start, n, self._consts, out, dt.type(0))
         self.samples_rendered = end
         return _finite(out.astype(np.float32, copy=False))
 
@@ -1034,12 +996,12 @@ class Synthesizer:
         self._ev.clear()
         self._src = []
         if not self._dirty:
-            Zr, Zi, P2, ACT = self._flat[:4]
-            Zr[:] = 0.0
-            Zi[:] = 0.0
-            P2[:] = 0.0
-            ACT[:] = False
-            self._live[:] = False
+            b = self._bank
+            b.zr[:] = 0.0
+            b.zi[:] = 0.0
+            b.peak2[:] = 0.0
+            b.active[:] = False
+            b.live[:] = False
         else:
             for ob in self._objects.values():
                 ob.voices = [_Voice(len(ob.keep)) for _ in range(self.n_channels)]

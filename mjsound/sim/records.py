@@ -1,0 +1,202 @@
+"""Named state records of the per-step path (contacts -> events -> synthesizer queue).
+
+Every piece of state that crosses into numba is defined here once, as a numpy structured
+dtype (read and written by field name, ``pairs[j].last``) or a :class:`typing.NamedTuple` of
+arrays (one owner's arrays together). The owner of each record is the only one that
+allocates or replaces it; the step kernel (:mod:`.step`) writes the fields that the table in
+``docs/design.md`` lists. A scalar record is a one-element array (``counts[0].nslots``), so
+numba updates it in place and Python reads it after the call.
+
+Units: SI (s, m, N, N s, m/s); samples are absolute sample indices of the synthesizer's
+clock unless a field says otherwise.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
+           "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "ReaderState", "StepBuffers",
+           "DataViews", "DriveState", "record"]
+
+i8, f8 = np.int64, np.float64
+
+#: The sample clock (owner: :class:`mjsound.sim.clock.SampleClock`). Step ``k`` starts at
+#: ``(a0 + k b) / den`` seconds; its first sample is ``ceil((a0 + k b) fs / den)``; ``k`` steps
+#: are counted; the synthesizer's sample 0 is absolute sample ``origin``.
+CLOCK = np.dtype([("a0", i8), ("b", i8), ("den", i8), ("fs", i8), ("k", i8), ("origin", i8),
+                  ("t_start", f8), ("timestep", f8)])
+
+#: MuJoCo as the fused loop reaches it (owner: :func:`mjsound.sim.fused.mj_link`): addresses
+#: of ``mj_step`` / ``mj_solveM`` (0: not available) and of the mjModel / mjData, then byte
+#: offsets of the mjData fields read (``ncon`` ...) and of the mjContact fields; ``layout_ok``
+#: is 0 when the struct description disagrees with the bindings (contacts are then copied in
+#: by Python).
+MJ = np.dtype([("step_fn", i8), ("solve_fn", i8), ("model", i8), ("data", i8), ("layout_ok", i8),
+               ("ncon", i8), ("nefc", i8), ("time", i8), ("contact", i8), ("efc_force", i8),
+               ("contact_size", i8), ("c_pos", i8), ("c_frame", i8), ("c_geom", i8), ("c_dim", i8),
+               ("c_efc_address", i8)])
+
+#: The reader's thresholds (owner: :class:`mjsound.sim.contacts.ContactReader`; see its
+#: docstring): speeds [m/s], times [s], largest force [N] and impulse [N s]; whether the
+#: friction cone is pyramidal (its normal force is the sum of the facets' forces).
+READER_PARAMS = np.dtype([("v_impact", f8), ("v_hard", f8), ("min_apart_s", f8), ("refractory_s", f8),
+                          ("max_event_s", f8), ("v_slide", f8), ("v_roll", f8), ("max_force", f8),
+                          ("max_impulse", f8), ("pyramidal", i8)])
+
+#: The reader's counters (owner: ContactReader; written by the step kernel): pair slots in
+#: use, whether an impact record may be open, steps read, record rows waiting in
+#: ``StepBuffers.records``, clamped forces (non-finite / huge; Python warns and zeroes them),
+#: sliding and rolling pair-steps.
+READER_COUNTS = np.dtype([("nslots", i8), ("any_open", i8), ("step", i8), ("n_records", i8), ("n_bad", i8),
+                          ("n_huge", i8), ("slide_steps", i8), ("roll_steps", i8)])
+
+#: One geom pair's state (owner: ContactReader, a table of slots; written by the state
+#: machine :func:`mjsound.sim.pairs.update_pairs`): approach speed of its last step [m/s],
+#: when it last touched and last made an impact [s]; its open impact record (start time,
+#: speed, sum F dt [N s], end time, steps) and the previous record's sums banked at an onset
+#: (which close that record in Python); the last step it touched, steps it has been calm,
+#: whether a record is open.
+PAIR = np.dtype([("vprev", f8), ("touch", f8), ("hit", f8), ("rec_time", f8), ("rec_speed", f8),
+                 ("rec_impulse", f8), ("rec_end", f8), ("prev_impulse", f8), ("prev_end", f8),
+                 ("last", i8), ("calm", i8), ("open", i8), ("rec_steps", i8), ("prev_steps", i8)])
+
+#: Per geom (owner: ContactReader): its body, whether it is a plane (no rolling radius) and
+#: its acoustic restitution (NaN: unknown).
+GEOM = np.dtype([("body", i8), ("plane", i8), ("restitution", f8)])
+
+#: Per body (owner: ContactReader): root body, dofs (``mj_jac``'s walk), moving mass of its
+#: subtree and of its whole tree [kg] (inf: welded to the world).
+BODY = np.dtype([("root", i8), ("dofnum", i8), ("dofadr", i8), ("parent", i8), ("tree_mass", f8),
+                 ("root_mass", f8)])
+
+#: A touching geom pair of one step (written by the step kernel into ``StepBuffers.rows``):
+#: geoms, kind (0 silent, 1 slide, 2 roll), state slot, whether an impact starts, total
+#: normal force [N], slip or rolling speed [m/s], force-weighted point [m] and unit normal.
+PAIR_ROW = np.dtype([("g1", i8), ("g2", i8), ("kind", i8), ("slot", i8), ("onset", i8), ("force", f8),
+                     ("speed", f8), ("point", f8, (3,)), ("normal", f8, (3,))])
+
+#: An impacting contact of an onset pair: its pair row, geoms, point [m], normal, approach
+#: speed [m/s].
+HIT = np.dtype([("pair", i8), ("g1", i8), ("g2", i8), ("point", f8, (3,)), ("normal", f8, (3,)), ("speed", f8)])
+
+#: An impact event (one onset pair): its slot and its first hit (hits run to the next
+#: event's ``first``; one more row holds the number of hits).
+ONSET = np.dtype([("slot", i8), ("first", i8)])
+
+#: An impact at one contact point: impulse [N s] on geom2 along the normal (geom1 gets the
+#: opposite), approach speed [m/s].
+IMPACT = np.dtype([("g1", i8), ("g2", i8), ("point", f8, (3,)), ("normal", f8, (3,)), ("impulse", f8),
+                   ("speed", f8)])
+
+#: An impact event's record (made into :class:`mjsound.sim.contacts.ImpactRecord` by
+#: ``ContactReader.add_records``): onset time [s], geoms, largest approach speed, predicted
+#: impulse, restitution, slot, clamped, then the slot's previous record's sum F dt, steps and
+#: end time (which close it).
+RECORD = np.dtype([("time", f8), ("g1", i8), ("g2", i8), ("speed", f8), ("impulse_pred", f8),
+                   ("restitution", f8), ("slot", i8), ("clamped", i8), ("prev_impulse", f8),
+                   ("prev_steps", i8), ("prev_end", f8)])
+
+#: An event log entry (``AudioSimulator.event_log``): time [s], kind (0 impact, 1 slide,
+#: 2 roll), geoms, value (impulse [N s] or speed [m/s]).
+LOG = np.dtype([("time", f8), ("kind", i8), ("g1", i8), ("g2", i8), ("value", f8)])
+
+#: What Python must supply before the kernel can go on: (row, side) without a stream, or
+#: (struck geom, other geom) without a Hertz coefficient.
+MISSING = np.dtype([("a", i8), ("b", i8)])
+
+#: Per geom, how it sounds (owner: AudioSimulator): synthesizer object index (-1: silent),
+#: row of its Hertz coefficients (-1: silent).
+SOUND = np.dtype([("obj", i8), ("coef_row", i8)])
+
+#: The drive's constants (owner: AudioSimulator): slide / roll roughness [1/(m/s)] and
+#: low-pass length [m], samples between a stream's gain updates, whether sustained contacts
+#: sound, how microphones move (0 fixed, 1 ``mics[m] = source[rows[m]] + offsets[m]``) and
+#: from which positions (0 body ``xpos``, 1 ``site_xpos``).
+DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", f8), ("len_roll", f8),
+                         ("regain", i8), ("sustained", i8), ("mic_mode", i8), ("mic_source", i8)])
+
+#: One call of the step kernel (owner: AudioSimulator, which sets the inputs and reads the
+#: outputs). Inputs: substeps asked (``nstep``) and done, whether the kernel calls
+#: ``mj_step`` itself, whether the contacts come from the mjData struct or Python copied them
+#: into the buffers (then ``ncon``, ``nefc``), whether the step's times ``t0, t1`` [s] and
+#: samples ``[n0, n1)`` are given (replay) instead of coming from the clock, the log's limit,
+#: ``solved`` (Python supplied ``M^-1 Jn^T``). State of the current substep: ``stage``, its
+#: times and samples, sustained rows, hits, onset pairs and impacts. Outputs: why it stopped
+#: (``reason``, ``need``, ``n_missing``), impacts queued and log entries written (counting
+#: up over calls until Python takes them), whether poses and microphones are current.
+RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", i8), ("ncon", i8), ("nefc", i8),
+                ("explicit", i8), ("log_limit", i8), ("solved", i8), ("stage", i8), ("t0", f8), ("t1", f8),
+                ("n0", i8), ("n1", i8), ("n_sust", i8), ("n_hits", i8), ("n_onset", i8), ("n_imp", i8),
+                ("reason", i8), ("need", i8), ("n_missing", i8), ("n_impacts", i8), ("n_log", i8),
+                ("poses_current", i8)])
+
+
+def record(dtype: np.dtype, **values) -> np.ndarray:
+    """A one-element array of ``dtype`` (a scalar record numba updates in place), zeroed and
+    then set from ``values``."""
+    r = np.zeros(1, dtype)
+    for k, v in values.items():
+        r[k] = v
+    return r
+
+
+class ReaderState(NamedTuple):
+    """The contact reader's state (owner: ContactReader)."""
+
+    prm: np.ndarray  # (1,) READER_PARAMS
+    counts: np.ndarray  # (1,) READER_COUNTS
+    geoms: np.ndarray  # (ngeom,) GEOM
+    bodies: np.ndarray  # (nbody,) BODY
+    dof_parent: np.ndarray  # (nv,) int64: parent dof (mj_jac's walk)
+    hkeys: np.ndarray  # (table,) int64: open-addressing table pair key -> slot (-1: empty)
+    hvals: np.ndarray  # (table,) int64
+    pairs: np.ndarray  # (slots,) PAIR
+
+
+class StepBuffers(NamedTuple):
+    """Buffers of one substep (owner: ContactReader; grown in Python when the kernel asks)."""
+
+    geom: np.ndarray  # (cap, 2) int32: the contacts, copied from the mjData struct
+    pos: np.ndarray  # (cap, 3)
+    frame: np.ndarray  # (cap, 9)
+    efc_address: np.ndarray  # (cap,) int32
+    dim: np.ndarray  # (cap,) int32
+    efc: np.ndarray  # (nefc_cap,) constraint forces (when Python copies the contacts)
+    rows: np.ndarray  # (cap,) PAIR_ROW: the touching pairs
+    sustained: np.ndarray  # (cap,) PAIR_ROW: the pairs that slide or roll
+    hits: np.ndarray  # (cap,) HIT
+    onsets: np.ndarray  # (cap + 1,) ONSET
+    impacts: np.ndarray  # (cap,) IMPACT: the substep's impacts with a positive impulse
+    jn: np.ndarray  # (cap * nv,) normal Jacobians of the hits (k, nv) row-major
+    minv_jt: np.ndarray  # (cap * nv,) M^-1 Jn^T (k, nv)
+    records: np.ndarray  # (rcap,) RECORD: impact records not yet taken by Python
+    missing: np.ndarray  # (2 cap,) MISSING
+    log: np.ndarray  # (lcap,) LOG: event log entries not yet taken by Python
+
+
+class DataViews(NamedTuple):
+    """Fixed-size arrays of one MjData (numpy views: valid as long as the MjData lives)."""
+
+    cvel: np.ndarray  # (nbody, 6) (angular, linear) com-based velocity
+    subtree_com: np.ndarray  # (nbody, 3)
+    geom_xpos: np.ndarray  # (ngeom, 3)
+    geom_xmat: np.ndarray  # (ngeom, 9)
+    cdof: np.ndarray  # (nv, 6)
+    xpos: np.ndarray  # (nbody, 3)
+    site_xpos: np.ndarray  # (nsite, 3)
+
+
+class DriveState(NamedTuple):
+    """How the simulator feeds the synthesizer (owner: AudioSimulator)."""
+
+    prm: np.ndarray  # (1,) DRIVE_PARAMS
+    sound: np.ndarray  # (ngeom,) SOUND
+    coef: np.ndarray  # (sounding geoms, ngeom) Hertz coefficient of (struck, other), NaN: not yet known
+    sidx: np.ndarray  # (slots, 2) int64: stream of (pair slot, side), -1: none yet
+    mic_rows: np.ndarray  # (mics,) int64: rows of the microphones' source positions
+    mic_offsets: np.ndarray  # (mics, 3) [m]
+    dyn_geoms: np.ndarray  # (moving objects,) int64: geom of each moving sounding object
+    dyn_obj: np.ndarray  # (moving objects,) int64: its synthesizer object index

@@ -1,0 +1,150 @@
+"""`StepKernel`: calls the step kernel (:func:`.step.advance`) and does for it what numba
+cannot (growing buffers, ``mj_solveM`` through the bindings when its C address is unknown).
+
+Hand-backs that need the synthesizer or the clock (Hertz coefficients, streams, ring length,
+clock jumps, out-of-range amplitudes) go to the caller's ``on_stop(reason)``
+(:class:`mjsound.sim.simulator.AudioSimulator`); a reader on its own
+(:meth:`ContactReader.events`) uses a silent drive, where none of them can happen.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import typeof
+
+from ..synth.records import SYNTH_CONSTS, ObjectTable, SynthState
+from ..synth.queue import EventQueue
+from ..synth.stream_table import StreamTable
+from .fused import mj_link
+from .records import DRIVE_PARAMS, RUN, SOUND, DataViews, DriveState
+from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance
+
+__all__ = ["StepKernel", "silent_drive", "silent_synth_state"]
+
+
+def silent_drive(ngeom: int) -> DriveState:
+    """A :class:`.records.DriveState` in which no geom sounds."""
+    sound = np.zeros(ngeom, SOUND)
+    sound["obj"] = -1
+    sound["coef_row"] = -1
+    return DriveState(np.zeros(1, DRIVE_PARAMS), sound, np.zeros((0, ngeom)), np.full((0, 2), -1, np.int64),
+                      np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64))
+
+
+def silent_synth_state(dtype="float32") -> SynthState:
+    """A :class:`mjsound.synth.records.SynthState` without objects or microphones (the same
+    types as a synthesizer's, so the kernel compiled for one serves both)."""
+    z = np.zeros
+    objects = ObjectTable(z((0, 3)), z(1, np.int64), z(0), z(1, np.int64), z(1, np.int64), z(0), z(0),
+                          z(0, np.complex128), z(0, np.complex128))
+    return SynthState(objects, z((0, 3)), z((0, 3, 3)), z((0, 3)), z(1, SYNTH_CONSTS), EventQueue(1).state,
+                      StreamTable(0, dtype).empty)
+
+
+class StepKernel:
+    """The step kernel of one (reader, MjData): the :data:`.records.MJ` link, the data's
+    views, the :data:`.records.RUN` record and the clock record it counts in.
+
+    Parameters
+    ----------
+    model, data : mujoco.MjModel, mujoco.MjData
+    reader : ContactReader
+    clock : (1,) CLOCK, optional
+        The sample clock's record (default: a private one; replay-style calls with explicit
+        times do not use it).
+    use_c : bool
+        Reach MuJoCo through its C functions and struct (False: through the bindings only).
+    """
+
+    def __init__(self, model, data, reader, clock=None, use_c: bool = True):
+        import mujoco
+
+        from .records import CLOCK
+
+        self._mj = mujoco
+        self.model, self.data, self.reader = model, data, reader
+        self.mj = mj_link(model, data, use_c)
+        self.from_struct = bool(self.mj[0]["layout_ok"])
+        self.views = DataViews(data.cvel, data.subtree_com, data.geom_xpos, data.geom_xmat, data.cdof, data.xpos,
+                               data.site_xpos)
+        self.run = np.zeros(1, RUN)
+        if clock is None:  # (calls with explicit times only; fs 1 keeps the event time finite)
+            clock = np.zeros(1, CLOCK)
+            clock[0]["fs"] = clock[0]["den"] = 1
+        self.clock = clock
+        self._entry = None
+        self._entry_key = None
+
+    @property
+    def can_step(self) -> bool:
+        """Whether the kernel can call ``mj_step`` itself (C function and struct layout known)."""
+        m = self.mj[0]
+        return bool(m["layout_ok"] and m["step_fn"] and m["solve_fn"])
+
+    def _copy_contacts(self) -> None:
+        """Python copies the step's contacts into the buffers (no usable struct layout)."""
+        run = self.run[0]
+        run["ncon"], run["nefc"] = self.reader.copy_contacts(self.data)
+
+    def _advance(self, args) -> None:
+        """``advance(*args)``; the compiled entry point is called directly while the argument
+        objects are the ones it was looked up for (numba's dispatch computes the types of
+        tuples in Python, microseconds per call)."""
+        key = tuple(id(a) for a in args)
+        if key == self._entry_key:
+            self._entry(*args)
+            return
+        advance(*args)
+        self._entry = advance.overloads[tuple(typeof(a) for a in args)].entry_point
+        self._entry_key = key
+        self._keep = args  # (keeps the ids unique)
+
+    def call(self, drive, synth_state, nstep: int = 1, call_step: bool = False, explicit=None, log_limit: int = 0,
+             on_stop=None, synth=None) -> None:
+        """Run ``nstep`` substeps (``call_step``: the kernel calls ``mj_step``; else the step
+        was taken and its contacts are read). ``explicit``: ``(t0, t1, n0, n1)`` of a single
+        step instead of the clock's. ``drive``: a DriveState or a callable returning the
+        current one, ``synth_state()``: the current SynthState (both asked again after every
+        hand-back); ``synth``: the Synthesizer whose queue grows on :data:`.step.ROOM`;
+        ``on_stop(reason)`` handles the other reasons, then the call resumes."""
+        run = self.run[0]
+        run["nstep"], run["done"], run["call_step"] = nstep, 0, int(call_step)
+        run["stage"] = STAGE_STEP if call_step else STAGE_READ
+        run["from_struct"] = int(self.from_struct)
+        run["log_limit"], run["n_log"], run["n_impacts"], run["solved"], run["poses_current"] = log_limit, 0, 0, 0, 0
+        if explicit is not None:
+            run["explicit"] = 1
+            run["t0"], run["t1"], run["n0"], run["n1"] = explicit
+        else:
+            run["explicit"] = 0
+        if not self.from_struct:
+            if call_step or nstep != 1:
+                raise ValueError("StepKernel.call: stepping needs MuJoCo's C functions and struct layout")
+            self._copy_contacts()
+        reader = self.reader
+        while True:
+            d = drive() if callable(drive) else drive
+            self._advance((self.mj, self.views, reader.state(), reader.buffers, self.clock, d, synth_state(),
+                           self.run))
+            reason = int(run["reason"])
+            if reason == DONE:
+                return
+            if reason == ROOM:
+                n = int(run["need"])
+                reader.grow(n, int(run["nefc"]))
+                if run["n_log"] < run["log_limit"]:
+                    reader.grow_log(int(run["n_log"]) + 2 * n)
+                if synth is not None:
+                    synth.reserve_impacts(2 * n)
+                if not self.from_struct:
+                    self._copy_contacts()
+            elif reason == SOLVE:
+                k, nv = int(run["need"]), len(reader.dof_parent)
+                b = reader.buffers
+                minv = b.minv_jt[: k * nv].reshape(k, nv)
+                self._mj.mj_solveM(self.model, self.data, minv, b.jn[: k * nv].reshape(k, nv))
+                run["solved"] = 1
+            elif on_stop is not None:
+                on_stop(reason)
+            else:
+                raise RuntimeError(f"mjsound: the step kernel stopped ({REASONS[reason]}) with nobody to handle it")

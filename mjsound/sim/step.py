@@ -1,0 +1,214 @@
+"""The step kernel: one numba implementation of a physics substep's sound.
+
+:func:`advance` runs, for each of ``run.nstep`` substeps (``docs/design.md`` draws the data
+flow):
+
+1. ``mj_step`` (when it steps itself: :meth:`AudioSimulator.substeps`; :meth:`.step` and
+   replay call it after MuJoCo stepped),
+2. read: the clock's step times and samples (or the explicit ones of a replay), the
+   contacts from the mjData struct (or as Python copied them in), per-pair quantities and the
+   pair state machine (:func:`.pairs.read_pairs`),
+3. impulses of the impact events (:mod:`.impulses`, ``mj_solveM`` through its C address) and
+   their records,
+4. queue: poses and microphones synced, the impacts into the synthesizer's event queue
+   (:func:`.drive.queue_impacts`), the event log,
+5. drive: the sliding / rolling streams (:func:`.drive.drive_sustained`),
+
+and after the last substep syncs the poses and microphones once more (for the render's
+stream gains). It stops and hands back to Python only for what numba cannot do, with a
+named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`,
+:data:`SOLVE`, :data:`HERTZ`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
+says where the substep resumes when Python calls again, and nothing of a stage is changed
+before it can finish, so the resumed substep is the same as one that never stopped.
+
+Every argument is a named record or a :class:`typing.NamedTuple` of them
+(:mod:`.records`, :mod:`mjsound.synth.records`). The kernel returns nothing (outputs are in
+the records), so that an interrupt (Ctrl-C) during the call reaches the caller as
+``KeyboardInterrupt``: numba's boxing of a returned array runs Python code that would swallow
+a pending signal into ``SystemError``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
+from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
+from .impulses import event_impulses, normal_jacobians, write_records
+from .pairs import read_pairs
+
+__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "STAGE_STEP",
+           "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
+
+#: ``run.reason``: every substep done; ``data.time`` is not where the clock expects it (a
+#: jump or an external reset: Python re-anchors or resets, then resumes); a buffer must grow
+#: for ``run.need`` contacts; ``M^-1 Jn^T`` must come from Python (no C ``mj_solveM``: fill
+#: ``buf.minv_jt`` from ``buf.jn`` and set ``run.solved``); ``run.n_missing`` Hertz
+#: coefficients (``buf.missing``: struck, other geom) or streams (``buf.missing``: row, side)
+#: must be made; the stream rings must hold ``run.need`` samples; an impact's amplitude is out
+#: of range (Python raises; ``run.need`` impacts in ``buf.impacts``).
+DONE, CLOCK_JUMP, ROOM, SOLVE, HERTZ, STREAMS, RING, AMPLITUDE = range(8)
+REASONS = ("done", "clock jump", "room", "solve", "hertz", "streams", "ring", "amplitude")
+#: ``run.stage``: where the current substep resumes.
+STAGE_STEP, STAGE_READ, STAGE_IMPULSES, STAGE_QUEUE, STAGE_LOG, STAGE_DRIVE = range(6)
+
+LOG_IMPACT, LOG_SLIDE, LOG_ROLL = 0, 1, 2
+
+
+@njit(cache=True)
+def _substep_times(clock, rn, mj):
+    """Set ``rn``'s times and samples of the next step from the clock; False when
+    ``data.time`` (read from the struct) does not match it within a quarter step."""
+    ck = clock[0]
+    k = ck.k + 1
+    if rn.from_struct:
+        if abs(data_time(mj) - (ck.t_start + k * ck.timestep)) > 0.25 * ck.timestep:
+            return False
+    num0 = ck.a0 + (k - 1) * ck.b
+    num1 = num0 + ck.b
+    rn.n0 = -((-num0 * ck.fs) // ck.den)
+    rn.n1 = -((-num1 * ck.fs) // ck.den)
+    rn.t0 = num0 / ck.den
+    rn.t1 = num1 / ck.den
+    return True
+
+
+@njit(cache=True)
+def _has_room(reader, buf, synth, rn, ncon):
+    """Whether every buffer holds a substep of ``ncon`` contacts (impacts on two sides at every
+    microphone; log entries while the log is not full)."""
+    cnt = reader.counts[0]
+    if ncon > buf.geom.shape[0] or cnt.nslots + ncon > reader.pairs.shape[0]:
+        return False
+    if cnt.n_records + ncon > buf.records.shape[0]:
+        return False
+    if not rn.from_struct and rn.nefc > buf.efc.shape[0]:
+        return False
+    if rn.n_log < rn.log_limit and rn.n_log + 2 * ncon > buf.log.shape[0]:
+        return False
+    cst, q = synth.consts[0], synth.queue
+    rows = 2 * cst.n_mics * ncon
+    if q.counts[0].count + rows > q.events.shape[0] or q.counts[0].pool_used + rows * cst.nmax > q.re.shape[0]:
+        return False
+    return True
+
+
+@njit(cache=True)
+def _log(buf, rn, t, kind, g1, g2, value):
+    if rn.n_log < rn.log_limit:
+        e = buf.log[rn.n_log]
+        e.time = t
+        e.kind = kind
+        e.g1 = g1
+        e.g2 = g2
+        e.value = value
+        rn.n_log += 1
+
+
+@njit(cache=True)
+def advance(mj, views, reader, buf, clock, drive, synth, run):
+    """Run the substeps of ``run`` (see the module docstring): ``mj`` (1,) MJ, ``views``
+    DataViews of the mjData, ``reader`` ReaderState, ``buf`` StepBuffers, ``clock`` (1,)
+    CLOCK, ``drive`` DriveState, ``synth`` SynthState, ``run`` (1,) RUN (inputs and outputs)."""
+    rn = run[0]
+    cnt = reader.counts[0]
+    ck = clock[0]
+    nv = reader.dof_parent.shape[0]
+    rn.reason = DONE
+    while rn.done < rn.nstep:
+        if rn.stage == STAGE_STEP:
+            if rn.call_step:
+                mj_step_now(mj)
+            rn.stage = STAGE_READ
+        if rn.stage == STAGE_READ:
+            if not rn.explicit and not _substep_times(clock, rn, mj):
+                rn.reason = CLOCK_JUMP
+                return
+            ncon = data_ncon(mj) if rn.from_struct else rn.ncon
+            rn.n_sust = 0
+            rn.n_onset = 0
+            rn.n_imp = 0
+            if ncon == 0:  # nothing touches: an open impact record closes
+                cnt.step += 1
+                if cnt.any_open:
+                    for j in range(cnt.nslots):
+                        reader.pairs[j].open = 0
+                    cnt.any_open = 0
+                rn.stage = STAGE_DRIVE
+            else:
+                if not _has_room(reader, buf, synth, rn, ncon):
+                    rn.reason = ROOM
+                    rn.need = ncon
+                    return
+                if rn.from_struct:
+                    gather_contacts(mj, buf, ncon)
+                    efc = data_efc_force(mj)
+                else:
+                    efc = buf.efc[: rn.nefc]
+                cnt.step += 1
+                _, ns, nh, n_onset = read_pairs(reader, buf, views, ncon, efc, rn.t0, rn.t1)
+                rn.n_sust = ns
+                rn.n_hits = nh
+                rn.n_onset = n_onset
+                rn.stage = STAGE_IMPULSES if n_onset else STAGE_LOG
+        if rn.stage == STAGE_IMPULSES:
+            k = rn.n_hits
+            jn = buf.jn[: k * nv].reshape((k, nv))
+            minv = buf.minv_jt[: k * nv].reshape((k, nv))
+            normal_jacobians(reader, buf.hits, k, views.cdof, views.subtree_com, jn)
+            if nv > 0 and k > 0:
+                if mj[0].solve_fn:
+                    mj_solve_now(mj, minv, jn, k)
+                elif not rn.solved:
+                    rn.reason = SOLVE
+                    rn.need = k
+                    return
+            rn.solved = 0
+            n_imp, stats = event_impulses(reader, buf, rn.n_onset, jn, minv)
+            write_records(reader, buf, rn.n_onset, stats, rn.t0)
+            rn.n_imp = n_imp
+            rn.stage = STAGE_QUEUE
+        if rn.stage == STAGE_QUEUE:
+            sync_poses(drive, views, synth)
+            t_ev = max(rn.t0 - ck.origin / ck.fs, (rn.n0 - ck.origin) / ck.fs)
+            r = queue_impacts(drive, synth, buf, rn.n_imp, t_ev)
+            if r < 0:
+                rn.reason = HERTZ
+                rn.n_missing = -r
+                return
+            if r > 0:
+                rn.reason = AMPLITUDE
+                rn.need = rn.n_imp
+                return
+            rn.n_impacts += rn.n_imp
+            rn.stage = STAGE_LOG
+        if rn.stage == STAGE_LOG:
+            for i in range(rn.n_imp):
+                im = buf.impacts[i]
+                _log(buf, rn, rn.t0, LOG_IMPACT, im.g1, im.g2, im.impulse)
+            for i in range(rn.n_sust):
+                row = buf.sustained[i]
+                _log(buf, rn, rn.t0, row.kind, row.g1, row.g2, row.speed)
+            rn.stage = STAGE_DRIVE
+        if rn.stage == STAGE_DRIVE:
+            k0 = rn.n0 - ck.origin
+            k1 = rn.n1 - ck.origin
+            ns = rn.n_sust
+            if drive.prm[0].sustained and ns and k1 > k0:
+                nm, need = missing_streams(drive, synth, buf, ns, k1)
+                if nm:
+                    rn.reason = STREAMS
+                    rn.n_missing = nm
+                    return
+                if need:
+                    rn.reason = RING
+                    rn.need = need
+                    return
+                drive_sustained(drive, synth, buf, ns, k0, k1)
+            if not rn.explicit:
+                ck.k += 1
+            rn.done += 1
+            rn.stage = STAGE_STEP
+    sync_poses(drive, views, synth)
+    rn.poses_current = 1

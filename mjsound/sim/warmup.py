@@ -1,0 +1,87 @@
+"""Compile the per-step and render kernels before timing anything.
+
+numba compiles each kernel the first time a process calls it and keeps the machine code in
+its on-disk cache (``cache=True``), so only the first run on a machine pays. :func:`warmup`
+runs a tiny scene through every path (fused substeps, single steps, replay-style explicit
+steps, rendering with events and streams) so that a caller can separate compile time from
+speed figures; :func:`notice_first_compile` prints one line on stderr when the cache is cold.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+__all__ = ["warmup", "kernels_cached", "notice_first_compile"]
+
+_NOTICED = [False]
+
+_XML = """<mujoco><option timestep="0.002"/>
+  <custom><text name="mjsound:ball" data="steel"/><text name="mjsound:box" data="oak"/></custom>
+  <worldbody><geom name="floor" type="plane" size="2 2 .1"/>
+    <body name="ball" pos="0 0 0.05"><freejoint/><geom name="ball" type="sphere" size="0.02"/></body>
+    <body name="box" pos="0.3 0 0.03"><freejoint/><geom name="box" type="box" size="0.04 0.03 0.03"/></body>
+  </worldbody></mujoco>"""
+
+
+def kernels_cached() -> bool:
+    """Whether numba's disk cache holds the step kernel already (then a process starts in
+    about a second)."""
+    from .step import advance
+
+    try:
+        return os.path.exists(advance._cache._cache_file._index_path)
+    except AttributeError:  # (numba internals moved: assume cold)
+        return False
+
+
+def notice_first_compile(stream=None) -> None:
+    """Say once per process, on stderr, that numba compiles its kernels (cold cache only)."""
+    if _NOTICED[0]:
+        return
+    _NOTICED[0] = True
+    if not kernels_cached():
+        print("mjsound: compiling numba kernels (first run on this machine only; cached afterwards)",
+              file=stream or sys.stderr, flush=True)
+
+
+def warmup(verbose: bool = True) -> float:
+    """Compile (or load from the cache) every kernel of the per-step and render paths by
+    running a tiny two-body scene for 0.1 s. Returns the seconds it took."""
+    import mujoco
+    import numpy as np
+
+    from .scene import SoundScene
+    from .simulator import AudioSimulator
+    from .stub import stub_model
+
+    t0 = time.perf_counter()
+    if verbose:
+        notice_first_compile()
+    else:
+        _NOTICED[0] = True
+    model = mujoco.MjModel.from_xml_string(_XML)
+    data = mujoco.MjData(model)
+    data.qvel[0] = 0.5  # the ball rolls, the box slides: impacts, streams, rolling
+    data.qvel[8] = 0.8
+    data.qvel[2] = -1.0
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0), "box": stub_model("box:0.08,0.06,0.06", "oak", 4, 700.0)}
+    scene = SoundScene.from_model(model, models=models, progress=False)
+    sim = AudioSimulator(model, data, scene=scene, sample_rate=16000)
+    sim.run(0.05)
+    for _ in range(10):
+        mujoco.mj_step(model, data)
+        sim.step()
+    sim.synth.fused_streams = False
+    sim.substeps(5)
+    sim.flush()
+    t = float(data.time)
+    mujoco.mj_forward(model, data)
+    sim._process(sim.clock.n, sim.clock.n + 32, t, t + 0.002)
+    sim.synth.impact("ball", [0, 0, 0], [0, 0, 0.01], time=sim.synth.time)
+    sim.synth.slide("box", [0.3, 0, 0], [0, 0, 1], 1.0, 0.1, sim.synth.time, sim.synth.time + 0.01)
+    sim.synth.render(256)
+    sim.reader.events(data)
+    assert np.isfinite(sim.flush()).all()
+    return time.perf_counter() - t0

@@ -1,0 +1,310 @@
+"""Persistent sustained-contact streams: sliding / rolling noise generated in numba.
+
+A *stream* is one sustained contact source (one side of one contact pair). Its noise is
+generated sample by sample in source time into a per-stream ring buffer
+``ring[s, k & (L - 1)]`` (force [N] of source sample k); microphone m hears source sample k
+at voice sample ``k + D[s, m]`` (integer propagation delay; the sub-sample part is in the
+complex gain). The state is a :data:`.records.STREAM` table (:class:`.records.StreamState`);
+nothing is allocated per step beyond the block's source rows.
+
+Noise: unit-variance Irwin-Hall sums of four 16-bit uniforms from one splitmix64 draw,
+low-passed by a one-pole filter ``y += alpha (x - y)`` with ``alpha = 1 - e^{-2 pi f_c / fs}``,
+``f_c = speed / length`` (van den Doel et al. 2001), scaled by ``amp = roughness |F_n| |v|``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .records import SourceRows
+
+__all__ = ["stream_seed", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
+           "any_due"]
+
+_U1 = np.uint64(0x9E3779B97F4A7C15)
+_U2 = np.uint64(0xBF58476D1CE4E5B9)
+_U3 = np.uint64(0x94D049BB133111EB)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+_M16 = np.uint64(0xFFFF)
+_S16 = np.uint64(16)
+_S32 = np.uint64(32)
+_S48 = np.uint64(48)
+_INV16 = 1.0 / 65536.0
+_SQRT3 = float(np.sqrt(3.0))
+
+
+@njit(cache=True, inline="always")
+def _splitmix(state):
+    state = state + _U1
+    z = state
+    z = (z ^ (z >> _S30)) * _U2
+    z = (z ^ (z >> _S27)) * _U3
+    z = z ^ (z >> _S31)
+    return state, z
+
+
+@njit(cache=True)
+def stream_seed(seed, obj, key):
+    """Initial generator state of a stream from (synthesizer seed, object index, stream key)."""
+    s = np.uint64(seed & 0x7FFFFFFFFFFFFFFF)
+    s, a = _splitmix(s ^ np.uint64(obj & 0x7FFFFFFFFFFFFFFF))
+    s, b = _splitmix(a ^ np.uint64(key & 0x7FFFFFFFFFFFFFFF))
+    return b
+
+
+@njit(cache=True, inline="always")
+def mic_distance(mics, m, pos, rmin):
+    """Distance [m] from ``pos`` to microphone ``m``, at least ``rmin``."""
+    dx = mics[m, 0] - pos[0]
+    dy = mics[m, 1] - pos[1]
+    dz = mics[m, 2] - pos[2]
+    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return r if r >= rmin else rmin
+
+
+@njit(cache=True, inline="always")
+def nearest_one(points, x, y, z):
+    """Index of the row of ``points`` (p, 3) nearest to ``(x, y, z)`` (brute force; models
+    carry ~1000 surface samples, so this is a few microseconds and needs no tree)."""
+    best = np.inf
+    bi = 0
+    for i in range(points.shape[0]):
+        dx = points[i, 0] - x
+        dy = points[i, 1] - y
+        dz = points[i, 2] - z
+        d = dx * dx + dy * dy + dz * dz
+        if d < best:
+            best = d
+            bi = i
+    return bi
+
+
+@njit(cache=True)
+def stream_gains(synth, j, o):
+    """Per-microphone complex gain ``gr + j gi`` and integer delay ``D`` of stream ``j`` on
+    object ``o``: a force along the stream's world direction ``n`` at its world point ``p``,
+    ``G = phi(x) . n_local`` at the nearest surface point, ``a = G / (fs w_d) w / r`` with
+    the sub-sample delay's phase ``e^{lam (D / fs - r / c)}`` (see ``Synthesizer._add_source``)."""
+    ob, cst, st = synth.objects, synth.consts[0], synth.streams
+    p0, p1 = ob.pts_off[o], ob.pts_off[o + 1]
+    m0, m1 = ob.mode_off[o], ob.mode_off[o + 1]
+    n = m1 - m0
+    shk = ob.shk[ob.shk_off[o]:ob.shk_off[o + 1]].reshape((p1 - p0, 3, n))
+    pos = synth.pos[o]
+    R = synth.R[o]
+    p = st.table[j].p
+    nrm = st.table[j].n
+    pl0 = 0.0
+    pl1 = 0.0
+    pl2 = 0.0
+    d0 = 0.0
+    d1 = 0.0
+    d2 = 0.0
+    for i in range(3):
+        q = p[i] - pos[i]
+        pl0 += q * R[i, 0]
+        pl1 += q * R[i, 1]
+        pl2 += q * R[i, 2]
+        d0 += nrm[i] * R[i, 0]
+        d1 += nrm[i] * R[i, 1]
+        d2 += nrm[i] * R[i, 2]
+    bi = nearest_one(ob.pts[p0:p1], pl0, pl1, pl2)
+    mics = synth.mics
+    fs = cst.fs
+    gr = st.gr[j]
+    gi = st.gi[j]
+    D = st.D[j]
+    for m in range(mics.shape[0]):
+        r = mic_distance(mics, m, pos, cst.rmin)
+        ta = r / cst.c
+        Dm = np.int64(np.ceil(ta * fs - cst.tol))
+        if Dm < 0:
+            Dm = 0
+        D[m] = Dm
+        dts = Dm / fs - ta
+        for k in range(n):
+            G = d0 * shk[bi, 0, k] + d1 * shk[bi, 1, k] + d2 * shk[bi, 2, k]
+            a = G / (fs * ob.wd[m0 + k]) * ob.w[m0 + k] / r
+            lam = ob.lam[m0 + k]
+            e = np.exp(lam.real * dts)
+            ph = lam.imag * dts
+            gr[m, k] = a * e * np.cos(ph)
+            gi[m, k] = a * e * np.sin(ph)
+            if not (np.isfinite(gr[m, k]) and np.isfinite(gi[m, k])):
+                gr[m, k] = 0.0  # a bad pose or point: silence, never NaN audio
+                gi[m, k] = 0.0
+        for k in range(n, gr.shape[1]):
+            gr[m, k] = 0.0
+            gi[m, k] = 0.0
+
+
+@njit(cache=True)
+def stream_generate(streams, s, k0, k1, amp, alpha):
+    """Drive stream ``s`` on source samples ``[k0, k1)``: its noise (force [N]) is generated now
+    into the ring, so several drives may precede one render. Samples between the last drive
+    and ``k0`` are silent; the low-pass restarts when the drive does not continue the last
+    one (as :meth:`Synthesizer.slide`)."""
+    ring = streams.ring
+    st = streams.table[s]
+    cap = ring.shape[1]
+    mask = cap - 1
+    if k0 != st.k1:
+        st.y = 0.0
+    st.k0 = k0
+    st.k1 = k1
+    st.amp = amp
+    st.alpha = alpha
+    k = st.gen
+    if k < k1 - cap:
+        k = k1 - cap
+    b = 1.0 - alpha
+    y = st.y
+    state = np.uint64(st.rng)
+    while k < k1:
+        if k >= k0:
+            state, z = _splitmix(state)
+            x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
+                 + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
+            x *= _SQRT3
+            y = alpha * x + b * y
+            ring[s, k & mask] = y * amp
+        else:
+            ring[s, k & mask] = 0.0
+        k += 1
+    st.y = y
+    st.rng = np.int64(state)
+    if k1 > st.gen:
+        st.gen = k1
+    if amp != 0.0 and k1 > st.last:
+        st.last = k1
+
+
+@njit(cache=True)
+def ring_need(streams, consts, s, k1):
+    """Ring length stream ``s`` needs to be driven up to sample ``k1``: its largest delay plus
+    the samples not rendered yet plus the slack."""
+    dmax = 0
+    D = streams.D
+    for m in range(D.shape[1]):
+        if D[s, m] > dmax:
+            dmax = D[s, m]
+    return dmax + (k1 - consts[0].rendered) + consts[0].slack
+
+
+@njit(cache=True)
+def stream_drive(streams, consts, s, k0, k1, amp, alpha, p, nrm, regain):
+    """Drive stream ``s`` (see :func:`stream_generate`) at world point ``p`` along unit ``nrm``;
+    marks its gains due every ``regain`` samples. Returns 0, or the ring length needed first
+    (nothing changed then)."""
+    if k1 <= k0 or amp == 0.0:
+        return 0
+    need = ring_need(streams, consts, s, k1)
+    if need > streams.ring.shape[1]:
+        return need
+    st = streams.table[s]
+    for c in range(3):
+        st.p[c] = p[c]
+        st.n[c] = nrm[c]
+    g = st.gupd
+    if k0 >= g + regain or k0 < g:
+        st.gupd = k0
+        st.due = 1
+    stream_generate(streams, s, k0, k1, amp, alpha)
+    return 0
+
+
+@njit(cache=True)
+def any_due(streams):
+    """Whether any stream in use is marked for new gains."""
+    t = streams.table
+    for j in range(streams.counts[0].n):
+        if t[j].due:
+            return True
+    return False
+
+
+@njit(cache=True)
+def streams_gains(synth):
+    """:func:`stream_gains` of every stream marked due (cleared here) in one call; streams of
+    removed objects (not live, or no points or modes) are skipped. Updates and returns the
+    largest delay ``dmax`` [samples]."""
+    st = synth.streams
+    ob = synth.objects
+    t = st.table
+    dmax = st.counts[0].dmax
+    for j in range(st.counts[0].n):
+        if not t[j].due:
+            continue
+        t[j].due = 0
+        o = t[j].obj
+        if not t[j].live or o + 1 >= ob.pts_off.shape[0]:
+            continue
+        if ob.pts_off[o + 1] <= ob.pts_off[o] or ob.mode_off[o + 1] <= ob.mode_off[o]:
+            continue
+        stream_gains(synth, j, o)
+        for m in range(st.D.shape[1]):
+            if st.D[j, m] > dmax:
+                dmax = st.D[j, m]
+    st.counts[0].dmax = dmax
+    return dmax
+
+
+@njit(cache=True)
+def streams_bank_rows(streams, layout, start, end, zero):
+    """The block's rows of every stream for :func:`.kernels.render_all`, active on
+    ``[start, min(end, last + D))`` and read from the ring, placed in the microphone banks
+    (voice ``v``'s gains at columns ``v_rel[v] ...`` of a row ``width`` wide) and grouped by
+    microphone (stream order within one). ``layout``: :class:`.kernels.BankLayout`.
+    Returns :class:`.records.SourceRows` (microphone ``m``'s rows ``ptr[m] : ptr[m + 1]``)."""
+    S = streams.counts[0].n
+    t = streams.table
+    D = streams.D
+    ring = streams.ring
+    st_gr = streams.gr
+    st_gi = streams.gi
+    n_mics = D.shape[1]
+    width = layout.width
+    mask = ring.shape[1] - 1
+    cap = ring.shape[1]
+    ptr = np.zeros(n_mics + 1, np.int64)
+    for m in range(n_mics):
+        for s in range(S):
+            if t[s].live and t[s].last + D[s, m] > start:
+                ptr[m + 1] += 1
+    for m in range(n_mics):
+        ptr[m + 1] += ptr[m]
+    q = ptr[n_mics]
+    n = end - start
+    sa = np.empty(q, np.int64)
+    sb = np.empty(q, np.int64)
+    gr = np.zeros((q, width), st_gr.dtype)
+    gi = np.zeros((q, width), st_gr.dtype)
+    F = np.zeros((q, n), st_gr.dtype)
+    j = 0
+    for m in range(n_mics):
+        for s in range(S):
+            if not t[s].live:
+                continue
+            Dm = D[s, m]
+            hi = t[s].last + Dm
+            if hi <= start:
+                continue
+            v = layout.vbase[t[s].obj] + m
+            c0 = layout.v_rel[v]
+            w = min(layout.v_len[v], st_gr.shape[2])
+            for k in range(w):
+                gr[j, c0 + k] = st_gr[s, m, k]
+                gi[j, c0 + k] = st_gi[s, m, k]
+            sa[j] = start
+            sb[j] = hi if hi < end else end
+            gen = t[s].gen
+            lo_src = gen - cap  # oldest sample still in the ring
+            for u in range(start, sb[j]):
+                ks = u - Dm
+                if ks >= lo_src and ks < gen:
+                    F[j, u - start] = ring[s, ks & mask]
+            j += 1
+    return SourceRows(ptr, sa, sb, gr, gi, F)
