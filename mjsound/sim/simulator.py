@@ -229,6 +229,11 @@ class AudioSimulator:
         self._pending_n0 = self.clock.n
 
     @property
+    def _geom_obj(self) -> np.ndarray:
+        """Synthesizer object index each geom excites (-1: silent), (ngeom,) int64."""
+        return self._sound["obj"]
+
+    @property
     def _origin(self) -> int:
         """Absolute sample of the synthesizer's sample 0."""
         return int(self.clock.rec[0]["origin"])
