@@ -1,0 +1,236 @@
+"""`ImpactPulses`: the rigid-body side of every impact, for air and contact microphones.
+
+Every impact the contact reader finds (a row of :data:`mjsound.sim.contacts.I_COLS` columns:
+geoms, point, normal, impulse ``J`` on geom2 along the normal, approach speed) accelerates the
+bodies of both geoms within the Hertz contact time ``tau``:
+
+* **acceleration noise** (:mod:`mjsound.synth.accel_noise`): each dynamic body of the pair,
+  sounding or not, radiates a click to every air microphone, from its centre of mass, as the
+  equivalent ellipsoid of its mass and inertia whose velocity changes by ``dv``;
+* **contact microphones** (:mod:`mjsound.synth.contact_mic`): a sensor on either body reads
+  that body's rigid-body acceleration at its site along its axis; a sensor on any other body
+  reads nothing of this impact.
+
+``dv`` of body b: ``J / m_b`` with ``m_b`` its own mass (exact for a free body), and
+``dw = I_b^-1 ((p - o_b) x J)``; for a body in an articulated chain, which the rest of the
+chain holds back, this over-estimates the change, so ``|dv|`` and ``|dw x arm|`` are each
+capped at ``2 v`` (``v`` the approach speed: an elastic impact against an immovable body).
+Bodies welded to the world and mocap bodies do not move and make no click.
+
+``tau`` is the modal excitation's: Hertz with both geoms' acoustic materials (a missing
+material counts as rigid), the bodies' subtree masses (infinite when welded) and the geoms'
+contact radii; when neither geom has a material, both count as :data:`UNKNOWN_MATERIAL` (ABS:
+most robot shells and household plastics), so that every click has a finite duration.
+
+Only impacts call into this module: a step without impacts costs nothing here, and a render
+with nothing pending adds nothing (:class:`mjsound.synth.bandlimited.PulseTrack`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..materials import get_material
+from ..synth import accel_noise
+from ..synth.bandlimited import PulseTrack
+from ..synth.contact_mic import site_pulse
+from ..synth.pulse import contact_time, effective, hertz_coefficient
+from .contacts import I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED
+
+__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "contact_mic_sites", "CONTACT_MIC_PREFIX"]
+
+#: Material both sides of an impact count as for the click's duration when neither has one.
+UNKNOWN_MATERIAL = "abs"
+#: Sites whose name starts with this are contact microphones.
+CONTACT_MIC_PREFIX = "contact_mic"
+
+
+def _quat_mat(q) -> np.ndarray:
+    w, x, y, z = (float(v) for v in q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def contact_mic_sites(model, names=None) -> list[int]:
+    """Site ids of the contact microphones: the sites named in ``names`` (in that order), or
+    every site whose name starts with ``contact_mic`` (in model order).
+
+    Raises
+    ------
+    ValueError
+        For a name that is not a site of the model, or a site on the world body (it cannot
+        feel anything: attach it to a body).
+    """
+    import mujoco
+
+    if names is None:
+        ids = [s for s in range(model.nsite)
+               if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "").startswith(CONTACT_MIC_PREFIX)]
+    else:
+        ids = []
+        for name in ([names] if isinstance(names, str) else list(names)):
+            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, str(name))
+            if sid < 0:
+                raise ValueError(f"contact microphone site {name!r} is not in the model; add "
+                                 f"<site name=\"{name}\"/> to the body it is glued to")
+            ids.append(sid)
+    for s in ids:
+        if model.site_bodyid[s] == 0:
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s)
+            raise ValueError(f"contact microphone site {name!r} is on the world body; put it inside the body it "
+                             "should listen to")
+    return ids
+
+
+class ImpactPulses:
+    """Clicks at the air microphones and rigid-body pulses at the contact microphones.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    geom_material : list of Material | None
+        Acoustic material per geom (None: unknown).
+    geom_radius : (ngeom,) array
+        Contact radius of curvature per geom [m] (inf: flat).
+    n_air : int
+        Air microphones (channels ``0 .. n_air - 1``).
+    contact_sites : list of int
+        Contact microphone sites (channels ``n_air ..``).
+    sample_rate : int
+        [Hz].
+    clicks : bool
+        Render acceleration noise at the air microphones.
+    speed_of_sound : float
+        [m/s].
+    """
+
+    def __init__(self, model, geom_material, geom_radius, n_air, contact_sites, sample_rate, *, clicks=True,
+                 speed_of_sound=accel_noise.SPEED_OF_SOUND):
+        m = model
+        self.model = m
+        self.n_air = int(n_air)
+        self.contact_sites = [int(s) for s in contact_sites]
+        self.clicks = bool(clicks)
+        self.c = float(speed_of_sound)
+        self.track = PulseTrack(self.n_air + len(self.contact_sites), sample_rate)
+        self._mat = list(geom_material)
+        # a flat-faced geom (box) touches with its edges: half its largest extent, as a sounding
+        # object's default radius of curvature (Synthesizer.impacts); planes stay flat
+        radius = np.array(geom_radius, dtype=np.float64)
+        plane = np.asarray(m.geom_type) == 0  # mjGEOM_PLANE
+        half = np.asarray(m.geom_aabb, dtype=np.float64).reshape(-1, 6)[:, 3:].max(axis=1)
+        self._radius = np.where(np.isinf(radius) & ~plane & (half > 0), half, radius)
+        nb = m.nbody
+        self._mass = np.array(m.body_mass, dtype=np.float64)
+        self._dynamic = np.array([b > 0 and m.body_weldid[b] != 0 and m.body_mocapid[b] < 0 and self._mass[b] > 0
+                                  for b in range(nb)])
+        self._hertz_mass = np.array([m.body_subtreemass[b] if m.body_weldid[b] != 0 else np.inf for b in range(nb)])
+        self._axes = np.zeros((nb, 3))
+        self._iframe = np.tile(np.eye(3), (nb, 1, 1))  # principal axes in the body frame
+        for b in np.flatnonzero(self._dynamic):
+            inertia = np.asarray(m.body_inertia[b], dtype=np.float64)
+            if inertia.any():
+                self._axes[b] = accel_noise.ellipsoid_from_inertia(self._mass[b], inertia)
+            else:  # a point mass: a sphere of the density of water
+                self._axes[b] = (3 * self._mass[b] / (4 * math.pi * 1000.0)) ** (1 / 3)
+            self._iframe[b] = _quat_mat(m.body_iquat[b])
+        self._site_body = np.array([m.site_bodyid[s] for s in self.contact_sites], np.int64)
+        self._coef = {}
+
+    @property
+    def n_channels(self) -> int:
+        return self.track.n_channels
+
+    def reset(self, start: int = 0) -> None:
+        """Forget pending pulses; the next sample :meth:`take` returns is ``start``."""
+        self.track.reset(start)
+
+    def take(self, n: int) -> np.ndarray | None:
+        """``(n_air + n_contact, n)`` samples to add to the next ``n`` rendered samples (Pa at
+        the air channels, m/s^2 at the contact ones), or None when nothing is pending."""
+        return self.track.take(n)
+
+    def _tau(self, g1: int, g2: int, speed: float) -> float:
+        key = (g1, g2)
+        coef = self._coef.get(key)
+        if coef is None:
+            mat1, mat2 = self._mat[g1], self._mat[g2]
+            if mat1 is None and mat2 is None:
+                mat1 = mat2 = get_material(UNKNOWN_MATERIAL)
+            b1, b2 = self.model.geom_bodyid[g1], self.model.geom_bodyid[g2]
+            coef = hertz_coefficient(effective(self._hertz_mass[b1], self._hertz_mass[b2]),
+                                     effective(self._radius[g1], self._radius[g2]), mat1, mat2)
+            self._coef[key] = coef
+        return float(contact_time(coef, speed))
+
+    def add(self, impacts: np.ndarray, time_s: float, data, mic_positions) -> None:
+        """Pulses of a step's impacts.
+
+        Parameters
+        ----------
+        impacts : (k, I_COLS) array
+            The reader's impact rows (world point, normal, impulse on geom2 [N s]).
+        time_s : float
+            Their time on the output's clock [s] (sample n at n / fs).
+        data : mujoco.MjData
+            Poses of the bodies at the impact (``xpos``, ``xmat``: right after the ``mj_step``
+            that found the contacts they are those of the step's start, as the contacts).
+        mic_positions : (n_air, 3) array
+            Air microphones (world) [m].
+        """
+        if not len(impacts) or not (self.clicks and self.n_air or self.contact_sites):
+            return
+        mics = np.asarray(mic_positions, dtype=np.float64).reshape(-1, 3)
+        model = self.model
+        rows = np.asarray(impacts, dtype=np.float64)
+        rows = rows[np.all(np.isfinite(rows), axis=1) & (rows[:, I_IMPULSE] > 0)]
+        # one pulse per touching pair: its contact points' impulses summed (a box landing flat
+        # has four), applied at their impulse-weighted centre, fastest approach speed
+        pairs, inverse = np.unique(rows[:, [I_G1, I_G2]].astype(np.int64), axis=0, return_inverse=True)
+        for q, (g1, g2) in enumerate(pairs.tolist()):
+            mine = rows[inverse.reshape(-1) == q]
+            w = mine[:, I_IMPULSE]
+            J2 = (w[:, None] * mine[:, I_NORMAL:I_NORMAL + 3]).sum(axis=0)
+            point = (w[:, None] * mine[:, I_POINT:I_POINT + 3]).sum(axis=0) / w.sum()
+            speed = float(mine[:, I_SPEED].max())
+            tau = self._tau(g1, g2, speed)
+            for g, J in ((g2, J2), (g1, -J2)):
+                b = int(model.geom_bodyid[g])
+                if self._dynamic[b]:
+                    self._body(b, J, point, speed, tau, time_s, data, mics)
+
+    def _body(self, b, J, point, speed, tau, time_s, data, mics) -> None:
+        R = np.asarray(data.xmat[b]).reshape(3, 3)
+        com = np.asarray(data.xpos[b]) + R @ self.model.body_ipos[b]
+        Ri = R @ self._iframe[b]
+        cap = 2.0 * speed
+        dv = J / self._mass[b]
+        dv_norm = float(np.linalg.norm(dv))
+        if dv_norm > cap > 0:
+            dv *= cap / dv_norm
+            dv_norm = cap
+        if self.clicks and self.n_air and dv_norm > 0:
+            pulses = accel_noise.click_pulses(com, Ri, self._axes[b], dv, mics, time_s, tau,
+                                              speed_of_sound=self.c)
+            self.track.add(pulses, dv_norm)
+        sites = np.flatnonzero(self._site_body == b)
+        if not len(sites):
+            return
+        inertia = np.asarray(self.model.body_inertia[b], dtype=np.float64)
+        arm_p = point - com
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dw = Ri @ np.where(inertia > 0, (Ri.T @ np.cross(arm_p, J)) / inertia, 0.0)
+        for k in sites.tolist():
+            s = self.contact_sites[k]
+            site = np.asarray(data.xpos[b]) + R @ self.model.site_pos[s]
+            axis = R @ _quat_mat(self.model.site_quat[s])[:, 2]
+            spin = np.cross(dw, site - com)
+            spin_norm = float(np.linalg.norm(spin))
+            if spin_norm > cap > 0:
+                spin *= cap / spin_norm
+            dv_site = float((dv + spin) @ axis)
+            if dv_site != 0.0:
+                self.track.add(site_pulse(time_s, tau, self.n_air + k), dv_site)
