@@ -40,7 +40,11 @@ def modal_model(mesh, material: str, sample_rate: int, key=None, **kw):
 
 class AudioMujocoEnv(MujocoEnv):
     """Base class (see the module docstring). Subclasses define ``_variant_scene(key)``
-    (``(materials, models)`` for :meth:`SoundScene.from_model`) and the task."""
+    (``(materials, models)`` for :meth:`SoundScene.from_model`) and the task, and whether the
+    observation is the air microphone (``listen_to = "air"``) or the scene's contact
+    microphone (``"contact"``: its surface acceleration [m/s^2] / ``full_scale_pa``)."""
+
+    listen_to = "air"
 
     def __init__(self, model_path, frame_skip, state_space, action_space, *, sample_rate=16000, window_s=None,
                  mode="waveform", n_fft=256, hop=None, full_scale_pa=20.0, render_mode=None, **kw):
@@ -91,6 +95,8 @@ class AudioMujocoEnv(MujocoEnv):
         n_imp = self.sim.events["impact"]
         self._step_mujoco_simulation(np.zeros(self.model.nu), self.frame_skip if n_frames is None else n_frames)
         block = self.sim.flush()
+        if self.listen_to == "contact":
+            block = block[self.sim.contact_channels]
         clipped, peak = self.audio.push(block)
         return {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": int(block.shape[1]),
                 "audio_impacts": int(self.sim.events["impact"] - n_imp)}

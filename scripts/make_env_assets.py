@@ -9,6 +9,7 @@ Files
 -----
 material_drop.xml         a bar dropped onto a floor (MaterialDrop-v0)
 tap_containers.xml        three sealed containers and a steel hammer ball (TapContainers-v0)
+palm_drop.xml             a ball dropped on a plate with a contact microphone (PalmDrop-v0)
 container_empty.obj       container surface (walls, lid with a vent hole)
 container_loaded.obj      the same container with a heavy block fused to its floor
 """

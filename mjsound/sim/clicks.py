@@ -1,8 +1,8 @@
 """`ImpactPulses`: the rigid-body side of every impact, for air and contact microphones.
 
-Every impact the contact reader finds (a row of :data:`mjsound.sim.contacts.I_COLS` columns:
-geoms, point, normal, impulse ``J`` on geom2 along the normal, approach speed) accelerates the
-bodies of both geoms within the Hertz contact time ``tau``:
+Every impact the contact reader finds (a record with fields ``g1``, ``g2``, ``point``,
+``normal``, ``impulse``: ``J`` on geom2 along the normal [N s], ``speed``: approach speed
+[m/s]) accelerates the bodies of both geoms within the Hertz contact time ``tau``:
 
 * **acceleration noise** (:mod:`mjsound.synth.accel_noise`): each dynamic body of the pair,
   sounding or not, radiates a click to every air microphone, from its centre of mass, as the
@@ -37,9 +37,9 @@ from ..synth import accel_noise
 from ..synth.bandlimited import PulseTrack
 from ..synth.contact_mic import site_pulse
 from ..synth.pulse import contact_time, effective, hertz_coefficient
-from .contacts import I_G1, I_G2, I_IMPULSE, I_NORMAL, I_POINT, I_SPEED
 
-__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "contact_mic_sites", "CONTACT_MIC_PREFIX"]
+__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "contact_mic_sites", "site_in_object_frame", "nearest_object",
+           "CONTACT_MIC_PREFIX"]
 
 #: Material both sides of an impact count as for the click's duration when neither has one.
 UNKNOWN_MATERIAL = "abs"
@@ -61,28 +61,43 @@ def contact_mic_sites(model, names=None) -> list[int]:
     Raises
     ------
     ValueError
-        For a name that is not a site of the model, or a site on the world body (it cannot
-        feel anything: attach it to a body).
+        For a name that is not a site of the model.
     """
     import mujoco
 
     if names is None:
-        ids = [s for s in range(model.nsite)
-               if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "").startswith(CONTACT_MIC_PREFIX)]
-    else:
-        ids = []
-        for name in ([names] if isinstance(names, str) else list(names)):
-            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, str(name))
-            if sid < 0:
-                raise ValueError(f"contact microphone site {name!r} is not in the model; add "
-                                 f"<site name=\"{name}\"/> to the body it is glued to")
-            ids.append(sid)
-    for s in ids:
-        if model.site_bodyid[s] == 0:
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s)
-            raise ValueError(f"contact microphone site {name!r} is on the world body; put it inside the body it "
-                             "should listen to")
+        return [s for s in range(model.nsite)
+                if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "").startswith(CONTACT_MIC_PREFIX)]
+    ids = []
+    for name in ([names] if isinstance(names, str) else list(names)):
+        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, str(name))
+        if sid < 0:
+            raise ValueError(f"contact microphone site {name!r} is not in the model; add "
+                             f"<site name=\"{name}\"/> to the body it is glued to")
+        ids.append(sid)
     return ids
+
+
+def site_in_object_frame(data, site: int, position, rotation) -> tuple[np.ndarray, np.ndarray]:
+    """A contact microphone's point and sensing axis (its site's z axis) in the frame of an
+    object at ``position`` / ``rotation`` (object to world) [m]: ``(point (3,), axis (3,))``."""
+    R = np.asarray(rotation, dtype=np.float64).reshape(3, 3)
+    p = np.asarray(data.site_xpos[site], dtype=np.float64) - np.asarray(position, dtype=np.float64)
+    axis = np.asarray(data.site_xmat[site], dtype=np.float64).reshape(3, 3)[:, 2]
+    return R.T @ p, R.T @ axis
+
+
+def nearest_object(points_world: list, site_position) -> int:
+    """Index of the surface sample set (each (p, 3) world points) nearest to a site; -1 if none."""
+    best, which = np.inf, -1
+    x = np.asarray(site_position, dtype=np.float64)
+    for i, pts in enumerate(points_world):
+        pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        if len(pts):
+            d = float(np.min(np.sum((pts - x) ** 2, axis=1)))
+            if d < best:
+                best, which = d, i
+    return which
 
 
 class ImpactPulses:
@@ -171,8 +186,10 @@ class ImpactPulses:
 
         Parameters
         ----------
-        impacts : (k, I_COLS) array
-            The reader's impact rows (world point, normal, impulse on geom2 [N s]).
+        impacts : (k,) structured array
+            The step's impacts: fields ``g1``, ``g2``, ``point`` (3,) [m], ``normal`` (3,)
+            (from geom1 to geom2), ``impulse`` on geom2 along the normal [N s] (geom1 gets the
+            opposite) and ``speed`` [m/s].
         time_s : float
             Their time on the output's clock [s] (sample n at n / fs).
         data : mujoco.MjData
@@ -185,17 +202,23 @@ class ImpactPulses:
             return
         mics = np.asarray(mic_positions, dtype=np.float64).reshape(-1, 3)
         model = self.model
-        rows = np.asarray(impacts, dtype=np.float64)
-        rows = rows[np.all(np.isfinite(rows), axis=1) & (rows[:, I_IMPULSE] > 0)]
+        g12 = np.stack([np.asarray(impacts["g1"], np.int64), np.asarray(impacts["g2"], np.int64)], axis=1)
+        imp = np.asarray(impacts["impulse"], np.float64)
+        nrm = np.asarray(impacts["normal"], np.float64).reshape(-1, 3)
+        pts = np.asarray(impacts["point"], np.float64).reshape(-1, 3)
+        spd = np.asarray(impacts["speed"], np.float64)
+        ok = np.isfinite(imp) & (imp > 0) & np.isfinite(spd) & np.all(np.isfinite(nrm), axis=1) \
+            & np.all(np.isfinite(pts), axis=1)
         # one pulse per touching pair: its contact points' impulses summed (a box landing flat
         # has four), applied at their impulse-weighted centre, fastest approach speed
-        pairs, inverse = np.unique(rows[:, [I_G1, I_G2]].astype(np.int64), axis=0, return_inverse=True)
+        pairs, inverse = np.unique(g12[ok], axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
         for q, (g1, g2) in enumerate(pairs.tolist()):
-            mine = rows[inverse.reshape(-1) == q]
-            w = mine[:, I_IMPULSE]
-            J2 = (w[:, None] * mine[:, I_NORMAL:I_NORMAL + 3]).sum(axis=0)
-            point = (w[:, None] * mine[:, I_POINT:I_POINT + 3]).sum(axis=0) / w.sum()
-            speed = float(mine[:, I_SPEED].max())
+            sel = np.flatnonzero(ok)[inverse == q]
+            w = imp[sel]
+            J2 = (w[:, None] * nrm[sel]).sum(axis=0)
+            point = (w[:, None] * pts[sel]).sum(axis=0) / w.sum()
+            speed = float(spd[sel].max())
             tau = self._tau(g1, g2, speed)
             for g, J in ((g2, J2), (g1, -J2)):
                 b = int(model.geom_bodyid[g])
