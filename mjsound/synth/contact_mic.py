@@ -43,8 +43,12 @@ from ..modal.model import ModalModel
 from .bandlimited import PULSE_DTYPE
 from .pulse import half_sine_spectrum
 
-__all__ = ["ContactMicrophone", "modal_weights", "modal_site_acceleration", "free_body_velocity_change",
+__all__ = ["DEFAULT_CONTACT_FULL_SCALE", "ContactMicrophone", "modal_weights", "modal_site_acceleration", "free_body_velocity_change",
            "site_velocity_change", "site_pulse"]
+
+#: Acceleration written as full scale on a contact channel (files, observations) [m/s^2]:
+#: about 100 g, where a piezo contact microphone on a struck metal part peaks.
+DEFAULT_CONTACT_FULL_SCALE = 1000.0
 
 
 @dataclass(frozen=True)
