@@ -9,7 +9,8 @@ concrete floor; above it a ceramic bowl (R = 6 cm, 4 mm wall), an aluminium bar
 (16 x 1.5 x 1 cm), a brass disc (R = 6 cm, 4 mm), a steel ball (R = 1.5 cm; too small to ring
 in the audible band, so it is heard through what it hits) and an ABS box (8 x 5 x 3 cm),
 which starts with a push and slides across the table. Two microphone sites ``mic_left`` and
-``mic_right`` 0.6 m in front of the table. Materials are given as MJCF custom texts
+``mic_right`` 0.6 m in front of the table, and a contact microphone ``contact_mic_table``
+under the table top (third channel: the table's surface acceleration [m/s^2]). Materials are given as MJCF custom texts
 ``mjsound:GEOM``. The contacts use ``solref="-2e5 -100"`` (stiffness/damping) so that
 MuJoCo bounces with a restitution of roughly 0.6, close to the acoustic materials'.
 """
@@ -48,6 +49,7 @@ _TEMPLATE = """<mujoco model="mjsound_demo">
     <geom name="table_leg" type="box" size="0.02 0.02 0.1375" pos="0 0 0.1375" contype="0" conaffinity="0"/>
     <site name="mic_left" pos="-0.25 -0.6 0.5" size="0.01"/>
     <site name="mic_right" pos="0.25 -0.6 0.5" size="0.01"/>
+    <site name="contact_mic_table" pos="0.18 0.12 0.275" size="0.006"/>
     <body name="bowl" pos="-0.12 0.05 0.45" euler="8 0 0">
       <freejoint/>
       <geom name="bowl" type="mesh" mesh="bowl" density="2400" rgba="0.9 0.9 0.85 1"/>
