@@ -35,6 +35,11 @@ def register(subparsers) -> None:
     p.add_argument("--duration", type=float, default=None, help="simulated seconds (default: 3, or the whole rollout)")
     p.add_argument("--rollout", default=None, help="rollout .npz to sonify")
     add_sonify_options(p)
+    p.add_argument("--no-clicks", action="store_true", help="no acceleration noise (clicks) from impacts")
+    p.add_argument("--contact-mics", default=None,
+                   help="comma-separated contact microphone sites (default: sites named contact_mic*; '' for none)")
+    p.add_argument("--contact-full-scale", type=float, default=None,
+                   help="acceleration written as full scale on contact channels, m/s^2 (default 1000)")
     p.add_argument("--json", action="store_true", help="print one JSON summary object")
     p.add_argument("--rrd", default=None, help="also write a rerun recording (.rrd) of the take")
     p.set_defaults(func=_run_sonify)
@@ -99,6 +104,8 @@ def _report(summary, args) -> int:
         print(f"  budget: {note}")
     ev = s["events"]
     print(f"events     {ev.get('impact', 0)} impacts, {ev.get('slide', 0)} slide steps, {ev.get('roll', 0)} roll steps")
+    if s.get("channel_names"):
+        print(f"channels   {', '.join(s['channel_names'])}")
     print(f"audio      {s['samples']} samples x {s['channels']} ch ({s['sim_seconds']:.2f} s), peak {s['peak_pa']:.3g} Pa"
           + (f", {s['clipped']} clipped" if s["clipped"] else ""))
     obs = s.get("observer_seconds", 0.0)
@@ -145,6 +152,8 @@ def _run_sonify(args) -> int:
         mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
         progress=not args.json and sys.stderr.isatty(), full_scale_pa=args.full_scale_pa, normalize=args.normalize,
         keep_audio=False,
+        clicks=not args.no_clicks, contact_full_scale=args.contact_full_scale,
+        contact_mics=None if args.contact_mics is None else [n.strip() for n in args.contact_mics.split(",") if n.strip()],
     )
     return _report(summary, args)
 
@@ -161,7 +170,12 @@ def _run_demo(args) -> int:
         keep_audio=bool(args.png),
     )
     if args.png:
-        summary["png"] = write_spectrogram_png(args.png, summary["audio"], args.sample_rate)
+        from ..synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
+        from ..synth.output import DEFAULT_FULL_SCALE_PA
+
+        audio = summary["audio"].copy()  # contact channels (after the air ones) in full-scale units
+        audio[len(summary["scene"]["microphones"]):] *= DEFAULT_FULL_SCALE_PA / DEFAULT_CONTACT_FULL_SCALE
+        summary["png"] = write_spectrogram_png(args.png, audio, args.sample_rate)
     return _report(summary, args)
 
 

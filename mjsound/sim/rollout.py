@@ -164,10 +164,14 @@ _load_materials = load_materials  # the batch driver's name for it
 
 
 class _Take:
-    """Where the audio of a take goes: the file (streamed, block by block) and/or memory."""
+    """Where the audio of a take goes: the file (streamed, block by block) and/or memory.
+    ``file_gain`` (channels,) scales what is written (contact channels to the pressure full
+    scale); ``peak`` is taken over the ``air`` channels (pressure)."""
 
-    def __init__(self, writer, keep: bool, channels: int):
+    def __init__(self, writer, keep: bool, channels: int, file_gain=None, air=None):
         self.writer, self.keep, self.channels = writer, keep, channels
+        self.file_gain = None if file_gain is None else np.asarray(file_gain, np.float32)[:, None]
+        self.air = air
         self.blocks = []
         self.samples = 0
         self.peak = 0.0
@@ -176,11 +180,13 @@ class _Take:
         if block is None or not block.shape[1]:
             return
         if self.writer is not None:
-            self.writer.write(block)
+            self.writer.write(block if self.file_gain is None else block * self.file_gain)
         if self.keep:
             self.blocks.append(block)
         self.samples += block.shape[1]
-        self.peak = max(self.peak, float(np.abs(block).max()))
+        air = block if self.air is None else block[self.air]
+        if air.size:
+            self.peak = max(self.peak, float(np.abs(air).max()))
 
     def audio(self):
         if not self.keep:
@@ -208,6 +214,9 @@ def sonify(
     on_block=None,
     models: dict | None = None,
     keep_audio: bool = True,
+    clicks: bool = True,
+    contact_mics=None,
+    contact_full_scale: float | None = None,
 ) -> dict:
     """Simulate (or replay) a scene with sound and optionally write the audio.
 
@@ -249,6 +258,14 @@ def sonify(
     keep_audio : bool
         Also return the whole take as ``audio`` (memory grows with the duration and is checked
         against the budget up front); ``False`` returns ``audio=None``.
+    clicks : bool
+        Acceleration noise of every impact (default True).
+    contact_mics : list[str] | None
+        Contact microphone sites (default: sites named ``contact_mic*``; ``[]``: none). Their
+        channels [m/s^2] follow the air microphones' (``channel_names``).
+    contact_full_scale : float, optional
+        Acceleration written as full scale on the contact channels of ``out`` [m/s^2]
+        (default ``DEFAULT_CONTACT_FULL_SCALE`` = 1000).
 
     Returns
     -------
@@ -258,7 +275,8 @@ def sonify(
         ``warmup_seconds`` (wall time of the first rendered block, which includes the numba
         compilation of a fresh process), ``realtime_factor`` (simulated seconds per wall
         second after the first block, analysis and ``on_block`` excluded), ``samples``,
-        ``channels``, ``peak_pa``, ``clipped``, ``out``, ``mode``, ``max_qpos_error`` (resim
+        ``channels``, ``channel_names`` (air microphones, then contact microphones),
+        ``peak_pa`` (air channels), ``clipped``, ``out``, ``mode``, ``max_qpos_error`` (resim
         of a rollout), and ``audio`` (the (channels, n) float32 pressure array [Pa], or None).
     """
     import mujoco
@@ -279,6 +297,12 @@ def sonify(
     fsp = DEFAULT_FULL_SCALE_PA if full_scale_pa is None else float(full_scale_pa)
     if not normalize and not (np.isfinite(fsp) and fsp > 0):
         raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure in Pa (e.g. 20)")
+    from ..synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
+
+    fsc = DEFAULT_CONTACT_FULL_SCALE if contact_full_scale is None else float(contact_full_scale)
+    if not (np.isfinite(fsc) and fsc > 0):
+        raise ValueError(f"contact_full_scale={contact_full_scale!r} must be a positive acceleration in m/s^2 "
+                         "(e.g. 1000)")
     mats = load_materials(materials)
     model = mujoco.MjModel.from_xml_path(os.fspath(scene_xml))
     if timestep is not None:
@@ -300,6 +324,7 @@ def sonify(
     if mode != "replay":
         check_steps(span / dt, f"{span:g} s at timestep {dt:g} s")
     n_ch_max = max(1, sum(1 for s in range(model.nsite) if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "").startswith("mic")))
+    n_ch_max += model.nsite if contact_mics is None else len(contact_mics)  # (a bound)
     if keep_audio:
         check_array_bytes(4.0 * n_ch_max * span * sample_rate, f"keeping {span:g} s of audio in memory",
                           "pass keep_audio=False (the file is streamed) or shorten the take")
@@ -319,7 +344,7 @@ def sonify(
         _set_frame(model, data, r, 0)
         mujoco.mj_forward(model, data)
     # the event log (up to 100 000 entries) only serves an observer such as a rerun recording
-    sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate,
+    sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate, clicks=clicks, contact_mics=contact_mics,
                          **({} if on_block is not None else {"keep_events": 0}))
     t_obs = [0.0]  # wall time spent in on_block (e.g. rerun logging): reported apart
     if on_block is not None:
@@ -333,7 +358,12 @@ def sonify(
     if out is not None:
         writer = AudioWriter(out, sample_rate, sim.n_channels, full_scale_pa=None if normalize else fsp,
                              normalize=bool(normalize))
-    take = _Take(writer, keep_audio, sim.n_channels)
+    contact = sim.contact_channels
+    gain = np.ones(sim.n_channels)
+    gain[contact] = fsp / fsc
+    air = np.setdiff1d(np.arange(sim.n_channels), contact)
+    take = _Take(writer, keep_audio, sim.n_channels, file_gain=gain if len(contact) else None,
+                 air=air if len(contact) else None)
     warm = {}  # wall time and samples of the first rendered block (numba compiles there)
     max_err = None
     t_wall = _time.perf_counter()
@@ -408,6 +438,7 @@ def sonify(
         "realtime_factor": timed_sim / timed_wall if timed_wall > 0 else float("inf"),
         "samples": int(take.samples),
         "channels": int(sim.n_channels),
+        "channel_names": list(sim.channel_names),
         "peak_pa": take.peak,
         "clipped": int(writer.n_clipped) if writer is not None else 0,
         "out": None if out is None else os.fspath(out),
