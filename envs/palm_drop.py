@@ -19,8 +19,9 @@ action : ``Discrete(1 + K)``. ``0`` listens for one step (``dt = 0.02 s`` = 20 p
     the episode.
 observation : ``Dict``
     ``"audio"``: float32 ``(1, window)`` waveform of the contact microphone in full-scale units
-    (``full_scale`` m/s^2 -> 1, default 500), default window one step (320 samples at 16 kHz),
-    or ``log1p(|STFT|)`` with ``mode="spectrogram"``; ``"state"``: float64 ``(13,)``, the
+    (``full_scale`` m/s^2 -> 1, default 50 000: a steel ball makes the plate peak near
+    30 000), default window one step (320 samples at 16 kHz), or ``log1p(|STFT|)`` with
+    ``mode="spectrogram"``; ``"state"``: float64 ``(13,)``, the
     ball's free-joint ``qpos`` (7) and ``qvel`` (6).
 
 Reward
@@ -70,7 +71,7 @@ class PalmDropEnv(AudioMujocoEnv):
     listen_to = "contact"
 
     def __init__(self, materials=PALM_MATERIALS, sample_rate: int = 16000, window_s: float | None = None,
-                 mode: str = "waveform", n_fft: int = 256, hop: int | None = None, full_scale: float = 500.0,
+                 mode: str = "waveform", n_fft: int = 256, hop: int | None = None, full_scale: float = 50000.0,
                  render_mode=None, **kw):
         self.materials = tuple(materials)
         if len(self.materials) < 2:

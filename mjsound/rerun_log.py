@@ -12,6 +12,7 @@ entity                          content
 ``/events``                     ``TextLog``: one line per impact (geoms, impulse), at its time
 ``/audio/<mic>/waveform``       ``Scalars`` pressure [Pa], every sample (``send_columns``)
 ``/audio/<mic>/spectrogram``    ``Tensor`` (freq x time) of 20 log10 |STFT| [dB re 20 uPa], static
+``/audio/contact/<site>/...``   the same for a contact microphone: acceleration [m/s^2]
 ``/audio/take``                 ``AssetAudio`` (WAV, all mics as channels), logged at the first
                                 sample's time, shown and played by an ``AudioView``
 ==============================  ====================================================================
@@ -124,9 +125,13 @@ class RerunLogger:
         self.sim = sim
         self.sample_rate = int(sample_rate if sample_rate is not None else sim.sample_rate)
         if mic_names is None:
-            mic_names = list(sim.scene.mic_names) if sim is not None else ["listener"]
+            mic_names = list(sim.channel_names) if sim is not None else ["listener"]
         self.mic_names = [("".join(c if (c.isalnum() or c in "_-.") else "_" for c in n) or f"mic{i}")
                           for i, n in enumerate(mic_names)]
+        # contact microphones [m/s^2]: their own entities, audio/contact/<site>
+        self._contact = [int(c) for c in getattr(sim, "contact_channels", ()) if int(c) < len(self.mic_names)]
+        for c in self._contact:
+            self.mic_names[c] = "contact/" + self.mic_names[c]
         self.pose_dt = 0.0 if not pose_rate_hz else 1.0 / float(pose_rate_hz)
         self.force_scale = float(force_scale)
         self.full_scale_pa = full_scale_pa
@@ -303,6 +308,12 @@ class RerunLogger:
         from .synth.output import normalize_peak, to_full_scale
 
         a = self.audio if audio is None else np.asarray(audio)
+        if self._contact:  # contact channels at their own full scale
+            from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
+            from .synth.output import DEFAULT_FULL_SCALE_PA
+
+            a = a.copy()
+            a[self._contact] *= (self.full_scale_pa or DEFAULT_FULL_SCALE_PA) / DEFAULT_CONTACT_FULL_SCALE
         if self.full_scale_pa is None:
             x = normalize_peak(a)
         else:
@@ -360,7 +371,8 @@ class RerunLogger:
             for c, name in enumerate(names):
                 rec.send_columns(f"audio/{name}/waveform", indexes=[rr.TimeColumn("sim_time", duration=t)],
                                  columns=rr.Scalars.columns(scalars=audio[c].astype(np.float64)))
-                rec.log(f"audio/{name}/waveform", rr.SeriesLines(names=f"{name} [Pa]"), static=True)
+                unit = "m/s^2" if name.startswith("contact/") else "Pa"
+                rec.log(f"audio/{name}/waveform", rr.SeriesLines(names=f"{name} [{unit}]"), static=True)
                 S, hop = self._spectrogram(audio[c].astype(np.float64))
                 rec.log(f"audio/{name}/spectrogram", rr.Tensor(S[::-1], dim_names=["freq_hz_desc", "time"]), static=True)
                 views.append(rrb.TensorView(origin=f"audio/{name}/spectrogram", name=f"{name} spectrogram (dB)"))
