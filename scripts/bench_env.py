@@ -7,7 +7,9 @@ CPU time is what another process cannot inflate) bare, wrapped in waveform mode 
 spectrogram mode, on the same seeded random actions (reset on termination, resets not timed;
 numba warm-up and modal analysis excluded). The three are measured in interleaved rounds
 (bare, waveform, spectrogram, bare, ...) so that drifting machine load hits all of them alike;
-``step_ratio = median over rounds of wrapped / bare``. Then the throughput of an
+``step_ratio = median over rounds of wrapped / bare``; a fourth variant, waveform with clicks
+off (``clicks=False``, no contact microphones: these envs have no ``contact_mic`` site), in the
+same rounds gives ``step_ratio_clicks_off``. Then the throughput of an
 ``AsyncVectorEnv`` of 2 wrapped Ant-v5 (waveform): env steps per wall second summed over both
 envs. Goal (issue 5): step_ratio <= 1.5 in waveform mode.
 
@@ -139,6 +141,8 @@ def main(argv=None) -> int:
         envs = {"bare": make_env(env_id)}
         for mode in ("waveform", "spectrogram"):
             envs[mode] = AudioObservation(make_env(env_id), sample_rate=args.sample_rate, mode=mode, progress=False)
+        envs["clicks_off"] = AudioObservation(make_env(env_id), sample_rate=args.sample_rate, mode="waveform",
+                                              progress=False, clicks=False, contact_mics=[])
         acts = actions(env_id, envs["bare"].action_space, args.steps)
         times = {k: [] for k in envs}
         for _ in range(args.rounds):
@@ -149,7 +153,9 @@ def main(argv=None) -> int:
             env = envs[mode]
             ratio = float(np.median(np.array(times[mode]) / np.array(times["bare"])))
             st = env.sim.stats()
-            rows.append({"id": env_id, "mode": mode, "step_ratio": ratio, "bare_ms": 1e3 * t_bare,
+            off = float(np.median(np.array(times["clicks_off"]) / np.array(times["bare"])))
+            rows.append({"id": env_id, "mode": mode, "step_ratio": ratio, "step_ratio_clicks_off": off,
+                         "bare_ms": 1e3 * t_bare,
                          "wrapped_ms": 1e3 * float(np.median(times[mode])),
                          "sounding_objects": len(env.scene.sounding), "modes": env.scene.n_modes,
                          "contact_us_per_substep": st["contact_us_per_step"],
@@ -158,7 +164,8 @@ def main(argv=None) -> int:
             if not args.json:
                 r = rows[-1]
                 print(f"{env_id:<14s} {mode:<12s} bare {r['bare_ms']:.3f} ms  wrapped {r['wrapped_ms']:.3f} ms  "
-                      f"ratio {r['step_ratio']:.2f}  ({r['sounding_objects']} objects, {r['modes']} modes; per substep "
+                      f"ratio {r['step_ratio']:.2f} (clicks off {r['step_ratio_clicks_off']:.2f})  "
+                      f"({r['sounding_objects']} objects, {r['modes']} modes; per substep "
                       f"in numba {r['fused_us_per_substep']:.0f} us with mj_step, in Python contacts "
                       f"{r['contact_us_per_substep']:.0f} us, synth {r['synth_us_per_substep']:.0f} us; "
                       f"CPU time, median of {args.rounds} interleaved rounds)", flush=True)

@@ -13,7 +13,10 @@ of ``--rounds`` interleaved rounds (physics only, then with audio):
 * ``contact_us_per_step``: ContactReader (contacts -> events, impact impulses included) per
   step [us]: a third pass, physics plus the reader alone, minus physics only;
 * ``synth_us_per_step``: the rest of the audio pipeline per step [us] (feeding the
-  synthesizer, sliding noise, rendering): with audio minus physics plus reader.
+  synthesizer, sliding noise, rendering): with audio minus physics plus reader;
+* ``step_ratio_pulses_off`` and ``pulses_us_per_step``: the same audio run with clicks and
+  contact microphones off (``clicks=False, contact_mics=[]``), interleaved in the same rounds,
+  and what turning them on costs per step [us] (the demo scene has a contact microphone).
 
 Usage: python scripts/bench_scene.py [SCENE.xml] [--duration 3] [--rounds 3] [--json]
 """
@@ -63,11 +66,14 @@ def main(argv=None) -> int:
     reset()
     sim = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate)
     sim.run(0.05)
+    reset()
+    sim_off = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate, clicks=False, contact_mics=[])
+    sim_off.run(0.05)
     from mjsound.sim.contacts import ContactReader
 
     reader = ContactReader(model)
     dt = float(model.opt.timestep)
-    t_phys_all, t_audio_all, t_read_all = [], [], []
+    t_phys_all, t_audio_all, t_read_all, t_off_all = [], [], [], []
     for _ in range(args.rounds):
         reset()
         t0 = time.process_time()
@@ -87,9 +93,15 @@ def main(argv=None) -> int:
         t0 = time.process_time()
         audio = sim.run(args.duration)
         t_audio_all.append(time.process_time() - t0)
+        reset()
+        sim_off.reset()
+        t0 = time.process_time()
+        sim_off.run(args.duration)
+        t_off_all.append(time.process_time() - t0)
     t_phys = float(np.median(t_phys_all))
     t_audio = float(np.median(t_audio_all))
     t_read = float(np.median(t_read_all))
+    t_off = float(np.median(t_off_all))
     st = sim.stats()
     out = {
         "scene": os.path.basename(path),
@@ -102,6 +114,9 @@ def main(argv=None) -> int:
         "realtime_factor": args.duration / t_audio,
         "realtime_factor_physics_only": args.duration / t_phys,
         "step_ratio": t_audio / t_phys,
+        "step_ratio_pulses_off": t_off / t_phys,
+        "pulses_us_per_step": 1e6 * (t_audio - t_off) / nsteps,
+        "channels": list(sim.channel_names),
         "us_per_step_physics": 1e6 * t_phys / nsteps,
         "us_per_step_audio": 1e6 * t_audio / nsteps,
         "contact_us_per_step": 1e6 * (t_read - t_phys) / nsteps,
