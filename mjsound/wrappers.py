@@ -36,6 +36,8 @@ import gymnasium as gym
 import numpy as np
 from numba import njit
 
+from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
+
 __all__ = ["AudioObservation", "AudioWindow", "EnvAudio", "scene_materials", "stft_log1p"]
 
 
@@ -186,7 +188,7 @@ class EnvAudio:
     def __init__(self, model, data, dt, sample_rate=16000, window_s=None, mode="waveform", mics=None,
                  materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
                  follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
-                 objects="body", sound_meshes=None):
+                 objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True):
         import mujoco
 
         from .sim.simulator import AudioSimulator
@@ -196,6 +198,9 @@ class EnvAudio:
         fsp = float(full_scale_pa)
         if not (math.isfinite(fsp) and fsp > 0):
             raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure [Pa]")
+        fsc = DEFAULT_CONTACT_FULL_SCALE if contact_full_scale is None else float(contact_full_scale)
+        if not (math.isfinite(fsc) and fsc > 0):
+            raise ValueError(f"contact_full_scale={contact_full_scale!r} must be a positive acceleration [m/s^2]")
         from .limits import check_array_bytes, check_duration, check_sample_rate
 
         self.sample_rate = check_sample_rate(sample_rate)
@@ -212,8 +217,12 @@ class EnvAudio:
                                  quality=quality, microphones=mic_arg, budget_modes=budget_modes, progress=progress,
                                  models=models, objects=objects, sound_meshes=sound_meshes)
         self.sim = AudioSimulator(model, data, scene=self.scene, sample_rate=self.sample_rate, progress=False,
-                                  **{"keep_events": 0, **(sim_kwargs or {})})
+                                  **{"keep_events": 0, "contact_mics": contact_mics, "clicks": clicks,
+                                     **(sim_kwargs or {})})
         self.n_channels = self.sim.n_channels
+        # contact channels [m/s^2] enter the window in the air channels' full-scale units
+        self._contact = self.sim.contact_channels
+        self._contact_gain = fsp / fsc
         # listener that follows a body (translation only; AudioSimulator.follow)
         if mics is None and not self.scene.mic_site_ids and follow is not None and self.sim.synth is not None:
             if follow == "auto":
@@ -262,6 +271,8 @@ class EnvAudio:
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
         block = self.sim.flush()
+        if len(self._contact):
+            block[self._contact] *= self._contact_gain
         clipped, peak = self.audio.push(block)
         info = dict(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
                     audio_impacts=self._audible_impacts())
@@ -303,6 +314,14 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Microphone sites (follow their bodies) or fixed world positions [m]; one channel each.
         Default: the model's sites named ``mic*``; without any, one listener 1 m from the
         scene (``SoundScene``'s rule) that keeps its offset from ``follow``'s body.
+    contact_mics : list[str] | None
+        Contact microphone sites (their body's surface acceleration [m/s^2], one channel each,
+        after the air microphones); default: the model's sites named ``contact_mic*``
+        (``[]``: none). See :class:`mjsound.sim.AudioSimulator`.
+    contact_full_scale : float
+        Acceleration mapped to 1.0 on the contact channels [m/s^2] (default 1000).
+    clicks : bool
+        Acceleration noise of every impact at the air microphones (default True).
     materials : dict, optional
         ``{key: material}``, key a geom name, ``geom<ID>`` / id of an unnamed geom, a body name
         or ``"*"`` (the default for all others); see :class:`mjsound.sim.SoundScene`. An
@@ -351,12 +370,14 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Observation
     -----------
     ``Dict``: the wrapped observation under ``"observation"`` (or its own keys if it already
-    was a Dict) plus ``"audio"``.
+    was a Dict) plus ``"audio"``, whose channels are the air microphones, then the contact
+    microphones (``env.sim.channel_names``).
 
     Info
     ----
     ``audio_clipped`` (int, samples x channels of this step beyond full scale, NaN included),
-    ``audio_peak_pa`` (float, largest |pressure| of this step [Pa]), ``audio_samples`` (int,
+    ``audio_peak_pa`` (float, largest |pressure| of this step [Pa]; a contact channel counts as
+    its acceleration times ``full_scale_pa / contact_full_scale``), ``audio_samples`` (int,
     new samples per channel this step), ``audio_impacts`` (int, impacts this step that
     involve a sounding object).
 
@@ -377,6 +398,9 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         materials: dict | None = None,
         default_material="aluminium",
         full_scale_pa: float = 20.0,
+        contact_mics=None,
+        contact_full_scale: float = DEFAULT_CONTACT_FULL_SCALE,
+        clicks: bool = True,
         n_fft: int = 256,
         hop: int | None = None,
         follow="auto",
@@ -393,6 +417,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics, materials=materials,
             default_material=default_material, full_scale_pa=full_scale_pa, n_fft=n_fft, hop=hop,
             follow=follow, quality=quality, budget_modes=budget_modes, objects=objects, substeps=substeps,
+            contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks,
         )
         gym.Wrapper.__init__(self, env)
         import mujoco
@@ -417,7 +442,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                              materials=materials, default_material=default_material, full_scale_pa=full_scale_pa,
                              n_fft=n_fft, hop=hop, follow=follow, quality=quality, budget_modes=budget_modes,
                              models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
-                             sound_meshes=sound_meshes)
+                             sound_meshes=sound_meshes, contact_mics=contact_mics,
+                             contact_full_scale=contact_full_scale, clicks=clicks)
         self.scene, self.sim, self.audio = self.core.scene, self.core.sim, self.core.audio
         self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
         self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa
