@@ -11,7 +11,7 @@ from scipy.special import spherical_jn, spherical_yn
 
 from mjsound.materials import get_material
 from mjsound.sim import AudioSimulator
-from mjsound.sim.clicks import contact_mic_sites
+from mjsound.sim.channels import contact_mic_sites
 from mjsound.synth import accel_noise as an
 from mjsound.synth.bandlimited import PASS_FRACTION
 from mjsound.synth.pulse import contact_time, hertz_coefficient

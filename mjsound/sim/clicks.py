@@ -38,13 +38,10 @@ from ..synth.bandlimited import PulseTrack
 from ..synth.contact_mic import site_pulse
 from ..synth.pulse import contact_time, effective, hertz_coefficient
 
-__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "contact_mic_sites", "site_in_object_frame", "nearest_object",
-           "CONTACT_MIC_PREFIX"]
+__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL"]
 
 #: Material both sides of an impact count as for the click's duration when neither has one.
 UNKNOWN_MATERIAL = "abs"
-#: Sites whose name starts with this are contact microphones.
-CONTACT_MIC_PREFIX = "contact_mic"
 
 
 def _quat_mat(q) -> np.ndarray:
@@ -52,52 +49,6 @@ def _quat_mat(q) -> np.ndarray:
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def contact_mic_sites(model, names=None) -> list[int]:
-    """Site ids of the contact microphones: the sites named in ``names`` (in that order), or
-    every site whose name starts with ``contact_mic`` (in model order).
-
-    Raises
-    ------
-    ValueError
-        For a name that is not a site of the model.
-    """
-    import mujoco
-
-    if names is None:
-        return [s for s in range(model.nsite)
-                if (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "").startswith(CONTACT_MIC_PREFIX)]
-    ids = []
-    for name in ([names] if isinstance(names, str) else list(names)):
-        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, str(name))
-        if sid < 0:
-            raise ValueError(f"contact microphone site {name!r} is not in the model; add "
-                             f"<site name=\"{name}\"/> to the body it is glued to")
-        ids.append(sid)
-    return ids
-
-
-def site_in_object_frame(data, site: int, position, rotation) -> tuple[np.ndarray, np.ndarray]:
-    """A contact microphone's point and sensing axis (its site's z axis) in the frame of an
-    object at ``position`` / ``rotation`` (object to world) [m]: ``(point (3,), axis (3,))``."""
-    R = np.asarray(rotation, dtype=np.float64).reshape(3, 3)
-    p = np.asarray(data.site_xpos[site], dtype=np.float64) - np.asarray(position, dtype=np.float64)
-    axis = np.asarray(data.site_xmat[site], dtype=np.float64).reshape(3, 3)[:, 2]
-    return R.T @ p, R.T @ axis
-
-
-def nearest_object(points_world: list, site_position) -> int:
-    """Index of the surface sample set (each (p, 3) world points) nearest to a site; -1 if none."""
-    best, which = np.inf, -1
-    x = np.asarray(site_position, dtype=np.float64)
-    for i, pts in enumerate(points_world):
-        pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
-        if len(pts):
-            d = float(np.min(np.sum((pts - x) ** 2, axis=1)))
-            if d < best:
-                best, which = d, i
-    return which
 
 
 class ImpactPulses:
@@ -224,6 +175,13 @@ class ImpactPulses:
                 b = int(model.geom_bodyid[g])
                 if self._dynamic[b]:
                     self._body(b, J, point, speed, tau, time_s, data, mics)
+
+    def add_step(self, impacts, t0: float, n0: int, origin: int, data, mic_positions) -> None:
+        """:meth:`add` for a physics step starting at ``t0`` [s] whose first sample is the
+        absolute ``n0``, on an output clock whose sample 0 is the absolute ``origin``: the
+        impacts are timed at ``t0`` (never before the step's first sample)."""
+        fs = self.track.fs
+        self.add(impacts, max(t0 - origin / fs, (n0 - origin) / fs), data, mic_positions)
 
     def _body(self, b, J, point, speed, tau, time_s, data, mics) -> None:
         R = np.asarray(data.xmat[b]).reshape(3, 3)
