@@ -119,6 +119,14 @@ class ImpactPulses:
         the air channels, m/s^2 at the contact ones), or None when nothing is pending."""
         return self.track.take(n)
 
+    def mix(self, block: np.ndarray) -> np.ndarray:
+        """Add the pending pulses of the next ``block.shape[1]`` samples into ``block``
+        (channels, n) in place (nothing to do when none is pending); returns it."""
+        extra = self.track.take(block.shape[1])
+        if extra is not None:
+            block += np.nan_to_num(extra, nan=0.0, posinf=0.0, neginf=0.0).astype(block.dtype)
+        return block
+
     def _tau(self, g1: int, g2: int, speed: float) -> float:
         key = (g1, g2)
         coef = self._coef.get(key)
