@@ -50,6 +50,22 @@ def test_synth_contact_channel_matches_closed_form_and_hears_only_its_object():
         syn.add_contact_microphone("nope", site, axis)
 
 
+def test_synth_contact_channel_hears_its_objects_forcing_only():
+    model = _model_with_modes()
+    syn = Synthesizer(FS, microphones=[[0.0, 0.0, 1.0]])
+    syn.add_object("a", model)
+    syn.add_object("b", model, position=[1.0, 0.0, 0.0])
+    syn.add_contact_microphone("a", model.points[2], [0.0, 0.0, 1.0])
+    syn.slide("b", [1.0, 0.0, 0.0], [0, 0, 1.0], 5.0, 0.5, 0.0, 0.05)
+    out = syn.render(800)
+    assert np.abs(out[0]).max() > 0 and not out[1].any()  # b's slide: in the air only
+    syn.slide("a", model.points[4], [0, 0, 1.0], 5.0, 0.5, 0.05, 0.1)
+    out = syn.render(800)
+    assert np.abs(out[1]).max() > 0  # a's slide: in a's contact channel
+    with pytest.raises(ValueError, match="contact microphones"):
+        syn.set_microphones([[0.0, 0.0, 1.0]])
+
+
 XML = """<mujoco><option timestep="0.001"/>
 <custom>{custom}</custom>
 <worldbody>
