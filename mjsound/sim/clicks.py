@@ -95,6 +95,8 @@ class ImpactPulses:
                                   for b in range(nb)])
         self._hertz_mass = np.array([m.body_subtreemass[b] if m.body_weldid[b] != 0 else np.inf for b in range(nb)])
         self._axes = np.zeros((nb, 3))
+        self._masses = np.zeros((nb, 3))  # displaced + added air mass along each axis [kg]
+        self._a_eq = np.zeros(nb)
         self._iframe = np.tile(np.eye(3), (nb, 1, 1))  # principal axes in the body frame
         for b in np.flatnonzero(self._dynamic):
             inertia = np.asarray(m.body_inertia[b], dtype=np.float64)
@@ -103,6 +105,8 @@ class ImpactPulses:
             else:  # a point mass: a sphere of the density of water
                 self._axes[b] = (3 * self._mass[b] / (4 * math.pi * 1000.0)) ** (1 / 3)
             self._iframe[b] = _quat_mat(m.body_iquat[b])
+            self._masses[b] = accel_noise.dipole_masses(self._axes[b])
+            self._a_eq[b] = accel_noise.equivalent_radius(self._axes[b])
         self._site_body = np.array([m.site_bodyid[s] for s in self.contact_sites], np.int64)
         self._coef = {}
 
@@ -170,6 +174,7 @@ class ImpactPulses:
             & np.all(np.isfinite(pts), axis=1)
         # one pulse per touching pair: its contact points' impulses summed (a box landing flat
         # has four), applied at their impulse-weighted centre, fastest approach speed
+        recs, dvs = [], []  # every pulse of the step, rendered in one call
         pairs, inverse = np.unique(g12[ok], axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
         for q, (g1, g2) in enumerate(pairs.tolist()):
@@ -182,7 +187,9 @@ class ImpactPulses:
             for g, J in ((g2, J2), (g1, -J2)):
                 b = int(model.geom_bodyid[g])
                 if self._dynamic[b]:
-                    self._body(b, J, point, speed, tau, time_s, data, mics)
+                    self._body(b, J, point, speed, tau, time_s, data, mics, recs, dvs)
+        if recs:
+            self.track.add(np.concatenate(recs), np.concatenate(dvs))
 
     def add_step(self, impacts, t0: float, n0: int, origin: int, data, mic_positions) -> None:
         """:meth:`add` for a physics step starting at ``t0`` [s] whose first sample is the
@@ -191,7 +198,9 @@ class ImpactPulses:
         fs = self.track.fs
         self.add(impacts, max(t0 - origin / fs, (n0 - origin) / fs), data, mic_positions)
 
-    def _body(self, b, J, point, speed, tau, time_s, data, mics) -> None:
+    def _body(self, b, J, point, speed, tau, time_s, data, mics, recs, dvs) -> None:
+        """Append body ``b``'s pulses (its click at every air microphone, its contact
+        microphones' rigid-body pulses) and their scales to ``recs``, ``dvs``."""
         R = np.asarray(data.xmat[b]).reshape(3, 3)
         com = np.asarray(data.xpos[b]) + R @ self.model.body_ipos[b]
         Ri = R @ self._iframe[b]
@@ -202,9 +211,9 @@ class ImpactPulses:
             dv *= cap / dv_norm
             dv_norm = cap
         if self.clicks and self.n_air and dv_norm > 0:
-            pulses = accel_noise.click_pulses(com, Ri, self._axes[b], dv, mics, time_s, tau,
-                                              speed_of_sound=self.c)
-            self.track.add(pulses, dv_norm)
+            recs.append(accel_noise.dipole_pulses(com, Ri, self._masses[b], self._a_eq[b], dv / dv_norm, mics, time_s,
+                                                  tau, self.c))
+            dvs.append(np.full(len(mics), dv_norm))
         sites = np.flatnonzero(self._site_body == b)
         if not len(sites):
             return
@@ -222,4 +231,5 @@ class ImpactPulses:
                 spin *= cap / spin_norm
             dv_site = float((dv + spin) @ axis)
             if dv_site != 0.0:
-                self.track.add(site_pulse(time_s, tau, self.n_air + k), dv_site)
+                recs.append(site_pulse(time_s, tau, self.n_air + k))
+                dvs.append(np.array([dv_site]))

@@ -65,7 +65,7 @@ from scipy.special import elliprd
 from .bandlimited import PULSE_DTYPE
 
 __all__ = ["RHO_AIR", "SPEED_OF_SOUND", "ellipsoid_from_inertia", "ellipsoid_alphas", "dipole_masses",
-           "equivalent_radius", "click_pulses"]
+           "equivalent_radius", "click_pulses", "dipole_pulses"]
 
 #: Air density [kg/m^3].
 RHO_AIR = 1.2
@@ -180,8 +180,16 @@ def click_pulses(centre, rotation, semi_axes, direction, microphones, time_s, ta
     if not norm > 0 or not math.isfinite(norm):
         raise ValueError(f"direction={direction!r} must be a non-zero finite vector")
     mics = np.asarray(microphones, dtype=np.float64).reshape(-1, 3)
-    a = equivalent_radius(semi_axes)
-    dipole = R @ (dipole_masses(semi_axes, rho_air) * (R.T @ (d / norm)))  # kg, per m/s of dv
+    return dipole_pulses(centre, R, dipole_masses(semi_axes, rho_air), equivalent_radius(semi_axes), d / norm, mics,
+                         time_s, tau_s, c, channel0)
+
+
+def dipole_pulses(centre, rotation, masses, radius, unit, mics, time_s, tau_s, c, channel0=0) -> np.ndarray:
+    """:func:`click_pulses` from precomputed principal dipole ``masses`` (3,) [kg] and
+    equivalent ``radius`` [m], a unit direction ``unit`` and (m, 3) ``mics`` (no checks)."""
+    R = rotation
+    a = radius
+    dipole = R @ (masses * (R.T @ unit))  # kg, per m/s of dv
     rel = mics - centre
     dist = np.linalg.norm(rel, axis=1)
     xhat = rel / np.where(dist > 0, dist, 1.0)[:, None]  # a microphone at the centre hears nothing

@@ -212,6 +212,41 @@ def mix_pulse(acc, start, channel, first, samples):
     return end
 
 
+@njit(cache=True)
+def _extent(pulses, fs):
+    """``(longest window, last absolute sample)`` of ``pulses`` (windows that do not fit: 0)."""
+    n_max = 0
+    last = -(2**62)
+    for i in range(pulses.shape[0]):
+        p = pulses[i]
+        n = pulse_window(p.tau_s, p.d1, p.d2, fs)
+        if n > 0:
+            n_max = max(n_max, n)
+            last = max(last, int(math.floor(p.time_s * fs)) - LEAD + n - 1)
+    return n_max, last
+
+
+@njit(cache=True)
+def _render_pulses(pulses, dv, fs, acc, start, work, out):
+    """Render and mix every pulse (:func:`render_pulse`, :func:`mix_pulse`); returns ``(pulses
+    dropped, first, end)`` of the samples written (``end <= first``: none)."""
+    dropped = 0
+    lo = 2**62
+    hi = -(2**62)
+    for i in range(pulses.shape[0]):
+        first, n = render_pulse(pulses[i], dv[i], fs, work, out)
+        if n == 0:
+            dropped += 1
+            continue
+        if first + n <= start:
+            continue
+        end = mix_pulse(acc, start, pulses[i].channel, first, out[:n])
+        if end > start:
+            lo = min(lo, max(first, start))
+            hi = max(hi, end)
+    return dropped, lo, hi
+
+
 class PulseTrack:
     """Pending band-limited pulses of several output channels, mixed into rendered blocks.
 
@@ -272,32 +307,26 @@ class PulseTrack:
         their channels. Arrival times may be anywhere at or after the current position; a
         pulse's samples before :attr:`start` are dropped."""
         pulses = np.asarray(pulses, dtype=PULSE_DTYPE).reshape(-1)
-        dv = np.broadcast_to(np.asarray(dv, dtype=np.float64), pulses.shape)
+        dv = np.ascontiguousarray(np.broadcast_to(np.asarray(dv, dtype=np.float64), pulses.shape))
         if not (np.all(np.isfinite(dv)) and all(np.all(np.isfinite(pulses[f])) for f in PULSE_DTYPE.names)):
             raise ValueError("pulses and dv must be finite (times in s, velocities in m/s)")
         if np.any((pulses["channel"] < 0) | (pulses["channel"] >= self.n_channels)):
             raise ValueError(f"pulse channel out of range 0..{self.n_channels - 1}")
         if np.any(pulses["tau_s"] < 0) or np.any(pulses["d1"] < 0) or np.any(pulses["d2"] < 0):
             raise ValueError("pulse length tau_s and transfer denominators d1, d2 must be >= 0")
-        for i in range(len(pulses)):
-            p = pulses[i]
-            n = pulse_window(p["tau_s"], p["d1"], p["d2"], self.fs)
-            if n == 0:
-                self.dropped += 1
-                continue
-            if n > len(self._work):
-                self._work = np.zeros(n, np.complex128)
-                self._out = np.zeros(n)
-            first = int(math.floor(p["time_s"] * self.fs)) - LEAD
-            if first + n <= self.start:
-                continue
-            self._ensure(first + n - 1)
-            first, n = render_pulse(pulses[i:i + 1][0], float(dv[i]), self.fs, self._work, self._out)
-            end = mix_pulse(self._acc, self.start, int(p["channel"]), first, self._out[:n])
-            if end > self.start:
-                lo = max(first, self.start)
-                self.pending_from = lo if self.pending_until <= self.start else min(self.pending_from, lo)
-                self.pending_until = max(self.pending_until, end)
+        if not len(pulses):
+            return
+        n_max, last = _extent(pulses, self.fs)
+        if n_max > len(self._work):
+            self._work = np.zeros(n_max, np.complex128)
+            self._out = np.zeros(n_max)
+        if last >= self.start:
+            self._ensure(last)
+        dropped, lo, hi = _render_pulses(pulses, dv, self.fs, self._acc, self.start, self._work, self._out)
+        self.dropped += int(dropped)
+        if hi > lo:
+            self.pending_from = lo if self.pending_until <= self.start else min(self.pending_from, lo)
+            self.pending_until = max(self.pending_until, hi)
 
     def take(self, n: int) -> np.ndarray | None:
         """The next ``n`` samples of every channel, (channels, n), removed from the track; ``None``
