@@ -175,10 +175,10 @@ class ImpactPulses:
         # one pulse per touching pair: its contact points' impulses summed (a box landing flat
         # has four), applied at their impulse-weighted centre, fastest approach speed
         recs, dvs = [], []  # every pulse of the step, rendered in one call
-        pairs, inverse = np.unique(g12[ok], axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        for q, (g1, g2) in enumerate(pairs.tolist()):
-            sel = np.flatnonzero(ok)[inverse == q]
+        groups = {}
+        for i in np.flatnonzero(ok).tolist():
+            groups.setdefault((int(g12[i, 0]), int(g12[i, 1])), []).append(i)
+        for (g1, g2), sel in groups.items():
             w = imp[sel]
             J2 = (w[:, None] * nrm[sel]).sum(axis=0)
             point = (w[:, None] * pts[sel]).sum(axis=0) / w.sum()
@@ -189,7 +189,7 @@ class ImpactPulses:
                 if self._dynamic[b]:
                     self._body(b, J, point, speed, tau, time_s, data, mics, recs, dvs)
         if recs:
-            self.track.add(np.concatenate(recs), np.concatenate(dvs))
+            self.track.add_trusted(np.concatenate(recs), np.concatenate(dvs))
 
     def add_step(self, impacts, t0: float, n0: int, origin: int, data, mic_positions) -> None:
         """:meth:`add` for a physics step starting at ``t0`` [s] whose first sample is the

@@ -148,6 +148,14 @@ def pulse_window(tau, d1, d2, fs):
 
 
 @njit(cache=True)
+def _usable(p, fs):
+    """Whether pulse record ``p`` has finite fields and a time whose sample fits int64."""
+    ok = np.isfinite(p.time_s) and np.isfinite(p.tau_s) and np.isfinite(p.b0) and np.isfinite(p.b1)
+    ok = ok and np.isfinite(p.d1) and np.isfinite(p.d2)
+    return ok and abs(p.time_s * fs) < 2.0**61
+
+
+@njit(cache=True)
 def render_pulse(pulse, dv, fs, work, out):
     """Band-limited samples of one pulse (see the module docstring).
 
@@ -168,8 +176,10 @@ def render_pulse(pulse, dv, fs, work, out):
     -------
     (first, n) : (int, int)
         ``out[:n]`` are samples ``first .. first + n - 1`` (absolute, sample k at time k / fs);
-        ``n == 0`` when the pulse does not fit (:func:`pulse_window`).
+        ``n == 0`` when the pulse does not fit (:func:`pulse_window`) or has a non-finite field.
     """
+    if not _usable(pulse, fs):
+        return 0, 0
     n = pulse_window(pulse.tau_s, pulse.d1, pulse.d2, fs)
     if n == 0 or n > work.shape[0] or n > out.shape[0]:
         return 0, 0
@@ -219,7 +229,7 @@ def _extent(pulses, fs):
     last = -(2**62)
     for i in range(pulses.shape[0]):
         p = pulses[i]
-        n = pulse_window(p.tau_s, p.d1, p.d2, fs)
+        n = pulse_window(p.tau_s, p.d1, p.d2, fs) if _usable(p, fs) else 0
         if n > 0:
             n_max = max(n_max, n)
             last = max(last, int(math.floor(p.time_s * fs)) - LEAD + n - 1)
@@ -314,6 +324,11 @@ class PulseTrack:
             raise ValueError(f"pulse channel out of range 0..{self.n_channels - 1}")
         if np.any(pulses["tau_s"] < 0) or np.any(pulses["d1"] < 0) or np.any(pulses["d2"] < 0):
             raise ValueError("pulse length tau_s and transfer denominators d1, d2 must be >= 0")
+        self.add_trusted(pulses, dv)
+
+    def add_trusted(self, pulses: np.ndarray, dv: np.ndarray) -> None:
+        """:meth:`add` without its checks (``pulses`` a PULSE_DTYPE array, ``dv`` a float64
+        array of the same length; a non-finite ``dv`` drops that pulse)."""
         if not len(pulses):
             return
         n_max, last = _extent(pulses, self.fs)
@@ -322,6 +337,7 @@ class PulseTrack:
             self._out = np.zeros(n_max)
         if last >= self.start:
             self._ensure(last)
+        dv = np.where(np.isfinite(dv), dv, 0.0)
         dropped, lo, hi = _render_pulses(pulses, dv, self.fs, self._acc, self.start, self._work, self._out)
         self.dropped += int(dropped)
         if hi > lo:
