@@ -225,3 +225,8 @@ def test_pulse_track_rejects_bad_input():
         track.add(_accel_pulse(0.0, -1e-4), 1.0)
     with pytest.raises(ValueError, match="sample_rate"):
         bl.PulseTrack(1, 0)
+    # the trusted path (the simulator's, from an exploding simulation) drops such pulses
+    track.add_trusted(_accel_pulse(float("nan"), 1e-4), np.array([1.0]))
+    track.add_trusted(_accel_pulse(1e300, 1e-4), np.array([1.0]))
+    track.add_trusted(_accel_pulse(0.001, 1e-4), np.array([np.inf]))
+    assert track.dropped == 3 and track.take(100) is None

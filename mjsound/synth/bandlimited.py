@@ -329,6 +329,10 @@ class PulseTrack:
     def add_trusted(self, pulses: np.ndarray, dv: np.ndarray) -> None:
         """:meth:`add` without its checks (``pulses`` a PULSE_DTYPE array, ``dv`` a float64
         array of the same length; a non-finite ``dv`` drops that pulse)."""
+        finite = np.isfinite(dv)
+        if not finite.all():
+            self.dropped += int((~finite).sum())
+            pulses, dv = pulses[finite], dv[finite]
         if not len(pulses):
             return
         n_max, last = _extent(pulses, self.fs)
@@ -337,7 +341,6 @@ class PulseTrack:
             self._out = np.zeros(n_max)
         if last >= self.start:
             self._ensure(last)
-        dv = np.where(np.isfinite(dv), dv, 0.0)
         dropped, lo, hi = _render_pulses(pulses, dv, self.fs, self._acc, self.start, self._work, self._out)
         self.dropped += int(dropped)
         if hi > lo:
