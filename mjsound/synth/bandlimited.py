@@ -375,9 +375,15 @@ class PulseTrack:
         lo, hi = max(n0, self.pending_from), min(n1, self.pending_until)
         if hi <= lo:
             return None
-        k = np.arange(lo, hi) & (self._acc.shape[1] - 1)
+        cap = self._acc.shape[1]
         block = np.zeros((self.n_channels, n1 - n0))
-        block[:, lo - n0:hi - n0] = self._acc[:, k]
-        self._acc[:, k] = 0.0
+        a = lo & (cap - 1)
+        if a + (hi - lo) <= cap:  # no wrap: slices
+            block[:, lo - n0:hi - n0] = self._acc[:, a:a + hi - lo]
+            self._acc[:, a:a + hi - lo] = 0.0
+        else:
+            k = np.arange(lo, hi) & (cap - 1)
+            block[:, lo - n0:hi - n0] = self._acc[:, k]
+            self._acc[:, k] = 0.0
         self.pending_from = hi
         return block

@@ -30,7 +30,8 @@ about its centre of mass ``o``) changes its velocity by ``dv = J / m`` and its a
 velocity by ``dw = I^-1 ((p - o) x J)``; the site's velocity changes by
 ``(dv + dw x (x - o)) . n`` (:func:`site_velocity_change`) within the contact time ``tau``, a
 half-sine acceleration pulse of that area rendered band-limited by :mod:`.bandlimited`
-(:func:`site_pulse`).
+(:func:`site_pulse`). Sliding and rolling noise reach the sensor through the modes only (their
+rigid-body share, a force fluctuation over the body's mass, is left out).
 """
 
 from __future__ import annotations
