@@ -230,3 +230,17 @@ def test_pulse_track_rejects_bad_input():
     track.add_trusted(_accel_pulse(1e300, 1e-4), np.array([1.0]))
     track.add_trusted(_accel_pulse(0.001, 1e-4), np.array([np.inf]))
     assert track.dropped == 3 and track.take(100) is None
+
+
+def test_pulse_track_ring_wrap_matches_direct_render():
+    p = _accel_pulse(1010 / FS + 0.3 / FS, 4e-5, b0=2.0)
+    work, out = np.zeros(256, np.complex128), np.zeros(256)
+    first, n = bl.render_pulse(p[0], 1.5, float(FS), work, out)
+    track = bl.PulseTrack(1, FS)
+    track.reset(1000)  # the ring (1024 samples) wraps inside the pulse's window
+    track.add(p, 1.5)
+    got = track.take(200)[0]
+    want = np.zeros(200)
+    want[:first + n - 1000] = out[1000 - first:n]  # (its pre-ringing before sample 1000 is dropped)
+    assert first < 1000 and 1024 < first + n
+    assert np.array_equal(got, want)
