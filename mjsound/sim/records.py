@@ -114,9 +114,10 @@ SOUND = np.dtype([("obj", i8), ("coef_row", i8)])
 #: The drive's constants (owner: AudioSimulator): slide / roll roughness [1/(m/s)] and
 #: low-pass length [m], samples between a stream's gain updates, whether sustained contacts
 #: sound, how microphones move (0 fixed, 1 ``mics[m] = source[rows[m]] + offsets[m]``) and
-#: from which positions (0 body ``xpos``, 1 ``site_xpos``).
+#: from which positions (0 body ``xpos``, 1 ``site_xpos``), and whether a substep's impacts
+#: are handed to Python (their clicks and contact-microphone pulses: :mod:`.clicks`).
 DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", f8), ("len_roll", f8),
-                         ("regain", i8), ("sustained", i8), ("mic_mode", i8), ("mic_source", i8)])
+                         ("regain", i8), ("sustained", i8), ("mic_mode", i8), ("mic_source", i8), ("pulses", i8)])
 
 #: One call of the step kernel (owner: AudioSimulator, which sets the inputs and reads the
 #: outputs). Inputs: substeps asked (``nstep``) and done, whether the kernel calls

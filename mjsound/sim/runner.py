@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import typeof
 
-from ..synth.records import SYNTH_CONSTS, ObjectTable, SynthState
+from ..synth.records import CHANNEL, SYNTH_CONSTS, ObjectTable, SynthState
 from ..synth.queue import EventQueue
 from ..synth.stream_table import StreamTable
 from .fused import mj_link
@@ -38,7 +38,7 @@ def silent_synth_state(dtype="float32") -> SynthState:
     objects = ObjectTable(z((0, 3)), z(1, np.int64), z(0), z(1, np.int64), z(1, np.int64), z(0), z(0),
                           z(0, np.complex128), z(0, np.complex128))
     return SynthState(objects, z((0, 3)), z((0, 3, 3)), z((0, 3)), z(1, SYNTH_CONSTS), EventQueue(1).state,
-                      StreamTable(0, dtype).empty)
+                      StreamTable(0, dtype).empty, z(0, CHANNEL), z(0, np.complex128))
 
 
 class StepKernel:

@@ -16,7 +16,7 @@ flow):
 
 and after the last substep syncs the poses and microphones once more (for the render's
 stream gains). It stops and hands back to Python only for what numba cannot do, with a
-named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`,
+named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
 :data:`SOLVE`, :data:`HERTZ`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
 says where the substep resumes when Python calls again, and nothing of a stage is changed
 before it can finish, so the resumed substep is the same as one that never stopped.
@@ -38,7 +38,7 @@ from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_sol
 from .impulses import event_impulses, normal_jacobians, write_records
 from .pairs import read_pairs
 
-__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "STAGE_STEP",
+__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
            "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
 
 #: ``run.reason``: every substep done; ``data.time`` is not where the clock expects it (a
@@ -48,8 +48,8 @@ __all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS",
 #: coefficients (``buf.missing``: struck, other geom) or streams (``buf.missing``: row, side)
 #: must be made; the stream rings must hold ``run.need`` samples; an impact's amplitude is out
 #: of range (Python raises; ``run.need`` impacts in ``buf.impacts``).
-DONE, CLOCK_JUMP, ROOM, SOLVE, HERTZ, STREAMS, RING, AMPLITUDE = range(8)
-REASONS = ("done", "clock jump", "room", "solve", "hertz", "streams", "ring", "amplitude")
+DONE, CLOCK_JUMP, ROOM, SOLVE, HERTZ, STREAMS, RING, AMPLITUDE, PULSES = range(9)
+REASONS = ("done", "clock jump", "room", "solve", "hertz", "streams", "ring", "amplitude", "pulses")
 #: ``run.stage``: where the current substep resumes.
 STAGE_STEP, STAGE_READ, STAGE_IMPULSES, STAGE_QUEUE, STAGE_LOG, STAGE_DRIVE = range(6)
 
@@ -183,6 +183,9 @@ def advance(mj, views, reader, buf, clock, drive, synth, run):
                 return
             rn.n_impacts += rn.n_imp
             rn.stage = STAGE_LOG
+            if rn.n_imp and drive.prm[0].pulses:  # Python renders their clicks, then resumes
+                rn.reason = PULSES
+                return
         if rn.stage == STAGE_LOG:
             for i in range(rn.n_imp):
                 im = buf.impacts[i]

@@ -32,7 +32,7 @@ from numba import njit
 from typing import NamedTuple
 
 from .pulse import half_sine
-from .records import EventRows, SourceRows
+from .records import AIR, EventRows, SourceRows
 from .streams import any_due, mic_distance, nearest_one, streams_bank_rows, streams_gains
 
 __all__ = ["bank_free", "bank_forced", "render_voice", "render_all", "render_streams", "impacts_to_queue",
@@ -354,11 +354,14 @@ def impacts_to_queue(synth, obj, P, J, t, tau):
     at the arrival sample ``na = ceil((t + r / c) fs)``, the amplitudes
     ``a = phi(x).J / w_d * S(w_d tau) * w / r * e^{lam dt} * eps^{-(na % grid)}``
     (``phi(x)``: the shapes at the surface point nearest ``x``; ``dt = na / fs - t - r / c``).
-    Rows are microphone-major per impact. Impacts on objects without modes or points, or
-    with non-finite input, are skipped. Returns ``(count, used, next sample, max |a|)``.
+    A contact microphone (``synth.channels``) hears only its own object, with its complex
+    weights (``synth.chan_w``) in place of ``w / r`` and no delay. Rows are microphone-major
+    per impact. Impacts on objects without modes or points, or with non-finite input, are
+    skipped. Returns ``(count, used, next sample, max |a|)``.
     """
     ob, cst, q = synth.objects, synth.consts[0], synth.queue
     mics = synth.mics
+    chans = synth.channels
     c, fs, rmin, tol, rendered, grid = cst.c, cst.fs, cst.rmin, cst.tol, cst.rendered, cst.grid
     ev, qre, qim = q.events, q.re, q.im
     count = q.counts[0].count
@@ -394,8 +397,15 @@ def impacts_to_queue(synth, obj, P, J, t, tau):
             G = shk[bi, 0, m] * jl[0] + shk[bi, 1, m] * jl[1] + shk[bi, 2, m] * jl[2]
             cm[m] = G / ob.wd[m0 + m] * half_sine(ob.wd[m0 + m] * tau[i])
         for mi in range(M):
-            r = mic_distance(mics, mi, pos, rmin)
-            ta = t[i] + r / c
+            ch = chans[mi]
+            if ch.owner == AIR:
+                r = mic_distance(mics, mi, pos, rmin)
+                ta = t[i] + r / c
+            elif ch.owner == o:  # a contact microphone on this object: no delay, its own weights
+                r = 1.0
+                ta = t[i]
+            else:  # a contact microphone on another body hears nothing of this impact
+                continue
             nn = np.int64(np.ceil(ta * fs - tol))
             if nn < rendered:
                 nn = rendered
@@ -409,7 +419,8 @@ def impacts_to_queue(synth, obj, P, J, t, tau):
             e.width = n
             e.kind = 0
             for m in range(n):
-                v = cm[m] * (ob.w[m0 + m] / r) * np.exp(ob.lam[m0 + m] * dts - g * ob.leps[m0 + m])
+                w = ob.w[m0 + m] / r if ch.owner == AIR else synth.chan_w[ch.w_off + m]
+                v = cm[m] * w * np.exp(ob.lam[m0 + m] * dts - g * ob.leps[m0 + m])
                 qre[used + m] = v.real
                 qim[used + m] = v.imag
                 av = abs(v)

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["STREAM", "STREAMS", "EVENT", "QUEUE", "SYNTH_CONSTS", "ObjectTable", "QueueState", "StreamState",
+__all__ = ["STREAM", "STREAMS", "EVENT", "QUEUE", "SYNTH_CONSTS", "CHANNEL", "AIR", "DEAF", "ObjectTable", "QueueState", "StreamState",
            "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank"]
 
 i8, f8 = np.int64, np.float64
@@ -43,6 +43,14 @@ QUEUE = np.dtype([("count", i8), ("pool_used", i8), ("next_sample", i8)])
 #: (squared amplitude relative to the peak, absolute [Pa^2]).
 SYNTH_CONSTS = np.dtype([("c", f8), ("fs", f8), ("rmin", f8), ("tol", f8), ("grid", i8), ("rendered", i8),
                          ("slack", i8), ("nmax", i8), ("n_mics", i8), ("cull2", f8), ("floor2", f8)])
+
+#: One output channel: ``owner`` is :data:`AIR` (-1) for an air microphone, the object index
+#: of a contact microphone's body (which alone it hears, with no delay), or :data:`DEAF` (-2)
+#: for a contact microphone on a body without modes; its complex weights per mode of the
+#: owner (``(phi_i(x) . n) lambda_i^2``, :func:`mjsound.synth.contact_mic.modal_weights`)
+#: start at ``w_off`` in ``SynthState.chan_w``.
+CHANNEL = np.dtype([("owner", i8), ("w_off", i8)])
+AIR, DEAF = -1, -2
 
 
 class ObjectTable(NamedTuple):
@@ -93,6 +101,8 @@ class SynthState(NamedTuple):
     consts: np.ndarray  # (1,) SYNTH_CONSTS
     queue: QueueState
     streams: StreamState
+    channels: np.ndarray  # (mics,) CHANNEL: air or contact microphone
+    chan_w: np.ndarray  # complex128 contact weights (CHANNEL.w_off)
 
 
 class EventRows(NamedTuple):

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .records import SourceRows
+from .records import AIR, SourceRows
 
 __all__ = ["stream_seed", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
            "any_due"]
@@ -87,7 +87,9 @@ def stream_gains(synth, j, o):
     """Per-microphone complex gain ``gr + j gi`` and integer delay ``D`` of stream ``j`` on
     object ``o``: a force along the stream's world direction ``n`` at its world point ``p``,
     ``G = phi(x) . n_local`` at the nearest surface point, ``a = G / (fs w_d) w / r`` with
-    the sub-sample delay's phase ``e^{lam (D / fs - r / c)}`` (see ``Synthesizer._add_source``)."""
+    the sub-sample delay's phase ``e^{lam (D / fs - r / c)}`` (see ``Synthesizer._add_source``);
+    at a contact microphone (``synth.channels``) ``a = G / (fs w_d)`` times its complex weight
+    on its own object, no delay, and 0 on any other."""
     ob, cst, st = synth.objects, synth.consts[0], synth.streams
     p0, p1 = ob.pts_off[o], ob.pts_off[o + 1]
     m0, m1 = ob.mode_off[o], ob.mode_off[o + 1]
@@ -117,7 +119,27 @@ def stream_gains(synth, j, o):
     gr = st.gr[j]
     gi = st.gi[j]
     D = st.D[j]
+    chans = synth.channels
     for m in range(mics.shape[0]):
+        owner = chans[m].owner
+        if owner != AIR:  # a contact microphone: its own object only, its weights, no delay
+            D[m] = 0
+            for k in range(n):
+                if owner == o:
+                    G = d0 * shk[bi, 0, k] + d1 * shk[bi, 1, k] + d2 * shk[bi, 2, k]
+                    a = G / (fs * ob.wd[m0 + k]) * synth.chan_w[chans[m].w_off + k]
+                    gr[m, k] = a.real
+                    gi[m, k] = a.imag
+                    if not (np.isfinite(gr[m, k]) and np.isfinite(gi[m, k])):
+                        gr[m, k] = 0.0
+                        gi[m, k] = 0.0
+                else:
+                    gr[m, k] = 0.0
+                    gi[m, k] = 0.0
+            for k in range(n, gr.shape[1]):
+                gr[m, k] = 0.0
+                gi[m, k] = 0.0
+            continue
         r = mic_distance(mics, m, pos, cst.rmin)
         ta = r / cst.c
         Dm = np.int64(np.ceil(ta * fs - cst.tol))

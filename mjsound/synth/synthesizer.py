@@ -53,7 +53,7 @@ from . import kernels
 from .pulse import contact_time, effective, hertz_coefficient
 from .interrupt import interruptible
 from .queue import EventQueue
-from .records import SYNTH_CONSTS, Bank, BankLayout, EventRows, ObjectTable, SourceRows, SynthState
+from .records import AIR, CHANNEL, DEAF, SYNTH_CONSTS, Bank, BankLayout, EventRows, ObjectTable, SourceRows, SynthState
 from .stream_table import RING_SLACK, StreamTable
 from .streams import any_due, stream_drive, streams_bank_rows, streams_gains
 
@@ -245,6 +245,11 @@ class Synthesizer:
         self._src = []
         self._dirty = True  # voice layout must be rebuilt before rendering
         self._mics = self._check_mics(np.array([[0.0, 0.0, 1.0]]) if microphones is None else microphones)
+        # output channels: air microphones, then contact microphones (add_contact_microphone)
+        self._channels = np.zeros(len(self._mics), CHANNEL)
+        self._channels["owner"] = AIR
+        self._contacts = {}  # channel -> (object name or None, point, axis) in the object frame
+        self._chan_w = np.zeros(0, np.complex128)
         self._consts = np.zeros(1, SYNTH_CONSTS)
         for k, v in (("c", c), ("fs", float(self.sample_rate)), ("rmin", R_MIN_M), ("tol", _SAMPLE_TOL),
                      ("grid", GRID), ("slack", RING_SLACK), ("cull2", self._cull2), ("floor2", FLOOR_PA**2)):
@@ -303,6 +308,13 @@ class Synthesizer:
         their ringing state, new channels start silent and dropped channels are discarded.
         """
         p = self._check_mics(positions)
+        if self._contacts and len(p) != len(self._mics):
+            raise ValueError(f"set_microphones: this synthesizer has contact microphones; give all "
+                             f"{len(self._mics)} channels' positions (a contact channel's position is not used)")
+        self._set_channels(p)
+
+    def _set_channels(self, p) -> None:
+        """Channel positions ``p`` (m, 3); a new count keeps the channels that remain."""
         old = len(self._mics)
         self._mics = p
         if len(p) == old:
@@ -310,12 +322,46 @@ class Synthesizer:
         for ob in self._objects.values():
             n = len(ob.keep)
             ob.voices = ob.voices[: len(p)] + [_Voice(n) for _ in range(max(0, len(p) - old))]
+        self._channels = np.resize(self._channels, len(p))
+        self._channels["owner"][old:] = AIR
         if len(p) != old:
             nch = len(p)
             self._ev.drop_mics(nch)
             self._src = [s for s in self._src if s[1] < nch]
             self._streams_clear()
             self._dirty = True
+
+    def add_contact_microphone(self, name, point, axis) -> int:
+        """Add a contact microphone on object ``name``: a new output channel reading the
+        object's surface acceleration along ``axis`` at ``point`` [m/s^2] (both in the object
+        frame; the mode shapes at the surface sample nearest ``point``), from every excitation
+        of that object and of no other, with no propagation delay
+        (:mod:`mjsound.synth.contact_mic`). ``name=None`` adds a channel that hears no modes
+        (a sensor on a body without a modal model). Returns the channel index."""
+        if name is not None:
+            ob = self._get(name)
+        p = _finite_array(point, None, "point", "give the contact microphone's point in the object frame [m]")
+        a = _finite_array(axis, None, "axis", "give the sensing axis as a 3-vector in the object frame")
+        na = float(np.linalg.norm(a)) if a.shape == (3,) else 0.0
+        if p.shape != (3,) or not na > 0:
+            raise ValueError("a contact microphone needs a 3-vector point [m] and a non-zero 3-vector axis")
+        pos = np.zeros(3) if name is None else ob.pos + ob.R @ p
+        old = self.n_channels
+        self._set_channels(np.vstack([self._mics, pos[None]]))
+        self._contacts[old] = (None if name is None else str(name), p.copy(), a / na)
+        self._channels[old]["owner"] = DEAF if name is None else ob.index
+        self._dirty = True
+        return old
+
+    def object_pose(self, name) -> tuple[np.ndarray, np.ndarray]:
+        """``(position (3,), rotation (3, 3))`` of object ``name`` (object to world), copies."""
+        ob = self._get(name)
+        return ob.pos.copy(), ob.R.copy()
+
+    def object_points_world(self, name) -> np.ndarray:
+        """The surface samples of ``name``'s model in world coordinates, (p, 3) [m]."""
+        ob = self._get(name)
+        return ob.pos[None, :] + ob.pts @ ob.R.T
 
     @staticmethod
     def _check_pose(position, rotation, name):
@@ -584,7 +630,7 @@ class Synthesizer:
             self._rebuild()
         st = self._streams.state
         return SynthState(self._object_table, self._poses.pos, self._poses.R, self._mics, self._consts,
-                          self._ev.state, self._streams.empty if st is None else st)
+                          self._ev.state, self._streams.empty if st is None else st, self._channels, self._chan_w)
 
     def reserve_impacts(self, k: int) -> None:
         """Room in the event queue for ``k`` more impacts (each at every microphone)."""
@@ -729,10 +775,19 @@ class Synthesizer:
         G = dl @ ob.shk[idx]  # (n,)
         base = G / (fs * ob.wd)
         r = self._distances(ob)
-        ta = t_start + r / self.speed_of_sound
+        owner = self._channels["owner"]
+        r[owner != AIR] = 1.0
+        ta = t_start + np.where(owner == AIR, r / self.speed_of_sound, 0.0)
         na = np.maximum(np.ceil(ta * fs - _SAMPLE_TOL).astype(np.int64), self.samples_rendered)
         dts = na / fs - ta
-        g = base[None, :] * (ob.weights[None, :] / r[:, None]) * np.exp(ob.lam[None, :] * dts[:, None])  # (M, n)
+        w = np.zeros((len(r), len(ob.keep)), np.complex128)  # contact channels of other bodies: 0
+        w[owner == AIR] = ob.weights[None, :] / r[owner == AIR, None]
+        if self._dirty:
+            self._rebuild()
+        for m in np.flatnonzero(owner == ob.index).tolist():
+            off = int(self._channels["w_off"][m])
+            w[m] = self._chan_w[off:off + len(ob.keep)]
+        g = base[None, :] * w * np.exp(ob.lam[None, :] * dts[:, None])  # (M, n)
         fmax = np.abs(f).max()
         gm = np.abs(g).max() if g.size else 0.0
         if not (gm <= MAX_AMPLITUDE) or not (gm * fmax <= MAX_AMPLITUDE):
@@ -922,6 +977,19 @@ class Synthesizer:
         self._nmax = max([len(ob.keep) for ob in obs], default=0)
         self._consts[0]["nmax"] = self._nmax
         self._consts[0]["n_mics"] = M
+        # contact channels: their owner's complex weights (phi(x) . n) lambda^2 per kept mode
+        parts, off = [], 0
+        for m, (name, p, a) in sorted(self._contacts.items()):
+            ob = self._objects.get(name) if name is not None else None
+            if ob is None:
+                self._channels[m]["owner"] = DEAF
+                continue
+            g = ob.model.gains(p[None], a[None])[0][ob.keep]
+            parts.append(np.ascontiguousarray(g * ob.lam**2, np.complex128))
+            self._channels[m]["owner"] = ob.index
+            self._channels[m]["w_off"] = off
+            off += len(parts[-1])
+        self._chan_w = np.concatenate(parts) if parts else np.zeros(0, np.complex128)
         self._empty_ev = EventRows(self._ev_ptr0, np.zeros(0, np.int64), np.zeros(0, np.int8),
                                    np.zeros((0, self._nmax)), np.zeros((0, self._nmax)))
         self._empty_src = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, self._nmax), dt),
