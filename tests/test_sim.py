@@ -272,10 +272,15 @@ def test_no_sounding_geoms_runs_silent_without_analysis():
     xml = drop_xml().replace('<custom><text name="mjsound:ball" data="steel"/><text name="mjsound:plate" data="aluminium"/></custom>', "")
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
-    sim = AudioSimulator(model, data, sample_rate=FS, progress=False)  # analyze() would raise
+    sim = AudioSimulator(model, data, sample_rate=FS, progress=False, clicks=False)  # analyze() would raise
     assert sim.synth is None and sim.scene.sounding == []
     audio = sim.run(0.5)
     assert audio.shape == (1, 24000) and not audio.any()
+    # with clicks (the default) the falling ball is heard, still without any analysis
+    data = mujoco.MjData(model)
+    sim = AudioSimulator(model, data, sample_rate=FS, progress=False)
+    assert sim.scene.sounding == [] and sim.synth.objects == []
+    assert np.abs(sim.run(0.5)).max() > 0
 
 
 # ---------------------------------------------------------------------- time alignment

@@ -289,8 +289,8 @@ class AudioSimulator:
         if not 0 <= int(body) < self.model.nbody:
             raise ValueError(f"follow: body {body} does not exist (the model has {self.model.nbody} bodies)")
         if len(off) != self.n_air or not np.isfinite(off).all():
-            raise ValueError(f"follow: give {self.n_air} finite (x, y, z) offsets [m], one per air microphone; "
-                             f"got {len(off)}")
+            raise ValueError(f"follow: give {self.n_air} finite (x, y, z) offsets [m], one per microphone (the air "
+                             f"ones); got {len(off)}")
         off = np.vstack([off, np.zeros((self.n_channels - self.n_air, 3))])  # (contact channels: unused)
         self._follow = (int(body), np.ascontiguousarray(off))
         self._drive = None
