@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONTACT_MIC_PREFIX", "contact_mic_sites", "channel_layout", "needs_pulses", "attach_contact_mics",
+from .clicks import ImpactPulses  # (the channels' pulses; the simulator imports both from here)
+
+__all__ = ["ImpactPulses", "CONTACT_MIC_PREFIX", "contact_mic_sites", "channel_layout", "needs_pulses", "attach_contact_mics",
            "site_in_object_frame", "nearest_object"]
 
 #: Sites whose name starts with this are contact microphones.
@@ -68,16 +70,16 @@ def nearest_object(points_world: list, site_position) -> int:
     return which
 
 
-def channel_layout(model, scene, contact_mics=None) -> tuple[list[int], int, list[str]]:
-    """``(contact sites, number of air channels, channel names)`` of a scene: the air
-    microphones (at least the default listener), then the contact microphones
+def channel_layout(model, scene, contact_mics=None) -> tuple[list[int], int, list[str], np.ndarray]:
+    """``(contact sites, number of air channels, channel names, contact channels)`` of a
+    scene: the air microphones (at least the default listener), then the contact microphones
     (:func:`contact_mic_sites` of ``contact_mics``)."""
     import mujoco
 
     sites = contact_mic_sites(model, contact_mics)
     n_air = max(1, len(scene.mic_positions))
     names = list(scene.mic_names)[:n_air] + [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) for s in sites]
-    return sites, n_air, names
+    return sites, n_air, names, np.arange(n_air, len(names))
 
 
 def needs_pulses(model, contact_sites, clicks: bool) -> bool:

@@ -71,12 +71,15 @@ class ImpactPulses:
         Render acceleration noise at the air microphones.
     speed_of_sound : float
         [m/s].
+    active : bool
+        False: a stand-in that never has anything pending (a scene whose impacts make no pulses).
     """
 
     def __init__(self, model, geom_material, geom_radius, n_air, contact_sites, sample_rate, *, clicks=True,
-                 speed_of_sound=accel_noise.SPEED_OF_SOUND):
+                 speed_of_sound=accel_noise.SPEED_OF_SOUND, active=True):
         m = model
         self.model = m
+        self.active = bool(active)
         self.n_air = int(n_air)
         self.contact_sites = [int(s) for s in contact_sites]
         self.clicks = bool(clicks)
@@ -161,7 +164,7 @@ class ImpactPulses:
         mic_positions : (n_air, 3) array
             Air microphones (world) [m].
         """
-        if not len(impacts) or not (self.clicks and self.n_air or self.contact_sites):
+        if not (self.active and len(impacts)) or not (self.clicks and self.n_air or self.contact_sites):
             return
         mics = np.asarray(mic_positions, dtype=np.float64).reshape(-1, 3)
         model = self.model
@@ -191,12 +194,16 @@ class ImpactPulses:
         if recs:
             self.track.add_trusted(np.concatenate(recs), np.concatenate(dvs))
 
-    def add_step(self, impacts, t0: float, n0: int, origin: int, data, mic_positions) -> None:
-        """:meth:`add` for a physics step starting at ``t0`` [s] whose first sample is the
-        absolute ``n0``, on an output clock whose sample 0 is the absolute ``origin``: the
-        impacts are timed at ``t0`` (never before the step's first sample)."""
+    def add_step(self, impacts, run, origin: int, data, mic_positions) -> None:
+        """:meth:`add` for the step kernel's substep ``run`` (a ``RUN`` record: its first
+        ``n_imp`` rows of ``impacts``, its start ``t0`` [s] and first absolute sample ``n0``)
+        on an output clock whose sample 0 is the absolute ``origin``: the impacts are timed at
+        ``t0``, never before the step's first sample; ``mic_positions``: every channel's, the
+        air microphones first."""
         fs = self.track.fs
-        self.add(impacts, max(t0 - origin / fs, (n0 - origin) / fs), data, mic_positions)
+        t0, n0 = float(run["t0"]), int(run["n0"])
+        self.add(impacts[: int(run["n_imp"])], max(t0 - origin / fs, (n0 - origin) / fs), data,
+                 np.asarray(mic_positions)[: self.n_air])
 
     def _body(self, b, J, point, speed, tau, time_s, data, mics, recs, dvs) -> None:
         """Append body ``b``'s pulses (its click at every air microphone, its contact

@@ -30,8 +30,7 @@ from .drive import follow_rows, sync_poses
 from .records import DRIVE_PARAMS, SOUND, DriveState
 from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
-from .channels import attach_contact_mics, channel_layout, needs_pulses
-from .clicks import ImpactPulses
+from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
 from .step import PULSES, AMPLITUDE, CLOCK_JUMP, HERTZ, RING, STREAMS
 from .warmup import notice_first_compile
 
@@ -70,11 +69,8 @@ class AudioSimulator:
         (default 10 ms: one synthesizer call per 10 steps of 1 ms, which is most of the
         per-step cost saved; 0 renders every step). :meth:`step` renders every call unless
         told otherwise.
-    clicks : bool
-        Every impact of every dynamic body clicks at the air microphones (:mod:`.clicks`).
-    contact_mics : list[str] | None
-        Contact microphone sites, channels after the air ones [m/s^2] (:mod:`.channels`);
-        default: sites named ``contact_mic*``; ``[]``: none. See :attr:`channel_names`.
+    clicks, contact_mics : bool, list[str] | None
+        Impacts click (:mod:`.clicks`); contact microphone sites (:mod:`.channels`, :attr:`channel_names`).
     fused : bool
         Let :meth:`substeps` call ``mj_step`` from numba (default; where this MuJoCo build's
         C functions and struct layout check out). False (or the environment variable
@@ -149,10 +145,8 @@ class AudioSimulator:
         self._other_mass = np.array(
             [m.body_subtreemass[m.geom_bodyid[g]] if m.body_weldid[m.geom_bodyid[g]] != 0 else np.inf for g in range(m.ngeom)]
         )
-        self._contact_sites, self.n_air, self.channel_names = channel_layout(model, scene, contact_mics)
+        self._contact_sites, self.n_air, self.channel_names, self.contact_channels = channel_layout(model, scene, contact_mics)
         self.n_channels = len(self.channel_names)  # the air microphones, then the contact microphones
-        self.contact_channels = np.arange(self.n_air, self.n_channels)
-        pulses = needs_pulses(model, self._contact_sites, clicks)
         self.synth = None
         if not np.any(np.asarray(self.data.geom_xmat)):
             mujoco.mj_kinematics(model, self.data)  # poses for add_object (state is unchanged)
@@ -162,7 +156,7 @@ class AudioSimulator:
         self._sound["obj"] = -1
         moving = {}
         prm = np.zeros(1, DRIVE_PARAMS)
-        if scene.sounding or pulses:
+        if scene.sounding or needs_pulses(model, self._contact_sites, clicks):
             from ..synth import synthesizer as _sy
             from ..synth.synthesizer import Synthesizer
 
@@ -192,8 +186,8 @@ class AudioSimulator:
         prm[0]["regain"] = max(1, int(round(self.sustained_block_s * self.sample_rate)))
         prm[0]["sustained"] = int(self.sustained)
         self._pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air, self._contact_sites,
-                                    self.sample_rate, clicks=clicks) if pulses else None
-        prm[0]["pulses"] = int(pulses)
+                                    self.sample_rate, clicks=clicks, active=needs_pulses(model, self._contact_sites, clicks))
+        prm[0]["pulses"] = int(self._pulses.active)
         self._follow = None
         self._mic_sites = np.asarray(list(scene.mic_site_ids) + self._contact_sites, np.int64)  # (contact: unused)
         self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
@@ -219,8 +213,7 @@ class AudioSimulator:
         self._held = []
 
     def _reset_at(self, t_start: float, clear_reader: bool = True, keep_observer: bool = False) -> None:
-        if getattr(self, "_pulses", None) is not None:
-            self._pulses.reset(0)
+        self._pulses.reset(0)
         if self.synth is not None:
             self.synth.reset()
             if self._follow is not None:
@@ -291,8 +284,7 @@ class AudioSimulator:
         if len(off) != self.n_air or not np.isfinite(off).all():
             raise ValueError(f"follow: give {self.n_air} finite (x, y, z) offsets [m], one per microphone (the air "
                              f"ones); got {len(off)}")
-        off = np.vstack([off, np.zeros((self.n_channels - self.n_air, 3))])  # (contact channels: unused)
-        self._follow = (int(body), np.ascontiguousarray(off))
+        self._follow = (int(body), np.ascontiguousarray(np.vstack([off, np.zeros((len(self.contact_channels), 3))])))
         self._drive = None
 
     # ------------------------------------------------------------------ the kernel's inputs
@@ -463,8 +455,7 @@ class AudioSimulator:
             self._clock_jump()
             self._seg = (self.clock.k, self.clock.n)
         elif reason == PULSES:
-            self._pulses.add_step(buf.impacts[: int(run["n_imp"])], float(run["t0"]), int(run["n0"]), self._origin,
-                                  self.data, self.synth.kernel_state().mics[: self.n_air])
+            self._pulses.add_step(buf.impacts, run, self._origin, self.data, self.synth.kernel_state().mics)
         elif reason == AMPLITUDE:
             self._collect()
             imp = buf.impacts[: int(run["need"])]
@@ -511,9 +502,7 @@ class AudioSimulator:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:
             tc = _time.perf_counter()
-            block = self.synth.render(n)  # (never NaN: the synthesizer zeroes non-finite samples)
-            if self._pulses is not None:
-                self._pulses.mix(block)  # clicks and contact pulses
+            block = self._pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
             self.seconds_synth += _time.perf_counter() - tc
         if self.on_block is not None:
             self.on_block(self, block, n0)
