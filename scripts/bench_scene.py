@@ -123,7 +123,7 @@ def main(argv=None) -> int:
         "synth_us_per_step": 1e6 * (t_audio - t_read) / nsteps,
         "in_run_contact_and_drive_us_per_step": st["contact_us_per_step"],
         "events": st["events"],
-        "peak_pa": float(np.abs(audio).max()) if audio.size else 0.0,
+        "peak_pa": float(np.abs(audio[: sim.n_air]).max()) if audio.size else 0.0,  # (air channels)
     }
     if args.json:
         print(json.dumps(out))
