@@ -54,7 +54,24 @@ def _temps(d):
     return sorted(n for n in os.listdir(d) if n.startswith(TEMP_PREFIX))
 
 
-def _start(args, **kw):
+def _sigint_default(then=None):
+    """A ``preexec_fn`` that gives the child the default Ctrl-C disposition before ``then``.
+
+    A process started in the background by a non-interactive shell (``cmd &``, as a CI runner
+    may start the suite) has SIGINT ignored, and children inherit that: Python then installs no
+    KeyboardInterrupt handler and a Ctrl-C test would wait forever."""
+
+    def preexec():
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        if then is not None:
+            then()
+
+    return preexec
+
+
+def _start(args, preexec_fn=None, **kw):
+    kw["preexec_fn"] = _sigint_default(preexec_fn)
     return subprocess.Popen([sys.executable, "-c", RUN, *map(str, args)], env=_env(), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, **kw)
 

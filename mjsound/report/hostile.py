@@ -43,7 +43,10 @@ MONITOR = r"""
 import json, os, resource, signal, subprocess, sys, time
 d, sig, min_bytes = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 argv = sys.argv[5:]
-p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+def sigint_default():  # a background start (cmd &) ignores SIGINT, and children inherit it
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
 def temps():
     return [n for n in os.listdir(d) if n.startswith(".mjsound-tmp-")]
 if sig:
