@@ -63,6 +63,13 @@ while caught < int(sys.argv[1]):
 '''
 
 
+def _sigint_default():
+    """Default Ctrl-C disposition in the child: a suite started in the background by a
+    non-interactive shell (``cmd &``) ignores SIGINT, and children would inherit that."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a child process")
 def test_ctrl_c_while_stepping_is_a_keyboard_interrupt():
     """A child process steps a scene in a loop (fused substeps and single steps, with
@@ -70,7 +77,7 @@ def test_ctrl_c_while_stepping_is_a_keyboard_interrupt():
     n = 12
     env = dict(os.environ, PYTHONPATH=os.path.dirname(os.path.dirname(os.path.abspath(mjsound.__file__))))
     p = subprocess.Popen([sys.executable, "-c", CHILD, str(n)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, env=env)
+                         text=True, env=env, preexec_fn=_sigint_default)
     try:
         assert p.stdout.readline().strip() == "ready", p.stderr.read()
         lines = []
