@@ -195,16 +195,7 @@ def geom_name(model, g: int) -> str:
 
 def custom_materials(model) -> dict:
     """``{geom_name: material text}`` from custom texts named ``mjsound:GEOMNAME``."""
-    mujoco = _mujoco()
-    out = {}
-    for t in range(model.ntext):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TEXT, t) or ""
-        if not name.startswith("mjsound:"):
-            continue
-        adr, size = int(model.text_adr[t]), int(model.text_size[t])
-        raw = bytes(model.text_data[adr : adr + size - 1])
-        out[name[len("mjsound:") :]] = raw.decode("utf-8", "replace").strip()
-    return out
+    return custom_texts(model, "mjsound:")
 
 
 def geom_mesh_spec(model, g: int):
