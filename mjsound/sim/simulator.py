@@ -173,7 +173,7 @@ class AudioSimulator:
             for g, s in self._sounding.items():
                 idx = self.synth.object_index(s.name)
                 if s.dynamic:
-                    moving[idx] = g
+                    moving[idx] = s.geom_id  # the object's anchor: its model lives in that geom's frame
                 if self.synth.n_modes(s.name):
                     self._sound[g]["obj"] = idx
         sounding = self._sound["obj"] >= 0
