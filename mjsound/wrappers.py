@@ -236,9 +236,7 @@ class EnvAudio:
                 mujoco.mj_forward(model, d0)
                 self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
-        self._audible = np.zeros(model.ngeom, bool)
-        for s in self.scene.sounding:
-            self._audible[list(s.geom_ids)] = True
+        self._audible = audible_geoms(model, self.scene, self.sim)
         self._rng = None
         self._reader_impacts = 0
 
@@ -256,7 +254,8 @@ class EnvAudio:
         return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
 
     def _audible_impacts(self) -> int:
-        """Impacts since the last call that involve a sounding geom (the reader's newest records)."""
+        """Impacts since the last call that make a sound (:func:`audible_geoms`; the reader's
+        newest records)."""
         r = self.sim.reader
         new = r.n_impacts - self._reader_impacts
         self._reader_impacts = r.n_impacts
@@ -277,6 +276,22 @@ class EnvAudio:
         info = dict(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
                     audio_impacts=self._audible_impacts())
         return self.audio.observe(), info
+
+
+def audible_geoms(model, scene, sim) -> np.ndarray:
+    """(ngeom,) bool: whether an impact on the geom is heard: it belongs to a sounding object
+    (modes), or its body clicks (clicks on, the body moves: not welded to the world, not mocap,
+    with mass; :mod:`mjsound.sim.clicks`), or its body carries a contact microphone."""
+    audible = np.zeros(model.ngeom, bool)
+    for s in scene.sounding:
+        audible[list(s.geom_ids)] = True
+    pulses = getattr(sim, "_pulses", None)
+    body = np.asarray(model.geom_bodyid)
+    if pulses is not None and pulses.active and pulses.clicks and pulses.n_air:
+        audible |= np.asarray(pulses._dynamic, bool)[body]
+    for site in getattr(pulses, "contact_sites", None) or ():
+        audible |= body == int(model.site_bodyid[site])
+    return audible
 
 
 # ---------------------------------------------------------------------- wrapper
@@ -379,7 +394,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     ``audio_peak_pa`` (float, largest |pressure| of this step [Pa]; a contact channel counts as
     its acceleration times ``full_scale_pa / contact_full_scale``), ``audio_samples`` (int,
     new samples per channel this step), ``audio_impacts`` (int, impacts this step that
-    involve a sounding object).
+    are heard: on a sounding object, a moving body that clicks, or a body with a contact
+    microphone; :func:`audible_geoms`).
 
     Seeding
     -------

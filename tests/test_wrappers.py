@@ -93,8 +93,8 @@ def test_substep_contacts_are_read():
             mujoco.mj_step(bu.model, bu.data)
             sim.step()
     assert env.sim.reader.n_impacts == sim.events["impact"] > 0
-    heard = env.scene.by_geom()  # audio_impacts: the impacts with a sounding side
-    assert n_wrapped == sum(1 for r in sim.impacts if r.geom1 in heard or r.geom2 in heard) > 0
+    heard = env.core._audible  # audio_impacts: the impacts with a side that sounds or clicks
+    assert n_wrapped == sum(1 for r in sim.impacts if heard[r.geom1] or heard[r.geom2]) > 0
     env.close()
     bare.close()
 
@@ -142,19 +142,25 @@ def test_materials_star_and_checked_keys_in_the_wrapper():
 
 
 def test_audio_impacts_count_audible_impacts_only():
-    """Only the torso sounds: the feet hit the floor (impacts between silent geoms), nothing is heard."""
-    silent = wrapped("HalfCheetah-v5", materials={"torso": "steel"}, default_material=None)
+    """Only the torso has modes. Without clicks the feet hitting the floor (geoms with no modes)
+    are not heard and not counted; with clicks (the default) every moving foot clicks, so every
+    impact counts."""
+    silent = wrapped("HalfCheetah-v5", materials={"torso": "steel"}, default_material=None, clicks=False)
     assert [s.name for s in silent.scene.sounding] == ["torso"]
     _, infos = run(silent, 1, 20)
     assert silent.sim.reader.n_impacts > 0 and sum(i["audio_impacts"] for i in infos) == 0
-    heard = wrapped("HalfCheetah-v5")
+    clicking = wrapped("HalfCheetah-v5", materials={"torso": "steel"}, default_material=None)
+    _, infos = run(clicking, 1, 20)
+    assert sum(i["audio_impacts"] for i in infos) == clicking.sim.reader.n_impacts > 0
+    # modes only: the impacts with a side in a sounding object (some feet have no audible modes)
+    heard = wrapped("HalfCheetah-v5", clicks=False)
     _, infos = run(heard, 1, 20)
     sounding = heard.scene.by_geom()
     n = sum(1 for r in heard.sim.reader.impacts if r.geom1 in sounding or r.geom2 in sounding)
     assert sum(i["audio_impacts"] for i in infos) == n > 0
-    assert n < heard.sim.reader.n_impacts  # (some feet have no audible modes: their impacts do not count)
-    silent.close()
-    heard.close()
+    assert n < heard.sim.reader.n_impacts
+    for env in (silent, clicking, heard):
+        env.close()
 
 
 class _HandSteppedEnv(gym.Env):

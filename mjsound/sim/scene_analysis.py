@@ -139,14 +139,15 @@ def warn_unheard(scene, plans, f_max) -> None:
         warnings.warn(f"mjsound: nothing in this scene rings: {len(quiet)} object(s) with a material have no mode "
                       f"between 20 Hz and f_max {f_max / 1000:.1f} kHz ({', '.join(quiet[:4])}"
                       f"{' ...' if len(quiet) > 4 else ''}). A higher sample_rate (f_max = 0.45 x sample_rate) or "
-                      "lower-pitched materials would make them ring.", UserWarning, stacklevel=3)
+                      "lower-pitched materials would make them ring (moving bodies still click on impact).", UserWarning,
+                      stacklevel=3)
     for p in plans:
         why = scene.silent[p["name"]]
         fix = ("a lower-pitched object (larger, or a softer or denser material) or a higher sample_rate "
                f"(f_max = 0.45 x sample_rate, now {f_max / 1000:.1f} kHz) would make it ring"
                if "no audible modes" in why else "see the warning above")
         warnings.warn(f"mjsound: {p['name']!r} ({p['material'].name}, {p['label']}) will not ring: {why}. "
-                      f"It still excites what it hits; {fix}.", UserWarning, stacklevel=3)
+                      f"It still excites what it hits (and clicks when it moves); {fix}.", UserWarning, stacklevel=3)
 
 def check_masses(scene) -> None:
     """Compare every body's sounding mass with MuJoCo's ``body_mass``; note and warn > 5 % off.
