@@ -101,3 +101,23 @@ def test_memory_estimate_tracks_measured_dofs():
         m = analyze(spec, AL, f_max=6000.0, cache=False, error_estimate=False)
         assert 0.5 < p.dofs / m.dofs < 2.0, (spec, p.dofs, m.dofs)
     assert np.isfinite(p.memory_gb)
+
+
+def test_auto_falls_back_to_hex_when_tetgen_refuses(monkeypatch):
+    """A thin wall TetGen cannot mesh (here: made to fail) is voxelized, and the model says why."""
+    import mjsound.modal.tet as T
+
+    def refuse(*a, **k):
+        raise ValueError("tet method: TetGen could not tetrahedralize this mesh (test)")
+
+    monkeypatch.setattr(T, "tetrahedralize", refuse)
+    m = analyze("bowl:0.1,0.004", "aluminium", quality="draft", f_max=1500, cache=False, error_estimate=False)
+    assert m.method == "hex" and "failed" in m.info["method_choice"] and m.n_modes > 0
+
+
+def test_thin_wall_over_budget_for_tets_is_planned_as_hex():
+    bowl = load_mesh("bowl:0.1,0.004")
+    tet = plan_analysis(bowl, AL, 20000.0)
+    assert tet.method == "tet" and not tet.through_wall and 50000 < tet.dofs < 200000  # built: 98 793
+    p = plan_analysis(bowl, AL, 20000.0, max_memory=0.6, over_budget="refuse")
+    assert p.method == "hex" and "over the cap" in p.reason and p.memory_gb <= 0.6

@@ -326,8 +326,20 @@ def analyze(
             warnings.warn(f"cache entry {path} is corrupt ({exc}); recomputing", stacklevel=2)
 
     t0 = time.perf_counter()
-    model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring, resolution,
-                 wall, t0)
+    try:
+        model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
+                     resolution, wall, t0)
+    except ValueError as exc:
+        if method != "auto" or plan.method == "hex":
+            raise
+        # the robust path: any mesh TetGen refuses (self-intersecting, badly shaped) is voxelized
+        reason = f"hex: quadratic tets through the thin wall failed ({exc}); voxel hexahedra instead"
+        plan = plan_analysis(tm, material, plan.f_max, method="hex", quality=quality, resolution=resolution,
+                             thickness=thickness, order=order, refine=refine, max_modes=max_modes,
+                             max_memory=max_memory_gb, over_budget=over_budget)
+        plan.reason = reason
+        model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
+                     resolution, wall, t0)
     if cache:
         try:
             model.save(path)

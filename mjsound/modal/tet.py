@@ -199,9 +199,10 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
             "tet method: the surface mesh is not watertight (it has open edges or "
             f"non-manifold edges), so it has no inside to fill with tetrahedra; {_HEX_HINT}"
         )
-    if h is not None:
+    if h is not None and refine:
         # TetGen must keep every surface edge: sliver triangles far smaller than the element
         # size force millions of tiny tetrahedra (minutes, gigabytes). Refuse them up front.
+        # (Without refinement TetGen adds no point: short edges cost nothing.)
         shortest = float(mesh.edges_unique_length.min())
         if shortest < h / SLIVER_RATIO:
             raise ValueError(
