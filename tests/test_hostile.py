@@ -322,3 +322,17 @@ def test_analyze_checks_its_options_first(tmp_path, capsys):
     assert "--sample-rate=100 Hz" in err and "1000..768000" in err
     err = cli_error(capsys, ["analyze", "box:0.1,0.1,0.1", "-o", str(tmp_path / "m.txt")])
     assert "'.txt' is not supported; use .npz" in err
+
+
+def test_analyze_memory_cap_option_reaches_the_analysis(capsys):
+    err = cli_error(capsys, ["analyze", "box:10,1,1", "--quality", "draft", "--max-memory-gb", "0.01",
+                             "--over-budget", "refuse", "--no-cache"])
+    assert "over the cap of 0.01 GB" in err
+
+
+def test_sonify_memory_cap_option_reaches_the_arrays(scene, tmp_path, capsys):
+    r = _rollout(tmp_path / "r.npz", np.arange(600) * 0.001)  # 600 frames x 14 numbers: 67 kB as float64
+    before = os.environ.get("MJSOUND_MAX_MEMORY_GB")
+    err = cli_error(capsys, ["sonify", scene, "--rollout", r, "--max-memory-gb", "1e-5", "-o", str(tmp_path / "a.wav")])
+    assert "(600 frames) would take 6.72e-05 GB of memory, over the 1e-05 GB cap" in err
+    assert os.environ.get("MJSOUND_MAX_MEMORY_GB") == before  # restored after the run

@@ -30,6 +30,10 @@ def register(sub) -> None:
     p.add_argument("--sample-rate", type=float, default=None, help="output sample rate in Hz (bounds f-max below Nyquist)")
     p.add_argument("--order", type=int, choices=[1, 2], default=2, help="element order: hex 2 = 20-node cells (default), 1 = 8-node; tet 2 = 10-node (default), 1 = 4-node")
     p.add_argument("--thickness", type=float, default=None, help="wall thickness in m (open meshes, shell method)")
+    p.add_argument("--max-memory-gb", type=float, default=None,
+                   help="cap on the analysis's estimated peak memory in GB (default $MJSOUND_MAX_MEMORY_GB or 8)")
+    p.add_argument("--over-budget", choices=["coarsen", "refuse"], default="coarsen",
+                   help="over the cap: lower the resolution (at most to draft, with a note) or refuse at once")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the model cache")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("-o", "--output", default=None, help="write the model to this .npz file")
@@ -52,6 +56,7 @@ def run(args) -> int:
         args.mesh, args.material, method=args.method, quality=args.quality, f_max=args.f_max,
         sample_rate=args.sample_rate, resolution=args.resolution, thickness=args.thickness,
         order=args.order, cache=not args.no_cache, progress=not args.json and sys.stderr.isatty(),
+        max_memory_gb=args.max_memory_gb, over_budget=args.over_budget,
     )
     wall = time.perf_counter() - t0
     if args.output:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sys
 
 __all__ = ["register", "add_sonify_options"]
@@ -18,6 +20,32 @@ def add_sonify_options(p) -> None:
     p.add_argument("--budget-modes", type=int, default=None, help="total modes for the scene (shared by importance)")
     p.add_argument("--full-scale-pa", type=float, default=None, help="pressure written as full scale (default 20 Pa)")
     p.add_argument("--normalize", action="store_true", help="peak-normalise each file (absolute level lost)")
+    p.add_argument("--max-memory-gb", type=float, default=None,
+                   help="memory cap in GB of each modal analysis and in-memory array (sets $MJSOUND_MAX_MEMORY_GB "
+                        "for this run and its workers; default 8)")
+
+
+@contextlib.contextmanager
+def _memory_cap(args):
+    """``--max-memory-gb`` as ``$MJSOUND_MAX_MEMORY_GB`` while the command runs (its workers
+    inherit it); the variable is restored afterwards."""
+    from ..limits import MAX_MEMORY_ENV, finite_number
+
+    gb = getattr(args, "max_memory_gb", None)
+    if gb is None:
+        yield
+        return
+    if not finite_number(gb, "--max-memory-gb") > 0:
+        raise ValueError(f"--max-memory-gb={gb:g} must be a positive number of gigabytes")
+    before = os.environ.get(MAX_MEMORY_ENV)
+    os.environ[MAX_MEMORY_ENV] = repr(float(gb))
+    try:
+        yield
+    finally:
+        if before is None:
+            del os.environ[MAX_MEMORY_ENV]
+        else:
+            os.environ[MAX_MEMORY_ENV] = before
 
 
 def register(subparsers) -> None:
@@ -138,11 +166,12 @@ def _sonify_maybe_logged(args, scene, **kw) -> dict:
     from ..sim.rollout import sonify
 
     _check_outputs(args)
-    if args.rrd:
-        from ..rerun_log import log_sonify
+    with _memory_cap(args):
+        if args.rrd:
+            from ..rerun_log import log_sonify
 
-        return log_sonify(args.rrd, scene, **kw)
-    return sonify(scene, **kw)
+            return log_sonify(args.rrd, scene, **kw)
+        return sonify(scene, **kw)
 
 
 def _run_sonify(args) -> int:
@@ -182,13 +211,14 @@ def _run_demo(args) -> int:
 def _run_batch(args) -> int:
     from ..batch import _json_default, sonify_batch
 
-    s = sonify_batch(
-        args.rollouts, args.scene, args.outdir, workers=args.workers, address=args.address,
-        duration=args.duration, timestep=args.timestep, sample_rate=args.sample_rate, materials=args.materials,
-        mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
-        full_scale_pa=args.full_scale_pa, normalize=args.normalize, rrd=args.rrd, resume=not args.force,
-        max_retries=args.retries, progress=not args.json and sys.stderr.isatty(),
-    )
+    with _memory_cap(args):
+        s = sonify_batch(
+            args.rollouts, args.scene, args.outdir, workers=args.workers, address=args.address,
+            duration=args.duration, timestep=args.timestep, sample_rate=args.sample_rate, materials=args.materials,
+            mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
+            full_scale_pa=args.full_scale_pa, normalize=args.normalize, rrd=args.rrd, resume=not args.force,
+            max_retries=args.retries, progress=not args.json and sys.stderr.isatty(),
+        )
     if args.json:
         out = dict(s)
         out["failed"] = [{k: v for k, v in f.items() if k != "traceback"} for f in s["failed"]]
