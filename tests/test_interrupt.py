@@ -37,9 +37,13 @@ def restart():
     sim.reset()
 
 restart()
-for _ in range(50):
-    sim.substeps(5)
+for _ in range(60):  # every path of the loop below runs (and is compiled) before the interrupts:
+    data.xfrc_applied[2, 0] = 3.0  # (the box slides: streams) an interrupt inside numba's compiler
+    sim.substeps(5)  # is beyond this test (and numba's control)
     sim.flush()
+    mujoco.mj_step(model, data)
+    sim.step()
+restart()
 print("ready", flush=True)
 caught = 0
 while caught < int(sys.argv[1]):

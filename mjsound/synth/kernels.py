@@ -487,7 +487,7 @@ def render_streams(synth, bank, layout, ev, start, n, may_regain, out, zero):
         need = dmax + n + 1
         if need > st.ring.shape[1]:
             return need
-    src = streams_bank_rows(st, layout, start, start + n, zero)
+    src = SourceRows(*streams_bank_rows(st, layout, start, start + n, zero))
     render_all(bank, ev, src, start, n, synth.consts, out, zero)
     for c in range(out.shape[0]):
         for k in range(out.shape[1]):

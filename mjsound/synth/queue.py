@@ -126,7 +126,9 @@ class EventQueue:
         im (k, width))``, rows sorted by (microphone, sample), ties in queue order; row ``i``'s
         amplitudes sit at columns ``v_rel[voice] ...`` of its microphone bank (voice =
         ``vbase[obj] + mic``)."""
-        return _take(self.state, end, vbase, v_rel, v_len, n_mics, width)
+        # (a plain tuple crosses back from numba: boxing a NamedTuple runs Python code, where a
+        # pending Ctrl-C made numba crash)
+        return EventRows(*_take(self.state, end, vbase, v_rel, v_len, n_mics, width))
 
 
 @njit(cache=True)
@@ -210,4 +212,4 @@ def _take(q, end, vbase, v_rel, v_len, n_mics, width):
     for m in range(n_mics):
         ptr[m + 1] += ptr[m]
     _compact(q, ~due)
-    return EventRows(ptr, na, kd, out_re, out_im)
+    return ptr, na, kd, out_re, out_im  # (a plain tuple: see take)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .records import AIR, SourceRows
+from .records import AIR
 
 __all__ = ["stream_seed", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
            "any_due"]
@@ -280,7 +280,8 @@ def streams_bank_rows(streams, layout, start, end, zero):
     ``[start, min(end, last + D))`` and read from the ring, placed in the microphone banks
     (voice ``v``'s gains at columns ``v_rel[v] ...`` of a row ``width`` wide) and grouped by
     microphone (stream order within one). ``layout``: :class:`.kernels.BankLayout`.
-    Returns :class:`.records.SourceRows` (microphone ``m``'s rows ``ptr[m] : ptr[m + 1]``)."""
+    Returns the fields of :class:`.records.SourceRows` as a plain tuple (microphone ``m``'s rows
+    ``ptr[m] : ptr[m + 1]``)."""
     S = streams.counts[0].n
     t = streams.table
     D = streams.D
@@ -329,4 +330,4 @@ def streams_bank_rows(streams, layout, start, end, zero):
                 if ks >= lo_src and ks < gen:
                     F[j, u - start] = ring[s, ks & mask]
             j += 1
-    return SourceRows(ptr, sa, sb, gr, gi, F)
+    return ptr, sa, sb, gr, gi, F  # (the fields of SourceRows: a NamedTuple is not boxed safely on Ctrl-C)

@@ -871,7 +871,7 @@ class Synthesizer:
 
     def _streams_bank_rows(self, start, end) -> SourceRows:
         self._streams_regain(end - start)
-        return streams_bank_rows(self._streams.state, self._layout, start, end, self.dtype.type(0))
+        return SourceRows(*streams_bank_rows(self._streams.state, self._layout, start, end, self.dtype.type(0)))
 
     def _source_rows(self, srcs, start, end):
         """Forcing sources ``srcs`` (entries of ``_src`` overlapping ``[start, end)``) as
