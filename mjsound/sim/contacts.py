@@ -258,13 +258,22 @@ class ContactReader:
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
-        """Forget all pairs (call after ``mj_resetData`` or a state jump)."""
-        self.counts = np.zeros(1, READER_COUNTS)
-        self._pairs = np.zeros(0, PAIR)
-        self._hkeys = np.full(0, -1, np.int64)
-        self._hvals = np.zeros(0, np.int64)
-        self._state = None
-        self._alloc_slots(64)
+        """Forget all pairs (call after ``mj_resetData`` or a state jump). The arrays are kept
+        (cleared in place): the kernel's compiled entry point stays valid."""
+        if getattr(self, "_state", None) is None or getattr(self, "buffers", None) is None:
+            self.counts = np.zeros(1, READER_COUNTS)
+            self._pairs = np.zeros(0, PAIR)
+            self._hkeys = np.full(0, -1, np.int64)
+            self._hvals = np.zeros(0, np.int64)
+            self._state = None
+            self._alloc_slots(64)
+            self.buffers = None
+            self.grow(8, 64)
+        else:
+            self.counts[:] = 0
+            self._pairs[:] = 0
+            self._hkeys[:] = -1
+            self._hvals[:] = 0
         # slot -> its ImpactRecord, open when last synced; records read their sum F dt, steps
         # and duration from the slot state only when read (:attr:`impacts`) or closed by the
         # slot's next onset (its values banked in prev_* by the state machine)
@@ -272,8 +281,6 @@ class ContactReader:
         self._records = deque(maxlen=self.keep_records)  # (the oldest drop out in O(1))
         self.n_impacts = 0
         self.n_clamped = 0
-        self.buffers = None
-        self.grow(8, 64)
 
     @property
     def step_count(self) -> int:

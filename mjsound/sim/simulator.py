@@ -24,6 +24,7 @@ import warnings
 
 import numpy as np
 
+from ..synth.dispatch import EntryPoint
 from .clock import SampleClock
 from .contacts import ContactReader
 from .drive import follow_rows, sync_poses
@@ -201,6 +202,7 @@ class AudioSimulator:
                           "checked)", RuntimeWarning, stacklevel=2)
         self._drive = None
         self._sidx = np.full((16, 2), -1, np.int64)
+        self._sync_poses_call = EntryPoint(sync_poses)
         self._sidx_epoch = None
         self._held = []  # blocks rendered before an automatic reset, returned by the next render
         self.reset(clear_reader=True)
@@ -303,9 +305,8 @@ class AudioSimulator:
         """The drive's arrays (:class:`.records.DriveState`), rebuilt when one was replaced."""
         synth = self.synth
         if synth is not None and self._sidx_epoch != synth.streams_epoch:  # the synthesizer forgot its streams
-            self._sidx = np.full((16, 2), -1, np.int64)
+            self._sidx[:] = -1  # (in place: the kernel's entry point stays valid)
             self._sidx_epoch = synth.streams_epoch
-            self._drive = None
         nslots = int(self.reader.counts[0]["nslots"])
         if nslots > len(self._sidx):
             grown = np.full((max(2 * len(self._sidx), nslots), 2), -1, np.int64)
@@ -331,7 +332,7 @@ class AudioSimulator:
         """Microphones and every moving sounding object to where they are now, before an
         event needs them (``Synthesizer.on_regain`` for the streams' gains). An exploding
         simulation's non-finite poses are skipped: those keep the last good one."""
-        sync_poses(self._drive_state(), self._kernel.views, self.synth.kernel_state())
+        self._sync_poses_call((self._drive_state(), self._kernel.views, self.synth.kernel_state()))
 
     # ------------------------------------------------------------------ stepping
     def step(self, render: bool = True) -> np.ndarray | None:

@@ -283,7 +283,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
 
 
 @njit(cache=True)
-def render_all(bank, ev, src, start, n, consts, out, zero):
+def render_all(bank, consts, ev, src, start, n, out, zero):
     """Render samples ``[start, start + n)`` of every bank (one call for the whole scene).
 
     Bank ``b`` (:class:`.records.Bank`) owns modes ``[start[b], start[b] + length[b])`` of the
@@ -488,7 +488,7 @@ def render_streams(synth, bank, layout, ev, start, n, may_regain, out, zero):
         if need > st.ring.shape[1]:
             return need
     src = SourceRows(*streams_bank_rows(st, layout, start, start + n, zero))
-    render_all(bank, ev, src, start, n, synth.consts, out, zero)
+    render_all(bank, synth.consts, ev, src, start, n, out, zero)
     for c in range(out.shape[0]):
         for k in range(out.shape[1]):
             if not np.isfinite(out[c, k]):

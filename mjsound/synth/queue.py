@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .dispatch import EntryPoint
 from .records import EVENT, QUEUE, EventRows, QueueState
 
 __all__ = ["EventQueue"]
@@ -35,6 +36,7 @@ class EventQueue:
     """
 
     def __init__(self, capacity: int = 64):
+        self._take = None
         self.counts = np.zeros(1, QUEUE)
         self.counts[0]["next_sample"] = NONE
         self.state = None
@@ -128,7 +130,9 @@ class EventQueue:
         ``vbase[obj] + mic``)."""
         # (a plain tuple crosses back from numba: boxing a NamedTuple runs Python code, where a
         # pending Ctrl-C made numba crash)
-        return EventRows(*_take(self.state, end, vbase, v_rel, v_len, n_mics, width))
+        if self._take is None:
+            self._take = EntryPoint(_take)  # (no per-call typing of the structured arrays)
+        return EventRows(*self._take((self.state,), int(end), vbase, v_rel, v_len, int(n_mics), int(width)))
 
 
 @njit(cache=True)

@@ -94,6 +94,20 @@ class StreamTable:
         row["gen"] = rendered
         return j
 
+    def clear(self) -> None:
+        """Forget every stream, keeping the arrays (as new: zero state and rings)."""
+        self.keys = {}
+        self.counts[:] = 0
+        st = self.state
+        if st is not None:
+            st.table[:] = 0
+            st.table["last"] = -(2**62)
+            st.table["gupd"] = -(2**62)
+            st.D[:] = 0
+            st.gr[:] = 0
+            st.gi[:] = 0
+            st.ring[:] = 0
+
     def grow_ring(self, need: int) -> None:
         """Rings of at least ``need`` samples (the next power of two)."""
         st = self.state

@@ -52,6 +52,7 @@ from ..modal.model import ModalModel
 from . import kernels
 from .pulse import contact_time, effective, hertz_coefficient
 from .interrupt import interruptible
+from .dispatch import EntryPoint
 from .queue import EventQueue
 from .records import AIR, CHANNEL, DEAF, SYNTH_CONSTS, Bank, BankLayout, EventRows, ObjectTable, SourceRows, SynthState
 from .stream_table import RING_SLACK, StreamTable
@@ -810,7 +811,15 @@ class Synthesizer:
     # ------------------------------------------------------------------ persistent streams
     def _streams_clear(self) -> None:
         """Forget all sustained-contact streams (their ringing modes keep ringing)."""
-        self._streams = StreamTable(self.n_channels, self.dtype)
+        st = getattr(self, "_streams", None)
+        if st is not None and st.n_mics == self.n_channels:
+            st.clear()  # (in place: the kernels' compiled entry points stay valid)
+        else:
+            self._streams = StreamTable(self.n_channels, self.dtype)
+        if not hasattr(self, "_render_all_call"):
+            # numba kernels called through their compiled entry points (no per-call typing)
+            self._render_all_call = EntryPoint(kernels.render_all)
+            self._render_streams_call = EntryPoint(kernels.render_streams)
         self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
         #: optional ``on_regain()`` called once before the gains of due streams are computed
         #: (a driver updates the poses and the microphones there), unless ``poses_current``
@@ -859,7 +868,7 @@ class Synthesizer:
         every sample is finite."""
         may_regain = self.on_regain is None or self.poses_current
         while True:
-            code = kernels.render_streams(self.kernel_state(), self._bank, self._layout, ev, start, n, may_regain,
+            code = self._render_streams_call((self.kernel_state(), self._bank, self._layout), ev, start, n, may_regain,
                                           out, self.dtype.type(0))
             if code == kernels.RENDERED or code == kernels.RENDERED_NONFINITE:
                 return code == kernels.RENDERED
@@ -1060,7 +1069,7 @@ class Synthesizer:
                     src = rows
             elif not srcs:
                 src = SourceRows(self._ev_ptr0, *self._empty_src, np.zeros((0, n), dt))
-            kernels.render_all(self._bank, ev, src, start, n, self._consts, out, dt.type(0))
+            self._render_all_call((self._bank, self._consts), ev, src, start, n, out, dt.type(0))
         self.samples_rendered = end
         return _finite(out.astype(np.float32, copy=False))
 

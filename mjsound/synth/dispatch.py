@@ -1,0 +1,41 @@
+"""Call a numba kernel through its compiled entry point, without numba's per-call typing.
+
+numba's dispatcher finds the compiled version of a kernel from the types of its arguments on
+every call; for tuples and structured arrays it does so in Python (a structured dtype's
+record type is rebuilt each time: about half a millisecond per array). The per-step and render
+kernels take their state as named records, so they are called through :class:`EntryPoint`:
+the types are computed only when one of the state objects is replaced.
+"""
+
+from __future__ import annotations
+
+from numba import typeof
+
+__all__ = ["EntryPoint"]
+
+
+class EntryPoint:
+    """``fn(*state, *args)`` for a numba dispatcher ``fn``: the compiled entry point is looked
+    up again only when an object of ``state`` is not the one it was looked up for. ``args``
+    must keep the same numba types from call to call (arrays of the same dtype, dimensions and
+    contiguity, scalars of the same kind): the callers pass freshly made arrays of fixed types
+    there (a block's output, its events)."""
+
+    __slots__ = ("fn", "_key", "_entry", "_keep")
+
+    def __init__(self, fn):
+        self.fn = fn
+        self._key = None
+        self._entry = None
+        self._keep = None
+
+    def __call__(self, state: tuple, *args):
+        key = tuple(map(id, state))
+        if key == self._key:
+            return self._entry(*state, *args)
+        self._key = None
+        out = self.fn(*state, *args)
+        self._keep = state  # (keeps the ids unique while they are the key)
+        self._entry = self.fn.overloads[tuple(typeof(a) for a in (*state, *args))].entry_point
+        self._key = key  # (last: an interrupt before it leaves no stale key)
+        return out
