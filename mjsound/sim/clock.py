@@ -43,24 +43,14 @@ class SampleClock:
         #: the clock's record (``k`` is advanced in place by the step kernel)
         self.rec = np.zeros(1, CLOCK)
         self.rec[0]["fs"] = fs
+        self.fs = fs
+        self._k = self.rec["k"]  # (a plain int64 view of the field: fast to use in Python)
         self.anchor(timestep, t_start)
-
-    @property
-    def fs(self) -> int:
-        return int(self.rec[0]["fs"])
-
-    @property
-    def timestep(self) -> float:
-        return float(self.rec[0]["timestep"])
-
-    @property
-    def t_start(self) -> float:
-        return float(self.rec[0]["t_start"])
 
     @property
     def k(self) -> int:
         """Steps counted since the anchor."""
-        return int(self.rec[0]["k"])
+        return int(self._k[0])
 
     @property
     def n(self) -> int:
@@ -72,8 +62,8 @@ class SampleClock:
         if not (np.isfinite(timestep) and timestep > 0):
             raise ValueError(f"timestep must be positive, got {timestep}")
         r = self.rec[0]
-        r["timestep"] = float(timestep)
-        r["t_start"] = float(t_start)
+        r["timestep"] = self.timestep = float(timestep)
+        r["t_start"] = self.t_start = float(t_start)
         dt = Fraction(float(timestep)).limit_denominator(10**9)
         t0 = Fraction(float(t_start)).limit_denominator(10**9)
         den = dt.denominator * t0.denominator // math.gcd(dt.denominator, t0.denominator)
@@ -97,5 +87,5 @@ class SampleClock:
     def advance(self, steps: int = 1) -> tuple[int, int]:
         """Count ``steps`` steps; returns ``(n0, n1)``, their samples ``n0 <= n < n1``."""
         k = self.k
-        self.rec[0]["k"] = k + steps
+        self._k[0] = k + steps
         return self.sample_at(k), self.sample_at(k + steps)

@@ -68,6 +68,8 @@ class StepKernel:
         self.views = DataViews(data.cvel, data.subtree_com, data.geom_xpos, data.geom_xmat, data.cdof, data.xpos,
                                data.site_xpos)
         self.run = np.zeros(1, RUN)
+        #: the fields of :attr:`run` as one-element arrays (fast to use in Python)
+        self.f = {name: self.run[name] for name in RUN.names}
         if clock is None:  # (calls with explicit times only; fs 1 keeps the event time finite)
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
@@ -94,10 +96,11 @@ class StepKernel:
         if key == self._entry_key:
             self._entry(*args)
             return
+        self._entry_key = None
         advance(*args)
+        self._keep = args  # (keeps the ids unique while they are the key)
         self._entry = advance.overloads[tuple(typeof(a) for a in args)].entry_point
-        self._entry_key = key
-        self._keep = args  # (keeps the ids unique)
+        self._entry_key = key  # (last: an interrupt before it leaves no stale key)
 
     def call(self, drive, synth_state, nstep: int = 1, call_step: bool = False, explicit=None, log_limit: int = 0,
              on_stop=None, synth=None) -> None:
@@ -107,16 +110,17 @@ class StepKernel:
         current one, ``synth_state()``: the current SynthState (both asked again after every
         hand-back); ``synth``: the Synthesizer whose queue grows on :data:`.step.ROOM`;
         ``on_stop(reason)`` handles the other reasons, then the call resumes."""
-        run = self.run[0]
-        run["nstep"], run["done"], run["call_step"] = nstep, 0, int(call_step)
-        run["stage"] = STAGE_STEP if call_step else STAGE_READ
-        run["from_struct"] = int(self.from_struct)
-        run["log_limit"], run["n_log"], run["n_impacts"], run["solved"], run["poses_current"] = log_limit, 0, 0, 0, 0
+        f = self.f  # (plain one-element views of the record's fields: fast to set in Python)
+        f["nstep"][0], f["done"][0], f["call_step"][0] = nstep, 0, call_step
+        f["stage"][0] = STAGE_STEP if call_step else STAGE_READ
+        f["from_struct"][0] = self.from_struct
+        f["log_limit"][0], f["n_log"][0], f["n_impacts"][0], f["solved"][0], f["poses_current"][0] = log_limit, 0, 0, 0, 0
         if explicit is not None:
-            run["explicit"] = 1
-            run["t0"], run["t1"], run["n0"], run["n1"] = explicit
+            f["explicit"][0] = 1
+            f["t0"][0], f["t1"][0], f["n0"][0], f["n1"][0] = explicit
         else:
-            run["explicit"] = 0
+            f["explicit"][0] = 0
+        run = self.run[0]
         if not self.from_struct:
             if call_step or nstep != 1:
                 raise ValueError("StepKernel.call: stepping needs MuJoCo's C functions and struct layout")
@@ -126,7 +130,7 @@ class StepKernel:
             d = drive() if callable(drive) else drive
             self._advance((self.mj, self.views, reader.state(), reader.buffers, self.clock, d, synth_state(),
                            self.run))
-            reason = int(run["reason"])
+            reason = int(f["reason"][0])
             if reason == DONE:
                 return
             if reason == ROOM:

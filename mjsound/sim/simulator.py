@@ -409,7 +409,7 @@ class AudioSimulator:
         self._call(nstep, call_step=True)
         self.seconds_fused += _time.perf_counter() - tc
         self._count_segment()
-        self.synth.poses_current = bool(self._kernel.run[0]["poses_current"])
+        self.synth.poses_current = bool(self._kernel.f["poses_current"][0])
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
@@ -428,16 +428,17 @@ class AudioSimulator:
 
     def _collect(self) -> None:
         """Take the kernel's impact records, impact count and event log entries."""
-        run = self._kernel.run[0]
+        f = self._kernel.f
         self.reader.take_records()
-        self._n_impacts += int(run["n_impacts"])
-        n_log = int(run["n_log"])
+        n_imp, n_log = int(f["n_impacts"][0]), int(f["n_log"][0])
+        if n_imp:
+            self._n_impacts += n_imp
+            f["n_impacts"][0] = 0
         if n_log:
             self._log_pending.append(self.reader.buffers.log[:n_log].copy())
             self._n_logged += n_log
-        run["n_impacts"] = 0
-        run["n_log"] = 0
-        run["log_limit"] = max(0, self.keep_events - self._n_logged)
+            f["n_log"][0] = 0
+            f["log_limit"][0] = max(0, self.keep_events - self._n_logged)
 
     def _on_stop(self, reason: int) -> None:
         """What the step kernel hands back: see :mod:`.step`."""
