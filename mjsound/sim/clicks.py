@@ -51,6 +51,20 @@ def _quat_mat(q) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
+_LOADED = [False]
+
+
+def _load_kernels() -> None:
+    """Compile or load the pulse kernels once per process, when a simulator that will need them
+    is made, not at its first impact (loading them from numba's cache took 0.5 s here)."""
+    if not _LOADED[0]:
+        _LOADED[0] = True
+        track = PulseTrack(1, 16000)
+        track.add_trusted(site_pulse(0.001, 1e-4, 0), np.ones(1))
+        track.take(64)
+        contact_time(1e-4, 1.0)
+
+
 class ImpactPulses:
     """Clicks at the air microphones and rigid-body pulses at the contact microphones.
 
@@ -111,6 +125,8 @@ class ImpactPulses:
             self._masses[b] = accel_noise.dipole_masses(self._axes[b])
             self._a_eq[b] = accel_noise.equivalent_radius(self._axes[b])
         self._site_body = np.array([m.site_bodyid[s] for s in self.contact_sites], np.int64)
+        if self.active:
+            _load_kernels()
         self._coef = {}
 
     @property
