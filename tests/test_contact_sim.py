@@ -140,3 +140,22 @@ def test_object_slid_along_a_body_is_heard_by_its_contact_mic():
     assert np.sqrt(np.mean(late**2)) > 0.1  # m/s^2 of scraping in the plate
     rest, y = _sim(block=(0.42, 0, 0.035), custom=MATS, mu=0.2, seconds=0.2)
     assert np.sqrt(np.mean(y[2, int(0.05 * FS):] ** 2)) < 0.01 * np.sqrt(np.mean(late**2))
+
+
+def test_sonify_writes_contact_channels_at_their_full_scale(tmp_path):
+    import soundfile as sf
+
+    from mjsound.sim.rollout import sonify
+
+    scene = tmp_path / "drop.xml"
+    scene.write_text(XML.format(block="0.5 0 0.14", custom=MATS, mu=1.0))
+    out = tmp_path / "take.wav"
+    s = sonify(scene, duration=0.3, sample_rate=FS, out=out, quality="draft", progress=False,
+               contact_mics=["contact_mic_plate"], contact_full_scale=5000.0)
+    assert s["channel_names"] == ["mic0", "contact_mic_plate"] and s["channels"] == 2
+    audio = s["audio"]
+    wav, fs = sf.read(out, dtype="float64")
+    assert fs == FS and wav.shape == (audio.shape[1], 2)
+    assert np.allclose(wav[:, 0], audio[0] / 20.0, atol=1e-6)  # 20 Pa -> 1
+    assert np.allclose(wav[:, 1], np.clip(audio[1] / 5000.0, -1, 1), atol=1e-6)  # 5000 m/s^2 -> 1
+    assert np.abs(audio[1]).max() > 100.0 and s["peak_pa"] == pytest.approx(float(np.abs(audio[0]).max()))
