@@ -96,3 +96,23 @@ def test_ctrl_c_while_stepping_is_a_keyboard_interrupt():
         p.kill()
     assert lines == ["KeyboardInterrupt"] * n, lines + [p.stderr.read()[-2000:]]
     assert p.returncode == 0
+
+
+def test_interrupt_several_system_errors_deep_is_a_keyboard_interrupt():
+    """numba may wrap the interrupt in more than one SystemError (boxing a returned array
+    calls ``_numba_unpickle`` repeatedly); ``interruptible`` finds it anywhere in the chain."""
+    from mjsound.synth.interrupt import caused_by_interrupt, interruptible
+
+    def nested(depth):
+        try:
+            if depth == 0:
+                raise KeyboardInterrupt
+            nested(depth - 1)
+        except BaseException as e:
+            raise SystemError("returned a result with an exception set") from e
+
+    with pytest.raises(KeyboardInterrupt):
+        interruptible(nested)(3)
+    with pytest.raises(SystemError):  # a SystemError without an interrupt stays what it is
+        interruptible(lambda: (_ for _ in ()).throw(SystemError("other")))()
+    assert not caused_by_interrupt(SystemError("x"))

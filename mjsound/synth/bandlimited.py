@@ -40,6 +40,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .interrupt import interruptible
 from .pulse import half_sine
 
 __all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES",
@@ -260,6 +261,7 @@ def _render_pulses(pulses, dv, fs, acc, start, work, out):
 _ENTRY = {}
 
 
+@interruptible
 def _call(kernel, *args):
     """``kernel(*args)`` through its compiled entry point once it has been compiled for these
     argument types: numba's dispatch types a structured array in Python (about 0.3 ms a call),

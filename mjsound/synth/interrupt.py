@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import functools
 
-__all__ = ["interruptible"]
+__all__ = ["interruptible", "caused_by_interrupt"]
 
 
 def interruptible(fn):
@@ -25,8 +25,22 @@ def interruptible(fn):
         try:
             return fn(*args, **kwargs)
         except SystemError as e:
-            if isinstance(e.__cause__, KeyboardInterrupt):
+            if caused_by_interrupt(e):
                 raise KeyboardInterrupt from None
             raise
 
     return wrapper
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a ``KeyboardInterrupt`` lies anywhere in ``exc``'s cause/context chain.
+
+    The interrupt may sit several ``SystemError`` deep: when boxing a returned array runs
+    numba's ``_numba_unpickle`` more than once, each call wraps the previous failure."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
