@@ -1,4 +1,4 @@
-"""hex (voxel-embedded incompatible-mode hexahedra) against closed forms (DESIGN.md)."""
+"""hex (voxel-embedded incompatible-mode hexahedra) against closed forms (docs/design.md, "Reference values")."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Tetrahedral FEM (mjsound.modal.tet) against the 3D reference values of DESIGN.md."""
+"""Tetrahedral FEM (mjsound.modal.tet) against the 3D reference values of docs/design.md."""
 
 import json
 import math

@@ -8,7 +8,7 @@ Modal analysis
 Frequency error in cents, ``1200 log2(f / f_ref)``, of the first modes of
 
 * the aluminium beam 0.5 m x 10 mm x 10 mm, free-free: bending pairs against the converged 3D
-  values of ``DESIGN.md`` (209.06, 574.7, 1122.3, 1845.7 Hz) and the longitudinal mode
+  values of ``docs/design.md`` ("Reference values") (209.06, 574.7, 1122.3, 1845.7 Hz) and the longitudinal mode
   (5091.6 Hz, Rayleigh-Love);
 * the aluminium rod r = 10 mm, L = 0.5 m: torsion, exact in 3D, ``f_n = n c_s / (2 L)``
   (3122.0, 6243.9, 9365.9 Hz);
@@ -343,7 +343,7 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
     w("References (aluminium E = 70 GPa, nu = 0.33, rho = 2700 kg/m^3, free-free):")
     w("")
     w("* **beam** 0.5 m x 10 mm x 10 mm (`box:0.5,0.01,0.01`), f_max 6 kHz: bending pairs against the "
-      "converged 3D values 209.06, 574.7, 1122.3, 1845.7 Hz (DESIGN.md; Euler-Bernoulli's 209.36, 577.10, "
+      "converged 3D values 209.06, 574.7, 1122.3, 1845.7 Hz (docs/design.md; Euler-Bernoulli's 209.36, 577.10, "
       "1131.35, 1870.17 Hz are " + ", ".join(f"{x:+.1f}" for x in cents(BEAM_BENDING_EB, BEAM_BENDING_3D))
       + " cents off because they ignore shear and rotary inertia), and the longitudinal mode 5091.6 Hz "
       "(Rayleigh-Love). 9 modes.")

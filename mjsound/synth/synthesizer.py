@@ -1,6 +1,6 @@
 """`Synthesizer`: modal sound from impacts, sliding, rolling and force signals.
 
-Physics (see ``DESIGN.md``, "Exciting a mode")
+Physics (see ``docs/design.md``, "Exciting a mode")
 -----------------------------------------------
 Mode i of an object has decay ``d_i`` [1/s], damped angular frequency ``w_i`` [rad/s],
 ``lambda_i = -d_i + j w_i`` and mass-normalised shape ``phi_i(x)`` [1/sqrt(kg)]. An impulse
@@ -11,7 +11,7 @@ Mode i of an object has decay ``d_i`` [1/s], damped angular frequency ``w_i`` [r
 with ``S_i = S(w_i; tau)`` the half-sine contact pulse spectrum (:mod:`.pulse`, ``tau`` from
 Hertz theory), and the modal coordinate rings as ``q_i(t) = Im(c_i e^{lambda_i (t - t_e)})``.
 
-Radiation and microphones (DESIGN.md, "Radiation, microphones, output")
+Radiation and microphones (``docs/design.md``, "Radiation, microphones, output")
 ------------------------------------------------------------------------
 Each object reaches microphone m, at distance ``r`` from the object's origin, as::
 
