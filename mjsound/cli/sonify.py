@@ -199,12 +199,18 @@ def _run_demo(args) -> int:
         keep_audio=bool(args.png),
     )
     if args.png:
+        import numpy as np
+
         from ..synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
         from ..synth.output import DEFAULT_FULL_SCALE_PA
 
         audio = summary["audio"].copy()  # contact channels (after the air ones) in full-scale units
-        audio[len(summary["scene"]["microphones"]):] *= DEFAULT_FULL_SCALE_PA / DEFAULT_CONTACT_FULL_SCALE
-        summary["png"] = write_spectrogram_png(args.png, audio, args.sample_rate)
+        n_air = len(summary["scene"]["microphones"])
+        peaks = np.abs(audio).max(axis=1) if audio.size else np.zeros(len(audio))
+        names = summary.get("channel_names") or [f"channel {k}" for k in range(len(audio))]
+        labels = [f"{name}: peak {pk:.3g} {'Pa' if k < n_air else 'm/s²'}" for k, (name, pk) in enumerate(zip(names, peaks))]
+        audio[n_air:] *= DEFAULT_FULL_SCALE_PA / DEFAULT_CONTACT_FULL_SCALE
+        summary["png"] = write_spectrogram_png(args.png, audio, args.sample_rate, labels=labels)
     return _report(summary, args)
 
 

@@ -448,8 +448,12 @@ def sonify(
     }
 
 
-def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str | None:
+def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo", labels=None) -> str | None:
     """Save a log-magnitude spectrogram of each channel (matplotlib, optional) atomically.
+
+    ``audio`` (channels, samples) is drawn on one colour scale (its overall peak), so channels
+    keep their relative levels; ``labels`` (one string per channel, e.g. ``"mic_left, peak
+    32.1 Pa"``) name the channels and their units. Without labels the title gives the peak in Pa.
 
     Returns the path, or None (with a warning) when matplotlib is missing.
     """
@@ -469,10 +473,13 @@ def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo") -> str
     audio = np.atleast_2d(audio)
     fig, axes = plt.subplots(len(audio), 1, figsize=(9, 2.4 * len(audio)), sharex=True, squeeze=False)
     peak = float(np.abs(audio).max()) or 1.0
-    for ch, ax in zip(audio, axes[:, 0]):
+    for k, (ch, ax) in enumerate(zip(audio, axes[:, 0])):
         ax.specgram(ch / peak, NFFT=1024, Fs=sample_rate, noverlap=768, cmap="magma", vmin=-120, vmax=-20)
         ax.set_ylabel("Hz")
-    axes[0, 0].set_title(f"{title}: {audio.shape[1] / sample_rate:.1f} s, peak {peak:.3g} Pa")
+        if labels is not None:
+            ax.set_title(str(labels[k]), fontsize=9, loc="left")
+    head = f"{title}: {audio.shape[1] / sample_rate:.1f} s"
+    fig.suptitle(head if labels is not None else f"{head}, peak {peak:.3g} Pa")
     axes[-1, 0].set_xlabel("simulation time [s]")
     fig.tight_layout()
     try:
