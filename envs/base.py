@@ -19,7 +19,7 @@ from gymnasium.envs.mujoco import MujocoEnv
 
 from mjsound.wrappers import AudioWindow
 
-__all__ = ["AudioMujocoEnv", "modal_model"]
+__all__ = ["AudioMujocoEnv", "NameTheMaterialEnv", "modal_model"]
 
 #: Process-wide memo of modal models: (mesh key, material, sample rate, analysis kwargs) -> ModalModel.
 _MODELS: dict = {}
@@ -109,3 +109,50 @@ class AudioMujocoEnv(MujocoEnv):
 
     def _state(self) -> np.ndarray:
         return np.concatenate([self.data.qpos, self.data.qvel]).astype(np.float64)
+
+
+class NameTheMaterialEnv(AudioMujocoEnv):
+    """The task of MaterialDrop and PalmDrop: one free body (state: its ``qpos`` (7) and
+    ``qvel`` (6)) gets one of ``materials`` at every reset; action 0 listens for one step,
+    action ``1 + k`` names material ``k`` and ends the episode (+1 if right).
+
+    Subclasses place the body in ``reset_model`` after ``k = self._pick_material()`` and end
+    it with ``self._use_variant(k)``; ``reset(options={"material": name_or_index})`` fixes it."""
+
+    def __init__(self, model_path, materials, task: str, **kw):
+        self.materials = tuple(materials)
+        if len(self.materials) < 2:
+            raise ValueError(f"{task} needs at least two materials")
+        state_space = spaces.Box(-np.inf, np.inf, (13,), np.float64)
+        super().__init__(model_path, 20, state_space, spaces.Discrete(1 + len(self.materials)), **kw)
+        self._material = 0
+
+    def _pick_material(self) -> int:
+        opt = self._options or {}
+        if "material" in opt:
+            m = opt["material"]
+            k = self.materials.index(m) if isinstance(m, str) else int(m)
+        else:
+            k = int(self.np_random.integers(len(self.materials)))
+        self._material = k
+        return k
+
+    def reset(self, *, seed=None, options=None):
+        self._options = options
+        obs, info = super().reset(seed=seed, options=options)
+        return obs, {**info, **self._silent_info(), "material": self.materials[self._material]}
+
+    def step(self, action):
+        a = int(action)
+        if not self.action_space.contains(a):
+            raise ValueError(f"action {action!r} not in {self.action_space}")
+        if a == 0:
+            info = self._listen()
+            reward, terminated = 0.0, False
+        else:
+            info = self._silent_info()
+            reward, terminated = float(a - 1 == self._material), True
+        info["material"] = self.materials[self._material]
+        if self.render_mode == "human":
+            self.render()
+        return self._obs(), reward, terminated, False, info

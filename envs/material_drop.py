@@ -40,10 +40,9 @@ Options
 from __future__ import annotations
 
 import numpy as np
-from gymnasium import spaces
 
 from .assets import asset_path
-from .base import AudioMujocoEnv, modal_model
+from .base import NameTheMaterialEnv, modal_model
 
 __all__ = ["MaterialDropEnv", "DEFAULT_MATERIALS", "BAR_SPEC"]
 
@@ -52,21 +51,16 @@ DEFAULT_MATERIALS = ("steel", "brass", "oak", "abs")
 BAR_SPEC = "box:0.2,0.03,0.02"
 
 
-class MaterialDropEnv(AudioMujocoEnv):
+class MaterialDropEnv(NameTheMaterialEnv):
     metadata = {"render_modes": ["human", "rgb_array", "depth_array"], "render_fps": 50}
 
     def __init__(self, materials=DEFAULT_MATERIALS, sample_rate: int = 16000, window_s: float | None = None,
                  mode: str = "waveform", n_fft: int = 256, hop: int | None = None, full_scale_pa: float = 20.0,
                  quality: str = "draft", render_mode=None, **kw):
-        self.materials = tuple(materials)
-        if len(self.materials) < 2:
-            raise ValueError("MaterialDrop needs at least two materials")
         self.quality = quality
-        state_space = spaces.Box(-np.inf, np.inf, (13,), np.float64)
-        super().__init__(asset_path("material_drop.xml"), 20, state_space, spaces.Discrete(1 + len(self.materials)),
-                         sample_rate=sample_rate, window_s=window_s, mode=mode, n_fft=n_fft, hop=hop,
-                         full_scale_pa=full_scale_pa, render_mode=render_mode, **kw)
-        self._material = 0
+        super().__init__(asset_path("material_drop.xml"), materials, "MaterialDrop", sample_rate=sample_rate,
+                         window_s=window_s, mode=mode, n_fft=n_fft, hop=hop, full_scale_pa=full_scale_pa,
+                         render_mode=render_mode, **kw)
 
     def _variant_scene(self, k):
         mat = self.materials[k]
@@ -74,13 +68,7 @@ class MaterialDropEnv(AudioMujocoEnv):
         return {"bar": mat}, {"bar": mm}
 
     def reset_model(self):
-        opt = self._options or {}
-        if "material" in opt:
-            m = opt["material"]
-            k = self.materials.index(m) if isinstance(m, str) else int(m)
-        else:
-            k = int(self.np_random.integers(len(self.materials)))
-        self._material = k
+        k = self._pick_material()
         rng = self.np_random
         yaw = rng.uniform(-np.pi, np.pi)
         roll, pitch = np.radians(rng.uniform(-20, 20, size=2))
@@ -91,27 +79,6 @@ class MaterialDropEnv(AudioMujocoEnv):
         self.set_state(qpos, np.zeros(self.model.nv))
         self._use_variant(k)
         return self._obs()
-
-    def reset(self, *, seed=None, options=None):
-        self._options = options
-        obs, info = super().reset(seed=seed, options=options)
-        info = {**info, **self._silent_info(), "material": self.materials[self._material]}
-        return obs, info
-
-    def step(self, action):
-        a = int(action)
-        if not self.action_space.contains(a):
-            raise ValueError(f"action {action!r} not in {self.action_space}")
-        if a == 0:
-            info = self._listen()
-            reward, terminated = 0.0, False
-        else:
-            info = self._silent_info()
-            reward, terminated = float(a - 1 == self._material), True
-        info["material"] = self.materials[self._material]
-        if self.render_mode == "human":
-            self.render()
-        return self._obs(), reward, terminated, False, info
 
 
 def _euler_quat(roll, pitch, yaw) -> np.ndarray:

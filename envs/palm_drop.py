@@ -42,13 +42,12 @@ Options
 from __future__ import annotations
 
 import numpy as np
-from gymnasium import spaces
 
 from mjsound.modal.model import ModalModel
 from mjsound.materials import get_material
 
 from .assets import asset_path
-from .base import AudioMujocoEnv, modal_model
+from .base import NameTheMaterialEnv, modal_model
 
 __all__ = ["PalmDropEnv", "PALM_MATERIALS", "PLATE_SPEC", "PLATE_ANALYSIS"]
 
@@ -66,36 +65,25 @@ def _silent_ball(material: str) -> ModalModel:
                       get_material(material), method="none", mass_kg=0.03)
 
 
-class PalmDropEnv(AudioMujocoEnv):
+class PalmDropEnv(NameTheMaterialEnv):
     metadata = {"render_modes": ["human", "rgb_array", "depth_array"], "render_fps": 50}
     listen_to = "contact"
 
     def __init__(self, materials=PALM_MATERIALS, sample_rate: int = 16000, window_s: float | None = None,
                  mode: str = "waveform", n_fft: int = 256, hop: int | None = None, full_scale: float = 50000.0,
                  render_mode=None, **kw):
-        self.materials = tuple(materials)
-        if len(self.materials) < 2:
-            raise ValueError("PalmDrop needs at least two materials")
-        for m in self.materials:
+        for m in materials:
             get_material(m)  # (names the bad one)
-        state_space = spaces.Box(-np.inf, np.inf, (13,), np.float64)
-        super().__init__(asset_path("palm_drop.xml"), 20, state_space, spaces.Discrete(1 + len(self.materials)),
-                         sample_rate=sample_rate, window_s=window_s, mode=mode, n_fft=n_fft, hop=hop,
-                         full_scale_pa=full_scale, render_mode=render_mode, **kw)
-        self._material = 0
+        super().__init__(asset_path("palm_drop.xml"), materials, "PalmDrop", sample_rate=sample_rate,
+                         window_s=window_s, mode=mode, n_fft=n_fft, hop=hop, full_scale_pa=full_scale,
+                         render_mode=render_mode, **kw)
 
     def _variant_scene(self, k):
         plate = modal_model(PLATE_SPEC, "aluminium", self.sample_rate, **PLATE_ANALYSIS)
         return {"ball": self.materials[k]}, {"plate": plate, "ball": _silent_ball(self.materials[k])}
 
     def reset_model(self):
-        opt = self._options or {}
-        if "material" in opt:
-            m = opt["material"]
-            k = self.materials.index(m) if isinstance(m, str) else int(m)
-        else:
-            k = int(self.np_random.integers(len(self.materials)))
-        self._material = k
+        k = self._pick_material()
         rng = self.np_random
         qpos = self.init_qpos.copy()
         qpos[:3] = [rng.uniform(-0.05, 0.05), rng.uniform(-0.035, 0.035), PLATE_TOP + 0.01 + rng.uniform(0.02, 0.06)]
@@ -103,23 +91,3 @@ class PalmDropEnv(AudioMujocoEnv):
         self.set_state(qpos, np.zeros(self.model.nv))
         self._use_variant(k)
         return self._obs()
-
-    def reset(self, *, seed=None, options=None):
-        self._options = options
-        obs, info = super().reset(seed=seed, options=options)
-        return obs, {**info, **self._silent_info(), "material": self.materials[self._material]}
-
-    def step(self, action):
-        a = int(action)
-        if not self.action_space.contains(a):
-            raise ValueError(f"action {action!r} not in {self.action_space}")
-        if a == 0:
-            info = self._listen()
-            reward, terminated = 0.0, False
-        else:
-            info = self._silent_info()
-            reward, terminated = float(a - 1 == self._material), True
-        info["material"] = self.materials[self._material]
-        if self.render_mode == "human":
-            self.render()
-        return self._obs(), reward, terminated, False, info

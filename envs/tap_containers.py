@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
-from .assets import CONTAINER, asset_path, container_mesh
+from .assets import asset_path, container_mesh
 from .base import AudioMujocoEnv, modal_model
 
 __all__ = ["TapContainersEnv", "N_CONTAINERS", "CONTAINER_ANALYSIS"]

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from mjsound.io import TEMP_PREFIX
+from mjsound.report.hostile import DRIVER
 
 
 XML = """
@@ -146,28 +147,11 @@ def test_full_disk_is_a_clear_error(tmp_path):
     assert not out.exists() and _temps(tmp_path) == []
 
 
-WORKER = """
-import os, sys, time
-from concurrent.futures import ProcessPoolExecutor
-import multiprocessing
-from mjsound.batch import _init_local_worker
-
-def pid_then_sleep(path):
-    with open(path, "w") as fh:
-        fh.write(str(os.getpid()))
-    time.sleep(600)
-
-if __name__ == "__main__":
-    ex = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=_init_local_worker,
-                             initargs=({}, os.getpid()))
-    ex.submit(pid_then_sleep, sys.argv[1])
-    time.sleep(600)
-"""
 
 
 def test_batch_workers_die_with_their_driver(tmp_path):
     script = tmp_path / "driver.py"
-    script.write_text(WORKER)
+    script.write_text(DRIVER)  # the report's stand-in batch driver
     marker = tmp_path / "worker.pid"
     driver = subprocess.Popen([sys.executable, str(script), str(marker)], env=_env(), cwd=tmp_path)
     t_end = time.monotonic() + 120

@@ -30,6 +30,7 @@ import sys
 import threading
 
 from . import analyze, events, fit, report, sonify
+from ..synth.interrupt import interrupt_in_chain
 
 __all__ = ["main", "build_parser", "error_message"]
 
@@ -86,7 +87,7 @@ def main(argv=None) -> int:
             return _interrupted(args, exc.code)
         raise
     except Exception as exc:
-        cause = _interrupt_in_chain(exc)
+        cause = interrupt_in_chain(exc)
         if cause is not None:
             # an interrupt that arrived inside a numba call (or other native code) surfaces as another
             # exception (SystemError ...) caused by it: it is still an interrupt
@@ -99,17 +100,6 @@ def main(argv=None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
-
-
-def _interrupt_in_chain(exc):
-    """The KeyboardInterrupt or SIGTERM SystemExit that caused ``exc`` (its cause/context chain), or None."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        seen.add(id(exc))
-        if isinstance(exc, KeyboardInterrupt) or (isinstance(exc, SystemExit) and exc.code == 128 + signal.SIGTERM):
-            return exc
-        exc = exc.__cause__ or exc.__context__
-    return None
 
 
 def _interrupted(args, code: int) -> int:

@@ -12,8 +12,9 @@ wrapped with :func:`interruptible`.
 from __future__ import annotations
 
 import functools
+import signal
 
-__all__ = ["interruptible", "caused_by_interrupt"]
+__all__ = ["interruptible", "interrupt_in_chain", "caused_by_interrupt"]
 
 
 def interruptible(fn):
@@ -32,15 +33,21 @@ def interruptible(fn):
     return wrapper
 
 
-def caused_by_interrupt(exc: BaseException) -> bool:
-    """Whether a ``KeyboardInterrupt`` lies anywhere in ``exc``'s cause/context chain.
+def interrupt_in_chain(exc: BaseException | None):
+    """The ``KeyboardInterrupt`` (or SIGTERM's ``SystemExit(143)``) anywhere in ``exc``'s
+    cause/context chain, or None.
 
     The interrupt may sit several ``SystemError`` deep: when boxing a returned array runs
     numba's ``_numba_unpickle`` more than once, each call wraps the previous failure."""
     seen = set()
     while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
+        if isinstance(exc, KeyboardInterrupt) or (isinstance(exc, SystemExit) and exc.code == 128 + signal.SIGTERM):
+            return exc
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
-    return False
+    return None
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a ``KeyboardInterrupt`` lies anywhere in ``exc``'s cause/context chain."""
+    return isinstance(interrupt_in_chain(exc), KeyboardInterrupt)
