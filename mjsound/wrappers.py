@@ -29,7 +29,6 @@ Example
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 
 import gymnasium as gym
@@ -261,11 +260,11 @@ class EnvAudio:
         self._reader_impacts = r.n_impacts
         if new <= 0:
             return 0
-        recs = getattr(r, "_records", None)
-        if recs is None or new > len(recs):
+        recs = r.newest_records(new)
+        if recs is None:
             return int(new)  # (more than the reader keeps: counted as audible)
         aud = self._audible
-        return sum(1 for rec in itertools.islice(reversed(recs), new) if aud[rec.geom1] or aud[rec.geom2])
+        return sum(1 for rec in recs if aud[rec.geom1] or aud[rec.geom2])
 
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
@@ -285,12 +284,7 @@ def audible_geoms(model, scene, sim) -> np.ndarray:
     audible = np.zeros(model.ngeom, bool)
     for s in scene.sounding:
         audible[list(s.geom_ids)] = True
-    pulses = getattr(sim, "_pulses", None)
-    body = np.asarray(model.geom_bodyid)
-    if pulses is not None and pulses.active and pulses.clicks and pulses.n_air:
-        audible |= np.asarray(pulses._dynamic, bool)[body]
-    for site in getattr(pulses, "contact_sites", None) or ():
-        audible |= body == int(model.site_bodyid[site])
+    audible |= sim.pulses.audible_bodies()[np.asarray(model.geom_bodyid)]
     return audible
 
 

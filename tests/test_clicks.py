@@ -97,3 +97,19 @@ def test_contact_mic_sites_by_prefix_or_name():
     assert contact_mic_sites(m, []) == []
     with pytest.raises(ValueError, match="not in the model"):
         contact_mic_sites(m, ["contact_mic_nowhere"])
+
+
+def test_audible_bodies_are_the_clicking_and_the_miked_bodies():
+    """``ImpactPulses.audible_bodies``: with clicks, every free body (not the world); without,
+    only the bodies that carry a contact microphone (the block's site, chosen by name)."""
+    m = mujoco.MjModel.from_xml_string(XML)
+    world, block, plate = 0, m.body("block").id, m.body("plate").id
+    clicking = AudioSimulator(m, sample_rate=FS, quality="draft", progress=False, contact_mics=[])
+    aud = clicking.pulses.audible_bodies()
+    assert aud.shape == (m.nbody,) and not aud[world] and aud[block] and aud[plate]
+    miked = AudioSimulator(m, sample_rate=FS, quality="draft", progress=False, clicks=False,
+                           contact_mics=["contact_mic_block"])
+    aud = miked.pulses.audible_bodies()
+    assert aud[block] and not aud[plate] and not aud[world]
+    quiet = AudioSimulator(m, sample_rate=FS, quality="draft", progress=False, clicks=False, contact_mics=[])
+    assert not quiet.pulses.audible_bodies().any()

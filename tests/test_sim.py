@@ -678,3 +678,48 @@ def test_an_external_reset_clears_the_ringing(path):
     assert held.shape[1] == 0 and after.shape[1] == n_pending + expect.shape[1]
     np.testing.assert_array_equal(after[:, n_pending:], expect)
     assert sim.n_impacts == ref.n_impacts >= 1 and sim.clock.k == ref.clock.k == 500
+
+
+def test_newest_records_are_the_last_impacts_newest_first():
+    """``newest_records(n)``: the reader's last ``n`` impact records, newest first; None when it
+    keeps fewer than ``n`` (the wrapper then counts every new impact as heard)."""
+    model = mujoco.MjModel.from_xml_string(drop_xml(h=0.3))
+    data = mujoco.MjData(model)
+    reader = ContactReader(model, keep_records=3)
+    for _ in range(1500):
+        mujoco.mj_step(model, data)
+        reader.events_fast(data, data.time - model.opt.timestep, data.time)
+    assert reader.n_impacts >= 3
+    kept = reader.impacts
+    newest = reader.newest_records(2)
+    assert [(r.time, r.geom1, r.geom2) for r in newest] == [(r.time, r.geom1, r.geom2) for r in kept[::-1][:2]]
+    assert newest[0].time >= newest[1].time
+    assert reader.newest_records(0) == []
+    assert reader.newest_records(4) is None
+
+
+def test_steps_per_render_and_replay_step_match_stepping():
+    """``steps_per_render`` is ``round(render_block_s / timestep)`` (at least 1); replaying the
+    steps of a run with ``replay_step`` (times and samples given, the clock unused) gives the
+    run's audio sample for sample."""
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    _, _, sim = make_sim(drop_xml(dt=0.002, h=0.1), models)
+    assert sim.render_block_s == 0.01 and sim.steps_per_render == 5
+    sim.render_block_s = 0.0
+    assert sim.steps_per_render == 1
+    model, data, sim = make_sim(drop_xml(h=0.1), models)
+    states, blocks = [], []
+    for _ in range(200):
+        states.append((data.qpos.copy(), data.qvel.copy(), data.time))
+        mujoco.mj_step(model, data)
+        blocks.append(sim.step())
+    ref = np.concatenate(blocks, axis=1)
+    assert np.abs(ref).max() > 0
+    model2, data2, replay = make_sim(drop_xml(h=0.1), models)
+    fs, out = replay.sample_rate, []
+    for i, (qpos, qvel, t) in enumerate(states):
+        data2.qpos[:], data2.qvel[:], data2.time = qpos, qvel, t
+        mujoco.mj_step(model2, data2)  # the step's contacts and forces, at the end of the step
+        n0, n1 = (int(np.ceil(x * fs - 1e-6)) for x in (t, t + model.opt.timestep))
+        out.append(replay.replay_step(n0, n1, t, t + model.opt.timestep, origin=0))
+    assert np.array_equal(np.concatenate(out, axis=1), ref)

@@ -129,6 +129,16 @@ class ImpactPulses:
             _load_kernels()
         self._coef = {}
 
+    def audible_bodies(self) -> np.ndarray:
+        """(nbody,) bool: bodies whose impacts this makes heard: each dynamic body (not welded
+        to the world, not mocap, with mass) when it clicks at air microphones, and each body
+        carrying a contact microphone (a stand-in, ``active=False``: none)."""
+        audible = np.zeros(self.model.nbody, bool)
+        if self.active and self.clicks and self.n_air:
+            audible |= self._dynamic
+        audible[self._site_body] = True
+        return audible
+
     @property
     def n_channels(self) -> int:
         return self.track.n_channels

@@ -57,6 +57,7 @@ NaN/Inf or huge (> ``max_force`` N) contact forces and NaN velocities are clampe
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections import deque
 from dataclasses import dataclass
@@ -419,6 +420,15 @@ class ContactReader:
                 rec.open = False
                 del self._open[j]
         return list(self._records)
+
+    def newest_records(self, n: int) -> list[ImpactRecord] | None:
+        """The ``n`` newest :class:`ImpactRecord`, newest first, as they were made (open ones
+        not brought up to date: geoms, time and predicted impulse are final); None when the
+        reader keeps fewer than ``n`` (``keep_records``)."""
+        records = self._records
+        if n > len(records):
+            return None
+        return list(itertools.islice(reversed(records), int(n)))
 
     # ------------------------------------------------------------------ reading
     def read(self, data) -> ContactFrame | None:

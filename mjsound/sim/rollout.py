@@ -374,7 +374,7 @@ def sonify(
 
     try:
         if mode == "simulate":
-            every = sim._render_every()
+            every = sim.steps_per_render
             total = int(round(span / dt))
             chunk = max(every, int(round(STREAM_BLOCK_S / dt)) // every * every)
             done = 0
@@ -385,7 +385,7 @@ def sonify(
                 first_block_done()
         elif mode == "resim":
             max_err = 0.0
-            every = sim._render_every()
+            every = sim.steps_per_render
             k = 0
             for i in range(last):
                 if i > 0:
@@ -408,8 +408,7 @@ def sonify(
                 data.time = float(times[i])
                 mujoco.mj_forward(model, data)
                 n1 = int(np.ceil(times[i + 1] * fs - 1e-6))
-                sim._origin = base
-                take.add(sim._process(n_prev, n1, float(times[i]), float(times[i + 1])))
+                take.add(sim.replay_step(n_prev, n1, float(times[i]), float(times[i + 1]), origin=base))
                 first_block_done()
                 n_prev = n1
         wall = _time.perf_counter() - t_wall

@@ -29,6 +29,7 @@ from .clock import SampleClock
 from .contacts import ContactReader
 from .drive import follow_rows, sync_poses
 from .records import DRIVE_PARAMS, SOUND, DriveState
+from .reports import SimulatorReports
 from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
 from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
@@ -37,10 +38,7 @@ from .warmup import notice_first_compile
 
 __all__ = ["AudioSimulator", "SampleClock"]
 
-_LOG_KINDS = ("impact", "slide", "roll")
-
-
-class AudioSimulator:
+class AudioSimulator(SimulatorReports):
     """Sound for a running MuJoCo simulation, one audio block per physics step.
 
     Parameters
@@ -76,6 +74,13 @@ class AudioSimulator:
         Let :meth:`substeps` call ``mj_step`` from numba (default; where this MuJoCo build's
         C functions and struct layout check out). False (or the environment variable
         ``MJSOUND_FUSED=0``): every ``mj_step`` and contact read goes through the bindings.
+
+    Attributes
+    ----------
+    reader : ContactReader
+        The contact reader (its impact records: :meth:`ContactReader.newest_records`).
+    pulses : ImpactPulses
+        Impacts' clicks and contact-microphone pulses (:meth:`ImpactPulses.audible_bodies`).
 
     Notes
     -----
@@ -186,9 +191,9 @@ class AudioSimulator:
         self._drive_prm = prm
         prm[0]["regain"] = max(1, int(round(self.sustained_block_s * self.sample_rate)))
         prm[0]["sustained"] = int(self.sustained)
-        self._pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air, self._contact_sites,
+        self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air, self._contact_sites,
                                     self.sample_rate, clicks=clicks, active=needs_pulses(model, self._contact_sites, clicks))
-        prm[0]["pulses"] = int(self._pulses.active)
+        prm[0]["pulses"] = int(self.pulses.active)
         self._follow = None
         self._mic_sites = np.asarray(list(scene.mic_site_ids) + self._contact_sites, np.int64)  # (contact: unused)
         self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
@@ -215,7 +220,7 @@ class AudioSimulator:
         self._held = []
 
     def _reset_at(self, t_start: float, clear_reader: bool = True, keep_observer: bool = False) -> None:
-        self._pulses.reset(0)
+        self.pulses.reset(0)
         if self.synth is not None:
             self.synth.reset()
             if self._follow is not None:
@@ -373,10 +378,13 @@ class AudioSimulator:
             self._count(n0, c.n)
         return self._render_pending() if render else None
 
-    def _process(self, n0: int, n1: int, t0: float, t1: float, render: bool = True) -> np.ndarray | None:
-        """Count a step of samples ``[n0, n1)`` and times ``[t0, t1)`` given by the caller
-        (replay of a recording; the clock is not used), queue its sound, and render what is
-        pending if ``render``."""
+    def replay_step(self, n0: int, n1: int, t0: float, t1: float, origin: int | None = None, render: bool = True):
+        """Process a recorded step (``data`` set to its frame): samples ``[n0, n1)`` and times
+        ``[t0, t1)`` given by the caller, the clock unused; ``origin``: absolute sample of the
+        synthesizer's sample 0 (None: unchanged). Queues its sound; renders what is pending if
+        ``render``."""
+        if origin is not None:
+            self._origin = int(origin)
         self._count(n0, n1)
         if self.synth is not None:
             self.synth.poses_current = False
@@ -457,7 +465,7 @@ class AudioSimulator:
             self._clock_jump()
             self._seg = (self.clock.k, self.clock.n)
         elif reason == PULSES:
-            self._pulses.add_step(buf.impacts, run, self._origin, self.data, self.synth.kernel_state().mics)
+            self.pulses.add_step(buf.impacts, run, self._origin, self.data, self.synth.kernel_state().mics)
         elif reason == AMPLITUDE:
             self._collect()
             imp = buf.impacts[: int(run["need"])]
@@ -504,7 +512,7 @@ class AudioSimulator:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:
             tc = _time.perf_counter()
-            block = self._pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
+            block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
             self.seconds_synth += _time.perf_counter() - tc
         if self.on_block is not None:
             self.on_block(self, block, n0)
@@ -513,8 +521,9 @@ class AudioSimulator:
             self._held = []
         return block
 
-    def _render_every(self) -> int:
-        """Steps per render in :meth:`run` / :meth:`advance` (``render_block_s``)."""
+    @property
+    def steps_per_render(self) -> int:
+        """Physics steps per rendered block in :meth:`run` / :meth:`advance` (``render_block_s``)."""
         return max(1, int(round(self.render_block_s / float(self.model.opt.timestep))))
 
     def advance(self, nstep: int = 1) -> np.ndarray:
@@ -539,7 +548,7 @@ class AudioSimulator:
         """
         if nsteps is None:
             nsteps = int(round(float(duration) / float(self.model.opt.timestep)))
-        every = self._render_every()
+        every = self.steps_per_render
         blocks = []
         if self._pending:
             blocks.append(self.flush())
@@ -556,47 +565,3 @@ class AudioSimulator:
         if not blocks:
             return np.zeros((self.n_channels, 0), np.float32)
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
-
-    # ------------------------------------------------------------------ reporting
-    @property
-    def event_log(self) -> list:
-        """The first ``keep_events`` events since the last reset, in order:
-        ``(time [s], kind, geom1, geom2, value)``, kind ``"impact"`` (value: impulse [N s]) or
-        ``"slide"`` / ``"roll"`` (one per pair and physics step; value: speed [m/s])."""
-        if self._log_pending:
-            log = self._log
-            for entries in self._log_pending:
-                log.extend((t, _LOG_KINDS[k], g1, g2, v) for t, k, g1, g2, v in entries.tolist())
-            del log[self.keep_events:]
-            self._log_pending = []
-        return self._log
-
-    @property
-    def n_impacts(self) -> int:
-        """Impact events since the last reset (``events["impact"]``, without building the dict)."""
-        return self._n_impacts
-
-    @property
-    def events(self) -> dict:
-        """Counts since the last reset: ``impact`` events, and ``slide`` / ``roll`` pair-steps
-        (a pair sliding or rolling for one physics step counts once)."""
-        s = self.reader.sustained_steps - self._sustained_base
-        return {"impact": self._n_impacts, "slide": int(s[0]), "roll": int(s[1])}
-
-    @property
-    def impacts(self):
-        """:class:`ImpactRecord` list (predicted vs MuJoCo impulse) of the reader."""
-        return self.reader.impacts
-
-    def stats(self) -> dict:
-        """Counts and timings so far."""
-        return {
-            "steps": self.steps,
-            "samples": self.samples,
-            "events": dict(self.events),
-            "contact_us_per_step": 1e6 * self.seconds_contacts / max(self.steps, 1),
-            "synth_us_per_step": 1e6 * self.seconds_synth / max(self.steps, 1),
-            # substeps run in numba: mj_step, reading, driving and impacts together
-            "fused_us_per_step": 1e6 * self.seconds_fused / max(self.steps, 1),
-            "clamped": self.reader.n_clamped,
-        }

@@ -30,7 +30,6 @@ a pending signal into ``SystemError``.
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses

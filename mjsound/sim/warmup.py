@@ -78,7 +78,7 @@ def warmup(verbose: bool = True) -> float:
     sim.flush()
     t = float(data.time)
     mujoco.mj_forward(model, data)
-    sim._process(sim.clock.n, sim.clock.n + 32, t, t + 0.002)
+    sim.replay_step(sim.clock.n, sim.clock.n + 32, t, t + 0.002)
     sim.synth.impact("ball", [0, 0, 0], [0, 0, 0.01], time=sim.synth.time)
     sim.synth.slide("box", [0.3, 0, 0], [0, 0, 1], 1.0, 0.1, sim.synth.time, sim.synth.time + 0.01)
     sim.synth.render(256)
