@@ -139,7 +139,7 @@ def _report(summary, args) -> int:
     obs = s.get("observer_seconds", 0.0)
     extra = f"; rerun logging {obs:.2f} s more" if obs > 0 else ""
     warm = s.get("warmup_seconds", 0.0)
-    extra += f"; first-block compile {warm:.2f} s excluded" if warm > 0 else ""
+    extra += f"; kernel warm-up (numba compiles on a first run) and first block {warm:.2f} s excluded" if warm > 0 else ""
     print(f"speed      {s['realtime_factor']:.1f}x real time ({s['wall_seconds'] - obs:.2f} s wall for simulation and "
           f"audio, analysis excluded{extra})")
     if s["max_qpos_error"] is not None:
