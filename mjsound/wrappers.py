@@ -438,16 +438,17 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise TypeError("AudioObservation needs a MuJoCo env: env.unwrapped must have .model and .data")
         if substeps not in ("auto", "manual"):
             raise ValueError(f"substeps={substeps!r}: choose 'auto' (hook the env's stepping) or 'manual'")
-        hook = _stepping_hook(uw) if substeps == "auto" else None
+        stepper, hook = _stepping_target(uw) if substeps == "auto" else (uw, None)
         if substeps == "auto" and hook is None:
             raise TypeError(
                 f"AudioObservation cannot find how {type(uw).__name__} steps MuJoCo (neither gymnasium's "
-                "MujocoEnv._step_mujoco_simulation nor gymnasium-robotics' MujocoRobotEnv._mujoco_step), so it "
-                "cannot hear its substeps. Pass substeps='manual' and call env.on_substep() after every "
-                "mj_step of the env, or step the physics through env.sim.substeps(n)."
+                "MujocoEnv._step_mujoco_simulation nor gymnasium-robotics' MujocoRobotEnv._mujoco_step, on the "
+                "env or on an inner env that shares its model), so it cannot hear its substeps. Pass "
+                "substeps='manual' and call env.on_substep() after every mj_step of the env, or step the "
+                "physics through env.sim.substeps(n)."
             )
         model, data = uw.model, uw.data
-        dt = float(getattr(uw, "dt", model.opt.timestep))
+        dt = float(getattr(uw, "dt", getattr(stepper, "dt", model.opt.timestep)))
         self.core = EnvAudio(model, data, dt, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics,
                              materials=materials, default_material=default_material, full_scale_pa=full_scale_pa,
                              n_fft=n_fft, hop=hop, follow=follow, quality=quality, budget_modes=budget_modes,
@@ -469,9 +470,9 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._dict_obs = False
             self.observation_space = gym.spaces.Dict({"observation": inner, "audio": audio_space})
 
-        self._hooked = None
+        self._hooked, self._stepper = None, stepper
         if hook is not None:
-            self._install_hook(uw, hook)
+            self._install_hook(stepper, hook)
 
     # ------------------------------------------------------------------ substeps
     def _install_hook(self, uw, hook) -> None:
@@ -523,11 +524,32 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def close(self):
         self._closed = True
-        uw = self.env.unwrapped
+        uw = self._stepper
         if self._hooked and self._hooked in vars(uw):
             delattr(uw, self._hooked)  # back to the class method
             self._hooked = None
         return super().close()
+
+
+def _stepping_target(uw) -> tuple:
+    """``(env, hook)``: the env whose stepping method to hook, and that method's name.
+
+    Usually the unwrapped env itself. Some envs step another env that owns the physics
+    (gymnasium-robotics' mazes: ``AntMazeEnv.ant_env``, ``PointMazeEnv.point_env``); such an
+    inner env, found among the unwrapped env's attributes and sharing its ``model`` and
+    ``data``, is hooked instead. ``(uw, None)``: no stepping method found.
+    """
+    hook = _stepping_hook(uw)
+    if hook is not None:
+        return uw, hook
+    for inner in vars(uw).values():
+        if isinstance(inner, gym.Env) and inner is not uw:
+            iu = inner.unwrapped
+            if getattr(iu, "model", None) is uw.model and getattr(iu, "data", None) is uw.data:
+                hook = _stepping_hook(iu)
+                if hook is not None:
+                    return iu, hook
+    return uw, None
 
 
 def _stepping_hook(uw) -> str | None:

@@ -286,3 +286,24 @@ def test_audio_window_push_matches_numpy_reference():
         ref = np.concatenate([ref, np.clip(x, -1, 1)], axis=1)[:, -50:]
         np.testing.assert_array_equal(win.observe(), ref)
     assert win.push(np.zeros((2, 0), np.float32)) == (0, 0.0)
+
+
+def test_maze_env_is_heard_through_its_inner_env():
+    """gymnasium-robotics' mazes step an inner MujocoEnv (``PointMazeEnv.point_env``) that shares the
+    maze's model: that inner env's stepping is hooked, and the ball rolled into a wall is heard."""
+    import gymnasium_robotics
+
+    gym.register_envs(gymnasium_robotics)
+    env = AudioObservation(gym.make("PointMaze_UMaze-v3"), sample_rate=16000, progress=False)
+    env.reset(seed=0)
+    inner = env.unwrapped.point_env
+    assert "_step_mujoco_simulation" in vars(inner)  # the hook sits on the inner env
+    peaks, impacts = [], 0
+    for _ in range(40):  # pushed along -x from the seeded start, the ball meets a wall at step ~11
+        obs, _, _, _, info = env.step(np.array([-1.0, 0.0]))
+        peaks.append(info["audio_peak_pa"])
+        impacts += info["audio_impacts"]
+    assert env.sim.steps == 40 * inner.frame_skip  # every substep went through the simulator
+    assert impacts >= 1 and max(peaks) > 0 and np.isfinite(peaks).all()
+    env.close()
+    assert "_step_mujoco_simulation" not in vars(inner)  # close() puts the class method back
