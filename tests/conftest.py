@@ -2,6 +2,23 @@
 import pytest
 
 
+@pytest.fixture
+def fake_analyze(monkeypatch):
+    """Modal analysis replaced by :func:`mjsound.sim.stub.stub_model` (8 modes from 430 Hz, no FEM);
+    returns the list of meshes it was asked for."""
+    import mjsound.modal.analyze as an
+    from mjsound.sim.stub import stub_model
+
+    calls = []
+
+    def fake(mesh, material, **kw):
+        calls.append(mesh)
+        return stub_model(mesh, material, 8, 430.0)
+
+    monkeypatch.setattr(an, "analyze", fake)
+    return calls
+
+
 @pytest.fixture(autouse=True)
 def _isolated_cache(tmp_path_factory, monkeypatch):
     """Every test gets its own model cache so no test sees another's results."""

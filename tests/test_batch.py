@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from mjsound.sim.stub import stub_model
 
 XML = """
 <mujoco>
@@ -36,20 +35,6 @@ XML = """
 
 N_ROLLOUTS = 8
 STEPS = 300  # 0.3 s each
-
-
-@pytest.fixture
-def fake_analyze(monkeypatch):
-    import mjsound.modal.analyze as an
-
-    calls = []
-
-    def fake(mesh, material, **kw):
-        calls.append(mesh)
-        return stub_model(mesh, material, 8, 430.0)
-
-    monkeypatch.setattr(an, "analyze", fake)
-    return calls
 
 
 @pytest.fixture(scope="module")

@@ -13,18 +13,9 @@ import pytest
 
 from mjsound.cli import main
 from mjsound.sim.stub import stub_model
+from scenes import PLATE_BALL_XML
 
-XML = """
-<mujoco>
-  <option timestep="0.001"/>
-  <custom><text name="mjsound:plate" data="aluminium"/></custom>
-  <worldbody>
-    <geom name="floor" type="plane" size="1 1 .1"/>
-    <geom name="plate" type="box" size="0.15 0.15 0.005" pos="0 0 0.005" solref="-1e5 -120"/>
-    <body name="ball" pos="0 0 0.25"><freejoint/>
-      <geom name="ball" type="sphere" size="0.02" solref="-1e5 -120"/></body>
-  </worldbody>
-</mujoco>"""
+XML = PLATE_BALL_XML
 
 
 @pytest.fixture

@@ -8,33 +8,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjsound.sim.stub import stub_model
+from scenes import PLATE_BALL_XML
 
-XML = """
-<mujoco>
-  <option timestep="0.001"/>
-  <custom><text name="mjsound:plate" data="aluminium"/></custom>
-  <worldbody>
-    <geom name="floor" type="plane" size="1 1 .1"/>
-    <geom name="plate" type="box" size="0.15 0.15 0.005" pos="0 0 0.005" solref="-1e5 -120"/>
-    <body name="ball" pos="0 0 0.25"><freejoint/>
-      <geom name="ball" type="sphere" size="0.02" solref="-1e5 -120"/></body>
-  </worldbody>
-</mujoco>"""
-
-
-@pytest.fixture
-def fake_analyze(monkeypatch):
-    import mjsound.modal.analyze as an
-
-    calls = []
-
-    def fake(mesh, material, **kw):
-        calls.append(mesh)
-        return stub_model(mesh, material, 8, 430.0)
-
-    monkeypatch.setattr(an, "analyze", fake)
-    return calls
+XML = PLATE_BALL_XML
 
 
 def record(path, with_ctrl, every=1):
