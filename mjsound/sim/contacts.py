@@ -342,7 +342,7 @@ class ContactReader:
             efc_address=np.zeros(cap, np.int32), dim=np.zeros(cap, np.int32),
             efc=np.zeros(max(2 * nefc, 64 if b is None else len(b.efc))), rows=np.zeros(cap, PAIR_ROW),
             sustained=np.zeros(cap, PAIR_ROW), hits=np.zeros(cap, HIT), onsets=np.zeros(cap + 1, ONSET),
-            impacts=np.zeros(cap, IMPACT), jn=np.zeros(cap * nv), minv_jt=np.zeros(cap * nv),
+            impacts=np.zeros(cap, IMPACT), jn=np.zeros((cap, nv)), minv_jt=np.zeros((cap, nv)),
             records=np.zeros(rcap, RECORD), missing=np.zeros(2 * cap, MISSING),
             log=np.zeros(0, LOG) if b is None else b.log)
         if b is not None:

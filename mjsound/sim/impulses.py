@@ -164,7 +164,8 @@ def event_impulses(reader, buf, n_onset, jn, minv_jt):
             v[r - a] = hits[r].speed
         lq, cl = impulse_kernel(jn[a:b], minv_jt[a:b], v, e, bodies[b1].tree_mass, bodies[b2].tree_mass,
                                 min(bodies[b1].root_mass, bodies[b2].root_mass), prm.max_impulse)
-        lam[a:b] = lq
+        for r in range(a, b):
+            lam[r] = lq[r - a]
         stats[q, 0] = e
         stats[q, 1] = v.max()
         stats[q, 2] = lq.sum()

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..synth.sorting import stable_argsort
+
 __all__ = ["contact_quantities", "group_pairs", "slot_of", "rehash", "update_pairs", "read_pairs"]
 
 
@@ -132,7 +134,7 @@ def group_pairs(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm):
     for i in range(n):
         a, b = geom[i, 0], geom[i, 1]
         keys[i] = min(a, b) * ngeom + max(a, b)
-    order = np.argsort(keys, kind="mergesort")
+    order = stable_argsort(keys)
     starts = np.empty(n + 1, np.int64)
     P = 0
     for j in range(n):

@@ -171,8 +171,8 @@ class StepBuffers(NamedTuple):
     hits: np.ndarray  # (cap,) HIT
     onsets: np.ndarray  # (cap + 1,) ONSET
     impacts: np.ndarray  # (cap,) IMPACT: the substep's impacts with a positive impulse
-    jn: np.ndarray  # (cap * nv,) normal Jacobians of the hits (k, nv) row-major
-    minv_jt: np.ndarray  # (cap * nv,) M^-1 Jn^T (k, nv)
+    jn: np.ndarray  # (cap, nv) normal Jacobians of the hits
+    minv_jt: np.ndarray  # (cap, nv) M^-1 Jn^T
     records: np.ndarray  # (rcap,) RECORD: impact records not yet taken by Python
     missing: np.ndarray  # (2 cap,) MISSING
     log: np.ndarray  # (lcap,) LOG: event log entries not yet taken by Python

@@ -143,10 +143,9 @@ class StepKernel:
                 if not self.from_struct:
                     self._copy_contacts()
             elif reason == SOLVE:
-                k, nv = int(run["need"]), len(reader.dof_parent)
+                k = int(run["need"])
                 b = reader.buffers
-                minv = b.minv_jt[: k * nv].reshape(k, nv)
-                self._mj.mj_solveM(self.model, self.data, minv, b.jn[: k * nv].reshape(k, nv))
+                self._mj.mj_solveM(self.model, self.data, b.minv_jt[:k], b.jn[:k])
                 run["solved"] = 1
             elif on_stop is not None:
                 on_stop(reason)

@@ -153,8 +153,8 @@ def advance(mj, views, reader, buf, clock, drive, synth, run):
                 rn.stage = STAGE_IMPULSES if n_onset else STAGE_LOG
         if rn.stage == STAGE_IMPULSES:
             k = rn.n_hits
-            jn = buf.jn[: k * nv].reshape((k, nv))
-            minv = buf.minv_jt[: k * nv].reshape((k, nv))
+            jn = buf.jn[:k]
+            minv = buf.minv_jt[:k]
             normal_jacobians(reader, buf.hits, k, views.cdof, views.subtree_com, jn)
             if nv > 0 and k > 0:
                 if mj[0].solve_fn:

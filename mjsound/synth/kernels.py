@@ -381,7 +381,7 @@ def impacts_to_queue(synth, obj, P, J, t, tau):
             continue
         if not (np.isfinite(P[i, 0] + P[i, 1] + P[i, 2] + J[i, 0] + J[i, 1] + J[i, 2]) and np.isfinite(tau[i])):
             continue
-        shk = ob.shk[ob.shk_off[o]:ob.shk_off[o + 1]].reshape((p1 - p0, 3, n))
+        s0 = ob.shk_off[o]  # shapes of o: flat (points, 3, modes)
         pos = synth.pos[o]
         R = synth.R[o]
         for b in range(3):
@@ -392,9 +392,10 @@ def impacts_to_queue(synth, obj, P, J, t, tau):
                 pl[b] += (P[i, a] - pos[a]) * R[a, b]
                 jl[b] += J[i, a] * R[a, b]
         bi = nearest_one(ob.pts[p0:p1], pl[0], pl[1], pl[2])
+        sb = s0 + 3 * bi * n
         cm = np.empty(n, np.complex128)
         for m in range(n):
-            G = shk[bi, 0, m] * jl[0] + shk[bi, 1, m] * jl[1] + shk[bi, 2, m] * jl[2]
+            G = ob.shk[sb + m] * jl[0] + ob.shk[sb + n + m] * jl[1] + ob.shk[sb + 2 * n + m] * jl[2]
             cm[m] = G / ob.wd[m0 + m] * half_sine(ob.wd[m0 + m] * tau[i])
         for mi in range(M):
             ch = chans[mi]

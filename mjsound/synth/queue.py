@@ -16,6 +16,7 @@ from numba import njit
 
 from .dispatch import EntryPoint
 from .records import EVENT, QUEUE, EventRows, QueueState
+from .sorting import stable_argsort
 
 __all__ = ["EventQueue"]
 
@@ -194,7 +195,7 @@ def _take(q, end, vbase, v_rel, v_len, n_mics, width):
     for j in range(nd):
         i = rows[j]
         key[j] = ev[i].mic * span + (ev[i].sample - lo)
-    order = np.argsort(key, kind="mergesort")  # stable: ties keep queue order
+    order = stable_argsort(key)  # stable: ties keep queue order
     ptr = np.zeros(n_mics + 1, np.int64)
     na = np.empty(nd, np.int64)
     kd = np.empty(nd, np.int8)

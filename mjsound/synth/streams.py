@@ -94,7 +94,6 @@ def stream_gains(synth, j, o):
     p0, p1 = ob.pts_off[o], ob.pts_off[o + 1]
     m0, m1 = ob.mode_off[o], ob.mode_off[o + 1]
     n = m1 - m0
-    shk = ob.shk[ob.shk_off[o]:ob.shk_off[o + 1]].reshape((p1 - p0, 3, n))
     pos = synth.pos[o]
     R = synth.R[o]
     p = st.table[j].p
@@ -114,6 +113,8 @@ def stream_gains(synth, j, o):
         d1 += nrm[i] * R[i, 1]
         d2 += nrm[i] * R[i, 2]
     bi = nearest_one(ob.pts[p0:p1], pl0, pl1, pl2)
+    sb = ob.shk_off[o] + 3 * bi * n  # shapes of o: flat (points, 3, modes)
+    shk = ob.shk
     mics = synth.mics
     fs = cst.fs
     gr = st.gr[j]
@@ -126,7 +127,7 @@ def stream_gains(synth, j, o):
             D[m] = 0
             for k in range(n):
                 if owner == o:
-                    G = d0 * shk[bi, 0, k] + d1 * shk[bi, 1, k] + d2 * shk[bi, 2, k]
+                    G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
                     a = G / (fs * ob.wd[m0 + k]) * synth.chan_w[chans[m].w_off + k]
                     gr[m, k] = a.real
                     gi[m, k] = a.imag
@@ -148,7 +149,7 @@ def stream_gains(synth, j, o):
         D[m] = Dm
         dts = Dm / fs - ta
         for k in range(n):
-            G = d0 * shk[bi, 0, k] + d1 * shk[bi, 1, k] + d2 * shk[bi, 2, k]
+            G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
             a = G / (fs * ob.wd[m0 + k]) * ob.w[m0 + k] / r
             lam = ob.lam[m0 + k]
             e = np.exp(lam.real * dts)
