@@ -1,0 +1,136 @@
+#!/usr/bin/env python
+"""Where the per-step time goes: wall time of each stage of the audio pipeline (benchmark).
+
+Wraps the stages in ``time.perf_counter`` timers (each timer adds well under a microsecond
+per call) and prints microseconds per physics step (demo scene) or per env step (gymnasium):
+
+* ``step_kernel``: the numba step kernel calls (``mj_step`` included when it steps itself);
+* ``substeps`` / ``step_calls``: the simulator's calls around it (Python: hand-backs, records);
+* ``render``: ``Synthesizer.render`` (``render_streams``: its fused numba kernel with streams);
+* ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper);
+* ``physics``: ``mj_step`` alone on a copy of the same model (demo: the same number of steps;
+  env: ``frame_skip`` steps per env step).
+
+The demo is also run with ``sustained=False`` (no sliding / rolling sound), which shows what
+the streams cost. Clicks and contact microphones are off (their cost: ``bench_scene.py``).
+The machine is shared: the median of ``--rounds`` rounds.
+
+Usage: python scripts/bench_parts.py [--duration 3] [--env Ant-v5] [--steps 500] [--rounds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from mjsound import wrappers  # noqa: E402
+from mjsound.sim import runner, simulator  # noqa: E402
+from mjsound.sim.demo import find_demo_scene  # noqa: E402
+from mjsound.synth import stream_table, synthesizer  # noqa: E402
+
+TIMES: dict[str, float] = {}
+
+
+def timed(cls, name: str, key: str) -> None:
+    """Add the wall time of every ``cls.name`` call to ``TIMES[key]``."""
+    fn = getattr(cls, name)
+
+    def wrapper(*a, **k):
+        t0 = time.perf_counter()
+        try:
+            return fn(*a, **k)
+        finally:
+            TIMES[key] = TIMES.get(key, 0.0) + time.perf_counter() - t0
+
+    setattr(cls, name, wrapper)
+
+
+for _cls, _name, _key in ((runner.StepKernel, "_advance", "step_kernel"), (simulator.AudioSimulator, "substeps", "substeps"),
+                          (simulator.AudioSimulator, "flush", "flush"), (synthesizer.Synthesizer, "render", "render"),
+                          (stream_table.StreamMethods, "_render_streams", "render_streams"),
+                          (wrappers.EnvAudio, "end_step", "end_step"), (wrappers.AudioObservation, "step", "wrapper_step")):
+    timed(_cls, _name, _key)
+
+
+def demo(duration: float, sustained: bool) -> dict:
+    """Microseconds per physics step of each stage, demo scene, 48 kHz."""
+    model = mujoco.MjModel.from_xml_path(find_demo_scene())
+
+    def fresh():
+        d = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, d, 0)
+        return d
+
+    nst = int(round(duration / model.opt.timestep))
+    d = fresh()
+    t0 = time.perf_counter()
+    mujoco.mj_step(model, d, nstep=nst)
+    physics = time.perf_counter() - t0
+    sim = simulator.AudioSimulator(model, fresh(), sample_rate=48000, progress=False, clicks=False, contact_mics=[],
+                                   sustained=sustained, keep_events=0)
+    TIMES.clear()
+    t0 = time.perf_counter()
+    sim.run(duration)
+    total = time.perf_counter() - t0
+    out = {k: 1e6 * v / nst for k, v in TIMES.items()}
+    out.update(physics=1e6 * physics / nst, total=1e6 * total / nst, ratio=total / physics)
+    return out
+
+
+def env_parts(env_id: str, steps: int) -> dict:
+    """Microseconds per env step of each stage, ``AudioObservation`` at 16 kHz."""
+    import gymnasium as gym
+
+    env = wrappers.AudioObservation(gym.make(env_id), sample_rate=16000, progress=False, clicks=False, contact_mics=[])
+    env.action_space.seed(0)
+    acts = [env.action_space.sample() for _ in range(steps)]
+
+    def run():
+        env.reset(seed=0)
+        for a in acts:
+            _, _, te, tr, _ = env.step(a)
+            if te or tr:
+                env.reset()
+
+    run()  # warm-up
+    TIMES.clear()
+    run()
+    out = {k: 1e6 * v / steps for k, v in TIMES.items()}
+    m, d = env.unwrapped.model, mujoco.MjData(env.unwrapped.model)
+    fs = env.unwrapped.frame_skip
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        mujoco.mj_step(m, d, nstep=fs)
+    out["physics"] = 1e6 * (time.perf_counter() - t0) / steps
+    env.close()
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--duration", type=float, default=3.0)
+    p.add_argument("--env", default="Ant-v5")
+    p.add_argument("--steps", type=int, default=500)
+    p.add_argument("--rounds", type=int, default=3)
+    args = p.parse_args(argv)
+    demo(0.3, True)  # warm-up (numba, model cache)
+    cases = {"demo (us per 1 ms step)": lambda: demo(args.duration, True),
+             "demo, sustained=False": lambda: demo(args.duration, False),
+             f"{args.env} (us per env step)": lambda: env_parts(args.env, args.steps)}
+    for name, fn in cases.items():
+        rounds = [fn() for _ in range(args.rounds)]
+        med = {k: float(np.median([r.get(k, 0.0) for r in rounds])) for k in rounds[0]}
+        print(name + ": " + ", ".join(f"{k} {v:.2f}" if k == "ratio" else f"{k} {v:.1f}" for k, v in med.items()),
+              flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
