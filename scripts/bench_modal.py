@@ -95,7 +95,7 @@ def main(argv=None):
     ap.add_argument("--quality", default="default")
     ap.add_argument("--objects", nargs="*", default=list(OBJECTS), choices=list(OBJECTS))
     ap.add_argument("--no-baseline", action="store_true")
-    ap.add_argument("--methods", nargs="*", default=["auto", "hex"], choices=["auto", "hex", "tet"])
+    ap.add_argument("--methods", nargs="*", default=["auto", "hex"], choices=["auto", "hex", "tet", "facet"])
     ap.add_argument("--f-max", type=float, default=None, help="band top [Hz] (default 20 kHz)")
     args = ap.parse_args(argv)
     ctx = mp.get_context("spawn")

@@ -57,8 +57,8 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 11  # bump when discretization or model contents change (invalidates cache)
-METHODS = ("auto", "hex", "tet", "shell")
+MODEL_VERSION = 12  # bump when discretization or model contents change (invalidates cache)
+METHODS = ("auto", "hex", "tet", "facet", "shell")
 
 
 def default_f_max(sample_rate: float | None = None) -> float:
@@ -142,6 +142,15 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
         from .tet import discretize_tet
 
         return discretize_tet(mesh, material, h, points, order=order, through_wall=through_wall)
+    if method == "facet":
+        from .facet_shell import discretize_facet
+        from .midsurface import mid_surface
+
+        mid = mid_surface(mesh)
+        if len(mid.faces) == 0:
+            raise ValueError("facet: no part of this surface is a thin wall (two sheets facing each other); "
+                             "use method='auto', 'hex' or 'tet'")
+        return discretize_facet(mid.vertices, mid.faces, mid.thickness, material, points, h=h)
     if method == "shell":
         from .shell import discretize_shell
 
@@ -380,7 +389,7 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     under = decay < omega
     shapes, radiation, decay = shapes[:, :, under], radiation[under], decay[under]
     ex = np.zeros(disc.dofs)
-    ex[0::3] = 1.0  # rigid translation along x: e^T M e is the total mass
+    ex[0::disc.dofs_per_node] = 1.0  # rigid translation along x: e^T M e is the total mass
     mass = float(ex @ (disc.M @ ex))
     info = dict(disc.info)
     info.update(
@@ -393,7 +402,8 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     err = float("nan")
     # the shell model has no resolution to vary (it lives on the given surface mesh)
     if error_estimate and under.sum() > 0 and method != "shell":
-        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=ERROR_ORDER[plan.through_wall])
+        order = 2.0 if method == "facet" else ERROR_ORDER[plan.through_wall]
+        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=order)
     if pool is not None:
         pool.shutdown(wait=True, cancel_futures=True)
     name = method
@@ -457,7 +467,7 @@ def _coarse_ratio(plan: Plan) -> float:
     """Element size of the error estimate's coarser solve over the fine one: 2 for a thin
     wall (its surface refinement halves edges: 1.5 h often gives the same surface), 1.5
     otherwise."""
-    return 2.0 if not plan.through_wall else 1.5
+    return 2.0 if not plan.through_wall or plan.method == "facet" else 1.5
 
 
 #: convergence order of the frequencies in the element size, for the Richardson estimate:

@@ -24,6 +24,9 @@ class Discretization:
         Rigid-body modes expected (6 for a free body, 0 if clamped).
     info : dict
         JSON-able description: element type, element size [m], element count, ...
+    dofs_per_node : int
+        3 (displacement x, y, z) or 6 (then rotation x, y, z): dof ``k`` of node ``i`` is
+        ``dofs_per_node * i + k``, so translations are the dofs with ``k < 3``.
     """
 
     K: sp.csr_matrix
@@ -31,6 +34,7 @@ class Discretization:
     interp: sp.csr_matrix
     n_rigid: int = 6
     info: dict = field(default_factory=dict)
+    dofs_per_node: int = 3
 
     @property
     def dofs(self) -> int:

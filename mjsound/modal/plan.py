@@ -10,10 +10,13 @@ Method choice (``method="auto"``)
 ---------------------------------
 * **thin curved walls** (a watertight mesh whose wall ``t = 2 V / A`` is under a quarter
   of its smallest bounding-box side: bowls, cups, cans, tubes, hollow objects) get
-  quadratic tetrahedra with one element through the wall (:func:`.tet.discretize_tet`
-  with ``through_wall=False``): the voxel embedding makes such a wall a staircase (a
-  20 cm bowl rang +60 .. +200 cents sharp), while a quadratic tetrahedron bends
-  correctly through the whole wall. Needs the optional TetGen wrapper.
+  shell triangles on the wall's mid-surface (:mod:`.facet_shell`, ``"facet"``) when at
+  least :data:`FACET_MIN_COVERAGE` of the surface pairs across the wall
+  (:func:`.midsurface.mid_surface`); otherwise quadratic tetrahedra with one element
+  through the wall (:func:`.tet.discretize_tet` with ``through_wall=False``, needs the
+  optional TetGen wrapper). The voxel embedding makes such a wall a staircase (a 20 cm
+  bowl rang +60 .. +200 cents sharp); the shell has a sixth of the tets' dofs for the
+  same accuracy.
 * everything else (solids, bars, plates, open or non-manifold or self-intersecting
   meshes, and thin walls TetGen refuses) gets the voxel-embedded hexahedra, Picard's
   robust path: bars and plates are exact in bending there (one incompatible-mode cell
@@ -62,6 +65,9 @@ QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measure
 MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
 #: a wall thinner than this fraction of the smallest bounding-box side is a thin curved wall
 THIN_WALL_RATIO = 0.25
+#: the facet shell applies when at least this fraction of the surface is wall (both sheets
+#: paired; the rest, a rim or end faces, is left out of the model)
+FACET_MIN_COVERAGE = 0.9
 
 #: Quality presets. hex: elements per wavelength, least elements along the longest side,
 #: fine cells per coarse cell, least cells across a bar. wall (thin walls, quadratic
@@ -69,11 +75,14 @@ THIN_WALL_RATIO = 0.25
 #: longest side, which bounds the error of the lowest modes whatever f_max is.
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2,
-              "wall_per_wavelength": 3.0, "wall_min_per_side": 12},
+              "wall_per_wavelength": 3.0, "wall_min_per_side": 12,
+              "facet_per_wavelength": 4.0, "facet_min_per_side": 16},
     "default": {"per_wavelength": 6.0, "min_per_side": 8, "refine": 3, "min_across": 4,
-                "wall_per_wavelength": 5.0, "wall_min_per_side": 24},
+                "wall_per_wavelength": 5.0, "wall_min_per_side": 24,
+                "facet_per_wavelength": 6.0, "facet_min_per_side": 33},
     "high": {"per_wavelength": 10.0, "min_per_side": 16, "refine": 4, "min_across": 6,
-             "wall_per_wavelength": 8.0, "wall_min_per_side": 48},
+             "wall_per_wavelength": 8.0, "wall_min_per_side": 48,
+             "facet_per_wavelength": 10.0, "facet_min_per_side": 50},
 }
 QUALITY_ORDER = ("high", "default", "draft")
 
@@ -203,6 +212,20 @@ def wall_element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, q
     return float(min(lam_b / q["wall_per_wavelength"], size / q["wall_min_per_side"]))
 
 
+def facet_element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
+                       resolution: int | None = None) -> float:
+    """Longest mid-surface edge [m] of the facet shell: the wall's bending wavelength at
+    ``f_max`` over ``facet_per_wavelength``, at most the longest side over
+    ``facet_min_per_side`` (the lowest modes' floor, independent of f_max: the 20 cm bowl's
+    first eight modes are within 3.3 cents at 33 per side, 5.6 .. 14 cents at 20)."""
+    size = float(np.max(mesh.extents))
+    if resolution is not None:
+        return size / int(resolution)
+    q = _quality(quality)
+    lam_b = _bending_wavelength(material, thin_wall(mesh), f_max)
+    return float(min(lam_b / q["facet_per_wavelength"], size / q["facet_min_per_side"]))
+
+
 def _tet_available() -> bool:
     try:
         import tetgen  # noqa: F401
@@ -212,7 +235,7 @@ def _tet_available() -> bool:
 
 
 def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tuple[str, str]:
-    """``("tet-wall" | "hex", reason)`` for ``method="auto"`` (module docstring)."""
+    """``("facet" | "tet-wall" | "hex", reason)`` for ``method="auto"`` (module docstring)."""
     if not mesh.is_watertight:
         return "hex", "hex: the mesh is open or non-manifold (voxel embedding handles any surface)"
     t = thin_wall(mesh, thickness)
@@ -220,11 +243,20 @@ def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tupl
     if not (t < THIN_WALL_RATIO * smallest):
         return "hex", (f"hex: a solid, bar or plate (wall 2V/A = {t * 1e3:.3g} mm against its smallest side "
                        f"{smallest * 1e3:.3g} mm), where voxel hexahedra are exact in bending and fast")
+    from .midsurface import mid_surface
+
+    coverage = mid_surface(mesh).coverage
+    if coverage >= FACET_MIN_COVERAGE:
+        return "facet", (f"facet: thin curved wall ({t * 1e3:.3g} mm against a smallest side of "
+                         f"{smallest * 1e3:.3g} mm), {100 * coverage:.0f} % of its surface pairs across the wall: "
+                         "shell triangles on its mid-surface")
     if not _tet_available():
-        return "hex", (f"hex: thin curved wall ({t * 1e3:.3g} mm) but TetGen is not installed "
-                       "(pip install 'mjsound[tet]'); expect the staircase error in error_estimate_cents")
+        return "hex", (f"hex: thin curved wall ({t * 1e3:.3g} mm) but only {100 * coverage:.0f} % of it pairs across "
+                       "the wall and TetGen is not installed (pip install 'mjsound[tet]'); expect the staircase "
+                       "error in error_estimate_cents")
     return "tet-wall", (f"tet10 through the wall: thin curved wall ({t * 1e3:.3g} mm against a smallest side "
-                        f"of {smallest * 1e3:.3g} mm), where voxels make a staircase")
+                        f"of {smallest * 1e3:.3g} mm), of which only {100 * coverage:.0f} % pairs across the wall "
+                        "(a shell needs 90 %); voxels would make a staircase")
 
 
 def _estimate_dofs(kind: str, mesh: trimesh.Trimesh, h: float, order: int, refine: int | None,
@@ -238,6 +270,11 @@ def _estimate_dofs(kind: str, mesh: trimesh.Trimesh, h: float, order: int, refin
         # a 2 mm walled can at 12.5 mm, 69 054)
         tris = max(len(mesh.faces), A / (0.433 * h**2) * 1.3)
         return 18.0 * tris, 0.0
+    if kind == "facet":
+        # the mid-surface (half the area) refined to h: ~ 1.55 A / 2 / (0.433 h^2) nodes, 6 dofs
+        # each (measured: the 20 cm bowl at h = 6.06 mm, 35 718 dofs)
+        nodes = max(len(mesh.vertices) / 2, 1.55 * A / 2 / (0.433 * h**2))
+        return 6.0 * nodes, 0.0
     if kind == "tet":
         tets = max(V / (h**3 / 8.49), 1.5 * len(mesh.faces))
         return (6.0 if order == 2 else 1.2) * tets, 0.0
@@ -342,6 +379,8 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
     for q in qualities:
         if kind == "tet-wall":
             h = wall_element_size(mesh, material, f_max, q, resolution)
+        elif kind == "facet":
+            h = facet_element_size(mesh, material, f_max, q, resolution)
         else:
             h = element_size(mesh, material, f_max, q, resolution, thickness, order if kind != "shell" else 1)
         r = refine
@@ -359,18 +398,19 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
                        f"using quality={q!r}'s resolution ({dofs:.3g} dofs, {mem:.3g} GB): expect a larger error")
                 warnings.warn(msg, RuntimeWarning, stacklevel=3)
                 notes.append(msg)
-            return Plan(method="tet" if kind == "tet-wall" else kind, order=order if kind != "shell" else 1, h=h,
+            return Plan(method="tet" if kind == "tet-wall" else kind, order=order if kind not in ("shell", "facet") else 1, h=h,
                         f_max=f_max, quality=q, reason=reason, modes=modes, dofs=int(dofs), memory_gb=mem,
                         cap_gb=cap, through_wall=kind != "tet-wall", refine=r, max_modes=max_modes,
                         notes=notes)
         if over_budget == "refuse":
             break
     q, dofs, mem = tried[-1]
-    if kind == "tet-wall":  # quadratic tets through the wall do not fit: the voxels may
+    if kind in ("tet-wall", "facet"):  # the thin-wall method does not fit: the voxels may
         plan = plan_analysis(mesh, material, f_max, method="hex", quality=quality, resolution=resolution,
                              thickness=thickness, order=order, refine=refine, max_modes=max_modes,
                              max_memory=max_memory, over_budget=over_budget)
-        plan.reason = (f"hex: thin wall, but quadratic tets through it would need about {dofs:.3g} dofs and "
+        what = "quadratic tets through it" if kind == "tet-wall" else "shell triangles on its mid-surface"
+        plan.reason = (f"hex: thin wall, but {what} would need about {dofs:.3g} dofs and "
                        f"{mem:.3g} GB, over the cap of {cap:g} GB")
         plan.notes = notes + plan.notes
         return plan

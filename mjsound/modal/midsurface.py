@@ -1,0 +1,151 @@
+r"""The mid-surface of a thin-walled solid, for the flat-facet shell (:mod:`.facet_shell`).
+
+A closed surface that bounds a thin wall (a bowl, a tube, a can made hollow with
+``wall=``) has two sheets facing each other ``t`` apart. :func:`mid_surface` finds them
+and returns one sheet moved halfway across, with the local thickness:
+
+1. From each triangle's centroid a ray goes inward (along ``-n``); the nearest triangle
+   it hits (Möller-Trumbore, among the triangles whose centroids are nearest to where
+   the wall's far side should be) gives the local thickness ``t_f`` if it faces back
+   (``n_hit . n < -WALL_FACING``). Triangles without such a partner (a bowl's rim, the
+   end faces of a solid part) are not wall.
+2. The wall triangles split into connected sheets; of each pair facing each other the
+   larger one (the outside) is kept.
+3. Each kept vertex moves inward by the offset that puts every adjacent face plane
+   ``t_v / 2`` away (:func:`.surface.vertex_offsets`), ``t_v`` the mean ``t_f`` of its
+   faces.
+
+The triangles left out (rim, ends) are reported as the fraction of the surface area
+they cover: where it is large the object is not a thin wall and the shell does not
+apply.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+__all__ = ["MidSurface", "mid_surface", "ray_hits"]
+
+#: a wall's far side faces back: normals within ~45 degrees of opposite
+WALL_FACING = 0.7
+
+
+@dataclass
+class MidSurface:
+    """A mid-surface: ``vertices`` (V, 3) [m], ``faces`` (F, 3), ``thickness`` (V,) [m]
+    and ``coverage``: the fraction of the solid's surface area that is wall (both sheets)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    thickness: np.ndarray
+    coverage: float
+
+
+def ray_hits(tris: np.ndarray, origins: np.ndarray, dirs: np.ndarray, guess: np.ndarray, k: int = 24):
+    """Nearest hit of each ray among the ``k`` triangles whose centroids are nearest to
+    its ``guess`` point (Möller-Trumbore).
+
+    Parameters
+    ----------
+    tris : (F, 3, 3) array
+        Triangles [m].
+    origins, dirs, guess : (R, 3) arrays
+        Ray origins [m], unit directions and the points near which hits are expected [m].
+
+    Returns
+    -------
+    dist : (R,) array
+        Distance [m] to the nearest hit in front of the origin (inf: none).
+    face : (R,) int array
+        Triangle hit (-1: none).
+    """
+    from scipy.spatial import cKDTree
+
+    k = min(k, len(tris))
+    _, cand = cKDTree(tris.mean(axis=1)).query(guess, k=k)
+    cand = cand.reshape(len(origins), k)
+    a, b, c = (tris[cand, i] for i in range(3))  # (R, k, 3)
+    e1, e2 = b - a, c - a
+    d = np.broadcast_to(dirs[:, None, :], e1.shape)
+    p = np.cross(d, e2)
+    det = np.einsum("rkj,rkj->rk", e1, p)
+    ok = np.abs(det) > 1e-30
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = origins[:, None, :] - a
+    u = np.einsum("rkj,rkj->rk", s, p) * inv
+    q = np.cross(s, e1)
+    v = np.einsum("rkj,rkj->rk", d, q) * inv
+    dist = np.einsum("rkj,rkj->rk", e2, q) * inv
+    eps = 1e-9
+    hit = ok & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (dist > 0)
+    dist = np.where(hit, dist, np.inf)
+    best = np.argmin(dist, axis=1)
+    r = np.arange(len(origins))
+    dmin = dist[r, best]
+    return dmin, np.where(np.isfinite(dmin), cand[r, best], -1)
+
+
+def mid_surface(mesh: trimesh.Trimesh) -> MidSurface:
+    """The mid-surface of a closed thin-walled solid (module docstring).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        Watertight, outward-oriented surface of a thin wall.
+
+    Returns
+    -------
+    MidSurface
+        Empty (no faces, coverage 0) when no part of the surface is a thin wall.
+    """
+    from .surface import vertex_offsets
+
+    m = trimesh.Trimesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64), process=False)
+    if m.is_watertight and m.volume < 0:
+        m.invert()
+    tris = np.asarray(m.triangles)
+    nf = np.asarray(m.face_normals)
+    cent = tris.mean(axis=1)
+    t_guess = 2.0 * abs(float(m.volume)) / float(m.area)
+    size = float(np.min(m.extents))
+    dist, hit = ray_hits(tris, cent - 1e-9 * size * nf, -nf, cent - t_guess * nf)
+    facing = np.zeros(len(tris), bool)
+    found = hit >= 0
+    facing[found] = np.einsum("ij,ij->i", nf[hit[found]], nf[found]) < -WALL_FACING
+    wall = facing & (dist < 0.25 * size)
+    empty = MidSurface(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0), 0.0)
+    if not wall.any():
+        return empty
+    # sheets: connected components of the wall faces (shared edges)
+    adj = m.face_adjacency
+    adj = adj[wall[adj[:, 0]] & wall[adj[:, 1]]]
+    idx = np.flatnonzero(wall)
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    g = sp.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(len(tris), len(tris)))
+    _, label = connected_components(g, directed=False)
+    area = np.asarray(m.area_faces)
+    sheet_area = np.bincount(label[idx], weights=area[idx], minlength=label.max() + 1)
+    # each sheet's partner: the sheet most of its rays hit (by area)
+    keep = np.zeros(len(tris), bool)
+    for s in np.unique(label[idx]):
+        mine = idx[label[idx] == s]
+        other = label[hit[mine]]
+        partner = np.bincount(other, weights=area[mine]).argmax()
+        if partner != s and (sheet_area[s], -s) > (sheet_area[partner], -partner):
+            keep[mine] = True
+    faces = np.asarray(m.faces)[keep]
+    coverage = float(area[wall].sum() / area.sum())
+    if len(faces) == 0:
+        return empty
+    used, inv = np.unique(faces, return_inverse=True)
+    inv = inv.ravel()
+    sub = trimesh.Trimesh(m.vertices[used], inv.reshape(-1, 3), process=False)
+    t_face = dist[keep]
+    t_vert = np.bincount(inv, weights=np.repeat(t_face, 3), minlength=len(used)) / np.bincount(inv, minlength=len(used))
+    offset = vertex_offsets(sub, 1.0) * (0.5 * t_vert)[:, None]
+    return MidSurface(np.asarray(sub.vertices) - offset, np.asarray(sub.faces), t_vert, coverage)
