@@ -13,8 +13,15 @@ from mjsound.modal.plan import (DEFAULT_MAX_MEMORY_GB, MAX_MEMORY_ENV, AnalysisB
 AL = parse_material("aluminium")
 
 
-def test_method_choice_per_object():
-    assert choose_method(load_mesh("bowl:0.1,0.004"))[0] == "tet-wall"
+def test_method_choice_per_object(monkeypatch):
+    kind, reason = choose_method(load_mesh("bowl:0.1,0.004"))
+    assert kind == "facet" and "98 % of its surface pairs across the wall" in reason
+    import mjsound.modal.plan as P
+
+    monkeypatch.setattr(P, "FACET_MIN_COVERAGE", 1.01)  # a thin wall that does not pair up: tets
+    kind, reason = choose_method(load_mesh("bowl:0.1,0.004"))
+    assert kind == "tet-wall" and "only 98 %" in reason
+    monkeypatch.undo()
     for spec in ("box:0.5,0.01,0.01", "sphere:0.1", "cylinder:0.01,0.5", "box:0.2,0.15,0.008"):
         kind, reason = choose_method(load_mesh(spec))
         assert kind == "hex" and "solid, bar or plate" in reason, spec
@@ -105,7 +112,10 @@ def test_memory_estimate_tracks_measured_dofs():
 
 def test_auto_falls_back_to_hex_when_tetgen_refuses(monkeypatch):
     """A thin wall TetGen cannot mesh (here: made to fail) is voxelized, and the model says why."""
+    import mjsound.modal.plan as P
     import mjsound.modal.tet as T
+
+    monkeypatch.setattr(P, "FACET_MIN_COVERAGE", 1.01)  # as if the wall did not pair up (no shell)
 
     def refuse(*a, **k):
         raise ValueError("tet method: TetGen could not tetrahedralize this mesh (test)")
@@ -115,9 +125,16 @@ def test_auto_falls_back_to_hex_when_tetgen_refuses(monkeypatch):
     assert m.method == "hex" and "failed" in m.info["method_choice"] and m.n_modes > 0
 
 
-def test_thin_wall_over_budget_for_tets_is_planned_as_hex():
+def test_thin_wall_over_budget_is_planned_as_hex(monkeypatch):
     bowl = load_mesh("bowl:0.1,0.004")
+    facet = plan_analysis(bowl, AL, 20000.0)
+    assert facet.method == "facet" and 20000 < facet.dofs < 60000  # built: 35 718
+    p = plan_analysis(bowl, AL, 20000.0, max_memory=facet.memory_gb / 2, over_budget="refuse")
+    assert p.method == "hex" and "shell triangles" in p.reason and "over the cap" in p.reason
+    import mjsound.modal.plan as P
+
+    monkeypatch.setattr(P, "FACET_MIN_COVERAGE", 1.01)
     tet = plan_analysis(bowl, AL, 20000.0)
     assert tet.method == "tet" and not tet.through_wall and 50000 < tet.dofs < 200000  # built: 98 793
     p = plan_analysis(bowl, AL, 20000.0, max_memory=0.6, over_budget="refuse")
-    assert p.method == "hex" and "over the cap" in p.reason and p.memory_gb <= 0.6
+    assert p.method == "hex" and "quadratic tets" in p.reason and p.memory_gb <= 0.6

@@ -5,8 +5,8 @@ A closed surface that bounds a thin wall (a bowl, a tube, a can made hollow with
 and returns one sheet moved halfway across, with the local thickness:
 
 1. From each triangle's centroid a ray goes inward (along ``-n``); the nearest triangle
-   it hits (Möller-Trumbore, among the triangles whose centroids are nearest to where
-   the wall's far side should be) gives the local thickness ``t_f`` if it faces back
+   it hits (Möller-Trumbore, among the triangles with points nearest to where the
+   wall's far side should be) gives the local thickness ``t_f`` if it faces back
    (``n_hit . n < -WALL_FACING``). Triangles without such a partner (a bowl's rim, the
    end faces of a solid part) are not wall.
 2. The wall triangles split into connected sheets; of each pair facing each other the
@@ -44,9 +44,29 @@ class MidSurface:
     coverage: float
 
 
-def ray_hits(tris: np.ndarray, origins: np.ndarray, dirs: np.ndarray, guess: np.ndarray, k: int = 24):
-    """Nearest hit of each ray among the ``k`` triangles whose centroids are nearest to
-    its ``guess`` point (Möller-Trumbore).
+def _proxies(tris: np.ndarray, spacing: float, max_level: int = 32):
+    """Points spread over each triangle no farther than ~``spacing`` apart (barycentric
+    grids of ``L = ceil(longest edge / spacing)`` steps, at most ``max_level``): (P, 3)
+    points and (P,) their triangles. A long thin triangle gets points along its length,
+    where its centroid alone would be far from most of it."""
+    longest = np.max(np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2), axis=1)
+    level = np.clip(np.ceil(longest / spacing), 1, max_level).astype(int)
+    pts, owner = [], []
+    for L in np.unique(level):
+        i, j = np.meshgrid(np.arange(L + 1), np.arange(L + 1), indexing="ij")
+        keep = i + j <= L
+        bary = np.c_[i[keep], j[keep], L - i[keep] - j[keep]] / L if L > 1 else np.full((1, 3), 1 / 3)
+        sel = np.flatnonzero(level == L)
+        pts.append(np.einsum("bk,fkd->fbd", bary, tris[sel]).reshape(-1, 3))
+        owner.append(np.repeat(sel, len(bary)))
+    return np.concatenate(pts), np.concatenate(owner)
+
+
+def ray_hits(tris: np.ndarray, origins: np.ndarray, dirs: np.ndarray, guess: np.ndarray, k: int = 24,
+             spacing: float | None = None):
+    """Nearest hit of each ray among the triangles nearest to its ``guess`` point
+    (Möller-Trumbore): the owners of the ``k`` nearest of points spread over every triangle
+    ``spacing`` [m] apart (default: each triangle's centroid only).
 
     Parameters
     ----------
@@ -64,9 +84,13 @@ def ray_hits(tris: np.ndarray, origins: np.ndarray, dirs: np.ndarray, guess: np.
     """
     from scipy.spatial import cKDTree
 
-    k = min(k, len(tris))
-    _, cand = cKDTree(tris.mean(axis=1)).query(guess, k=k)
-    cand = cand.reshape(len(origins), k)
+    if spacing is None:
+        pts, owner = tris.mean(axis=1), np.arange(len(tris))
+    else:
+        pts, owner = _proxies(tris, spacing)
+    k = min(k, len(pts))
+    _, near = cKDTree(pts).query(guess, k=k)
+    cand = owner[near.reshape(len(origins), k)]
     a, b, c = (tris[cand, i] for i in range(3))  # (R, k, 3)
     e1, e2 = b - a, c - a
     d = np.broadcast_to(dirs[:, None, :], e1.shape)
@@ -111,7 +135,7 @@ def mid_surface(mesh: trimesh.Trimesh) -> MidSurface:
     cent = tris.mean(axis=1)
     t_guess = 2.0 * abs(float(m.volume)) / float(m.area)
     size = float(np.min(m.extents))
-    dist, hit = ray_hits(tris, cent - 1e-9 * size * nf, -nf, cent - t_guess * nf)
+    dist, hit = ray_hits(tris, cent - 1e-9 * size * nf, -nf, cent - t_guess * nf, spacing=max(2.0 * t_guess, np.sqrt(m.area / 2e5)))
     facing = np.zeros(len(tris), bool)
     found = hit >= 0
     facing[found] = np.einsum("ij,ij->i", nf[hit[found]], nf[found]) < -WALL_FACING

@@ -1,0 +1,150 @@
+"""Flat-facet shell on the mid-surface of thin walls (mjsound.modal.facet_shell, midsurface)."""
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+import trimesh
+
+from mjsound import analyze
+from mjsound.geometry import load_mesh
+from mjsound.materials import parse_material
+from mjsound.modal.facet_shell import discretize_facet, facet_matrices
+from mjsound.modal.midsurface import mid_surface
+
+STEEL = parse_material("steel")
+AL = parse_material("aluminium")
+
+
+def cents(a, b):
+    return 1200 * np.log2(np.asarray(a) / np.asarray(b))
+
+
+def square_plate(n, a=0.3):
+    """(n+1)^2 vertices in z=0, 2 n^2 triangles with alternating diagonals."""
+    x = np.linspace(0, a, n + 1)
+    X, Y = np.meshgrid(x, x)
+    V = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
+    F = []
+    for i in range(n):
+        for j in range(n):
+            a0 = i * (n + 1) + j
+            b0, c0, d0 = a0 + 1, a0 + n + 1, a0 + n + 2
+            F += [[a0, b0, d0], [a0, d0, c0]] if (i + j) % 2 else [[a0, b0, c0], [b0, d0, c0]]
+    return V, np.array(F)
+
+
+def lowest(K, M, k):
+    w = spla.eigsh(K.tocsc(), k=k, M=M.tocsc(), sigma=-1.0, return_eigenvectors=False)
+    return np.sqrt(np.maximum(np.sort(w), 0)) / (2 * np.pi)
+
+
+def test_simply_supported_plate_against_navier():
+    """0.3 m square steel plate, 2 mm, w = 0 on the edges: f_mn = pi / 2 (m^2 + n^2) / a^2
+    sqrt(D / rho t) (Navier). 16 x 16 squares: first three modes within 0.5 %."""
+    a, t = 0.3, 0.002
+    V, F = square_plate(16, a)
+    d = discretize_facet(V, F, np.full(len(V), t), STEEL, V[:3])
+    edge = np.flatnonzero((V[:, 0] % a < 1e-9) | (V[:, 1] % a < 1e-9) | (V[:, 0] > a - 1e-9) | (V[:, 1] > a - 1e-9))
+    fixed = np.concatenate([6 * edge + k for k in (0, 1, 2)])  # w, and the in-plane motion (no rigid modes)
+    free = np.setdiff1d(np.arange(d.dofs), fixed)
+    f = lowest(d.K[free][:, free], d.M[free][:, free], 3)
+    D = STEEL.E * t**3 / (12 * (1 - STEEL.nu**2))
+    navier = np.pi / 2 * np.array([2, 5, 5]) / a**2 * np.sqrt(D / (STEEL.rho * t))
+    assert np.allclose(f, navier, rtol=5e-3), (f, navier)
+
+
+def test_free_plate_is_frame_independent_with_six_rigid_modes():
+    """The same free plate in two orientations: the same spectrum, and exactly six zero modes."""
+    V, F = square_plate(6, 0.2)
+    R = trimesh.transformations.random_rotation_matrix(np.random.default_rng(3).random(3))[:3, :3]
+    out = []
+    for X in (V, V @ R.T):
+        d = discretize_facet(X, F, np.full(len(X), 0.003), AL, X[:2])
+        out.append(lowest(d.K, d.M, 12))
+    assert np.allclose(out[0][6:], out[1][6:], rtol=1e-6)
+    assert np.all(out[0][:6] < 1e-2 * out[0][6]) and np.all(out[1][:6] < 1e-2 * out[1][6]) and out[0][6] > 10.0
+
+
+def test_element_matrices_symmetric_and_rigid_motions_strain_free():
+    """Ke, Me symmetric; Me positive definite; a rigid translation and rotation of a curved
+    pair of triangles store no energy."""
+    X = np.array([[[0, 0, 0], [0.01, 0, 0.001], [0, 0.012, 0.002]]], float)
+    Ke, Me = facet_matrices(X, np.array([0.002]), AL.E, AL.nu, AL.rho)
+    assert np.allclose(Ke, np.swapaxes(Ke, 1, 2)) and np.allclose(Me, np.swapaxes(Me, 1, 2))
+    assert np.linalg.eigvalsh(Me[0]).min() > 0
+    omega = np.array([0.3, -0.2, 0.5])
+    u = np.zeros(18)
+    for i in range(3):
+        u[6 * i:6 * i + 3] = np.array([1e-3, 2e-3, -1e-3]) + np.cross(omega, X[0, i])
+        u[6 * i + 3:6 * i + 6] = omega
+    assert abs(u @ Ke[0] @ u) < 1e-10 * np.abs(Ke[0]).max()
+
+
+def test_thin_wall_mid_surface_of_the_bowl():
+    """The bowl's outer sheet (the rim left out), moved half the 4 mm wall inward."""
+    tm = load_mesh("bowl:0.1,0.004")
+    mid = mid_surface(tm)
+    assert 0.97 < mid.coverage < 0.99
+    assert np.allclose(mid.thickness, 0.004, rtol=0.01)
+    r = np.linalg.norm(mid.vertices, axis=1)
+    assert np.all((r > 0.0975) & (r < 0.0985)), (r.min(), r.max())  # a faceted sphere of radius 98 mm
+    assert mid_surface(load_mesh("sphere:0.1")).coverage == 0.0
+    with pytest.raises(ValueError, match="no part of this surface is a thin wall"):
+        analyze("sphere:0.05", "steel", method="facet", f_max=2000, cache=False)
+
+
+def test_tube_against_converged_tet10():
+    """Steel tube, radius 48 .. 50 mm, 15 cm, open ends (trimesh annulus, 64 sections), auto
+    (the shell) at f_max 2 kHz against quadratic tets refined through the wall
+    (``analyze(tube, "steel", method="tet", resolution=40, f_max=4000)``: 178 308 dofs,
+    539.5, 539.5, 629.4, 629.4, 1524.4, 1524.5 Hz; one tet10 through the wall at 242 724
+    dofs: 539.3, 539.3, 629.6, 629.6, 1523.6, 1523.6): within 5 cents, pairs within 0.5."""
+    tube = trimesh.creation.annulus(0.048, 0.05, 0.15, sections=64)
+    m = analyze(tube, "steel", f_max=2000, cache=False, error_estimate=False)
+    assert m.method == "facet" and "shell triangles" in m.info["method_choice"]
+    ref = np.array([539.5, 539.5, 629.4, 629.4, 1524.4, 1524.5])
+    c = cents(m.frequencies_hz[:6], ref)
+    assert np.all(np.abs(c) < 5), c
+    assert np.all(np.abs(c[0::2] - c[1::2]) < 0.5), c
+    assert m.mass_kg == pytest.approx(STEEL.rho * np.pi * (0.05**2 - 0.048**2) * 0.15, rel=0.01)
+
+
+@pytest.mark.parametrize("f_max", [2500.0, 20000.0])
+def test_bowl_first_eight_modes_against_the_converged_reference(f_max):
+    """The default analysis of the 20 cm bowl (auto: the shell) against the converged tet10
+    reference of reports/accuracy.md: first eight modes within 5 cents at low and high
+    f_max (measured +0.5 .. +3.3), pairs within 0.5 cent, and at 20 kHz the 114 modes
+    and the error estimate within a factor of two of the measured RMS."""
+    from mjsound.report.accuracy_modal import BOWL_REFERENCE
+
+    m = analyze("bowl:0.1,0.004", "aluminium", f_max=f_max, cache=False, error_estimate=f_max > 5000)
+    assert m.method == "facet"
+    n = min(8, int(np.sum(BOWL_REFERENCE < f_max)))
+    c = cents(m.frequencies_hz[:n], BOWL_REFERENCE[:n])
+    assert np.all(np.abs(c) < 5), c
+    assert np.all(np.abs(c[0::2] - c[1::2]) < 0.5), c
+    if f_max > 5000:
+        assert m.n_modes == 114
+        rms = np.sqrt(np.mean(c**2))
+        assert 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)
+
+
+def test_hollow_can_against_the_converged_shell():
+    """Aluminium can (cylinder radius 40 mm, 120 mm, 48 sections) made hollow with a 1 mm wall:
+    draft quality against the converged shell (``analyze("cylinder:0.04,0.12", "aluminium",
+    wall=0.001, method="facet", resolution=60, f_max=3000)``, 170 400 dofs: 1450.01,
+    1569.37, 2466.50, 2466.50, 2788.96, 2789.00 Hz; the default mesh, 100 212 dofs, is within
+    0.3 cent of it) within 5 cents (measured -0.8 .. +3.1), pairs within 0.5 cent, and the
+    wall's exact mass."""
+    m = analyze("cylinder:0.04,0.12", "aluminium", wall="1mm", quality="draft", f_max=3000, cache=False,
+                error_estimate=False)
+    assert m.method == "facet" and m.info["wall"] == 0.001
+    ref = np.array([1450.01, 1569.37, 2466.50, 2466.50, 2788.96, 2789.00])
+    c = cents(m.frequencies_hz[:6], ref)
+    assert np.all(np.abs(c) < 5), c
+    assert abs(c[2] - c[3]) < 0.5 and abs(c[4] - c[5]) < 0.5
+    can = load_mesh("cylinder:0.04,0.12")
+    inner = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=48)  # polygon area factor
+    poly = inner.area_faces[np.abs(inner.face_normals[:, 2]) > 0.99].sum() / 2  # area of the unit 48-gon
+    wall_volume = can.volume - poly * (0.04 - 0.001 / np.cos(np.pi / 48)) ** 2 * (0.12 - 0.002)
+    assert m.mass_kg == pytest.approx(wall_volume * AL.rho, rel=0.005)
