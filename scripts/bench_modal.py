@@ -69,7 +69,7 @@ def _one(name, quality, baseline, queue, method="auto", f_max=None):
         # smaller elements than the quadratic analysis used: another, 3x larger problem)
         h = model.info["h_target"]
         pts, _ = A.surface_samples(tm)
-        kind = "tet" if model.method.startswith("tet") else "hex"
+        kind = "facet" if model.method == "facet" else "tet" if model.method.startswith("tet") else "hex"
         disc = A._discretize(kind, tm, material, h, pts, model.info["quality_used"], None, 2, None,
                              not model.method.endswith("-wall"))
         assert disc.dofs == model.dofs, (disc.dofs, model.dofs)

@@ -32,7 +32,8 @@ import trimesh
 __all__ = ["refine_to_size", "hollow", "vertex_offsets", "winding_number", "cavities"]
 
 
-def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rounds: int = 64):
+def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rounds: int = 64,
+                   flat: float = None):
     """Split edges longer than ``size`` [m] until none is left (conforming bisection).
 
     Parameters
@@ -69,7 +70,7 @@ def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rou
         mid[split] = len(V) + np.arange(int(split.sum()))
         V = np.vstack([V, 0.5 * (V[uniq[split, 0]] + V[uniq[split, 1]])])
         m = mid[inv.reshape(3, -1).T]  # (F, 3): midpoint of edge k (v_k, v_k+1) or -1
-        F = _delaunay_flips(V, _split_faces(F, m))
+        F = _delaunay_flips(V, _split_faces(F, m), flat=COPLANAR if flat is None else flat)
     return V, F
 
 
@@ -77,7 +78,7 @@ def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rou
 COPLANAR = 1e-9
 
 
-def _delaunay_flips(V: np.ndarray, F: np.ndarray, max_passes: int = 100) -> np.ndarray:
+def _delaunay_flips(V: np.ndarray, F: np.ndarray, max_passes: int = 100, flat: float = COPLANAR) -> np.ndarray:
     """Flip the shared edge of coplanar triangle pairs whose opposite angles sum over pi
     (Lawson's flips towards the Delaunay triangulation of each flat region): the surface
     is unchanged, thin triangles (a cap's fan, halves of a long triangle) get rounder.
@@ -105,13 +106,13 @@ def _delaunay_flips(V: np.ndarray, F: np.ndarray, max_passes: int = 100) -> np.n
         n1 = np.cross(V[b] - V[a], V[c] - V[a])
         n2 = np.cross(V[a] - V[b], V[d] - V[b])
         l1, l2 = np.linalg.norm(n1, axis=1), np.linalg.norm(n2, axis=1)
-        flat = np.einsum("ij,ij->i", n1, n2) >= (1 - COPLANAR) * l1 * l2
+        coplanar = np.einsum("ij,ij->i", n1, n2) >= (1 - flat) * l1 * l2
         angle = _angle(V[a] - V[c], V[b] - V[c]) + _angle(V[a] - V[d], V[b] - V[d])
         # the flipped pair must stay positively oriented (convex quadrilateral)
         m1 = np.cross(V[d] - V[a], V[c] - V[a])
         m2 = np.cross(V[b] - V[d], V[c] - V[d])
         convex = (np.einsum("ij,ij->i", m1, n1) > 0) & (np.einsum("ij,ij->i", m2, n1) > 0)
-        want = np.flatnonzero(flat & convex & (angle > np.pi + 1e-9) & (c != d))
+        want = np.flatnonzero(coplanar & convex & (angle > np.pi + 1e-9) & (c != d))
         if len(want) == 0:
             break
         # an independent set: each triangle in at most one flip (first come)
