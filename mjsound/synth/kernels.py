@@ -74,12 +74,16 @@ def bank_free(work, na, out, o0, n, zero):
 
 
 @njit(cache=True, fastmath=True)
-def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact):
+def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
     """Like :func:`bank_free` with forcing: ``z_i += sum_q g_{q,i} F[q, s]`` before output.
 
     gwr, gwi : (n_src, >=na) dtype  complex per-mode gain of each source (gathered)
     F        : (n_src, N) dtype     per-sample force values [N] of each source on this block
     act      : (nact,) int64        indices of the sources active on this segment
+    span     : (2, n_src) int64     gathered modes ``span[0, q] <= k < span[1, q]`` outside
+                                    which source q's gains are zero (:func:`_gather`): a
+                                    source drives only its own object's modes, so only those
+                                    are visited (the others would add ``0 * F``)
     """
     wr, wi, pr, pi = work
     for s in range(o0, o0 + n):
@@ -87,9 +91,14 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact):
         for q in range(nact):
             j = act[q]
             fv = F[j, s]
-            for k in range(na):
-                wr[k] += gwr[j, k] * fv
-                wi[k] += gwi[j, k] * fv
+            lo = span[0, j]
+            hi = span[1, j]
+            # (views from the span's start: indices from 0 need no wraparound check, so the
+            # loop vectorises as the full-width one did)
+            vr, vi, ur, ui = wr[lo:hi], wi[lo:hi], gwr[j, lo:hi], gwi[j, lo:hi]
+            for k in range(hi - lo):
+                vr[k] += ur[k] * fv
+                vi[k] += ui[k] * fv
         for k in range(na):
             a = wr[k]
             b = wi[k]
@@ -100,9 +109,10 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact):
 
 
 @njit(cache=True)
-def _gather(voice, gr, gi, work, gwr, gwi, idx):
+def _gather(voice, gr, gi, work, gwr, gwi, idx, span):
     """The active modes of ``voice`` (state, poles) and their source gains into the compact
-    work arrays; returns how many."""
+    work arrays, and each source's span of gathered modes with a non-zero gain
+    (:func:`source_spans`); returns how many modes."""
     zr, zi, active, pr, pi = voice.zr, voice.zi, voice.active, voice.pr, voice.pi
     wr, wi, wpr, wpi = work
     k = 0
@@ -118,7 +128,23 @@ def _gather(voice, gr, gi, work, gwr, gwi, idx):
                 gwr[q, k] = gr[q, i]
                 gwi[q, k] = gi[q, i]
             k += 1
+    source_spans(gwr, gwi, k, span)
     return k
+
+
+@njit(cache=True)
+def source_spans(gwr, gwi, na, span):
+    """``span[0, q] .. span[1, q]``: the first and one past the last of the ``na`` gathered
+    modes where source q's gain is non-zero (an empty span when it has none)."""
+    for q in range(gwr.shape[0]):
+        lo, hi = na, 0
+        for k in range(na):
+            if gwr[q, k] != 0.0 or gwi[q, k] != 0.0:
+                if k < lo:
+                    lo = k
+                hi = k + 1
+        span[0, q] = lo if lo < hi else 0
+        span[1, q] = hi
 
 
 @njit(cache=True)
@@ -170,6 +196,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
     gwi = np.empty((nsrc, m), pr.dtype)
     idx = np.empty(m, np.int64)
     act = np.empty(max(nsrc, 1), np.int64)
+    span = np.zeros((2, nsrc), np.int64)
     work = (wr, wi, wpr, wpi)
     # a source already acting at the block start drives its modes from here on (a no-op for
     # sources whose start event activated them earlier: they cannot be culled while acting)
@@ -181,7 +208,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                     zr[i] = 0.0
                     zi[i] = 0.0
                     peak2[i] = 0.0
-    na = _gather(voice, gr, gi, work, gwr, gwi, idx)
+    na = _gather(voice, gr, gi, work, gwr, gwi, idx, span)
     # forcing sources must not be culled while they act
     pos = start
     end = start + n
@@ -227,6 +254,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                     gwi[q, w] = gwi[q, k]
                 w += 1
             na = w
+            source_spans(gwr, gwi, na, span)
         # ---- events at this sample
         if e < ne and ev_n[e] <= pos:
             _scatter(zr, zi, wr, wi, idx, na)
@@ -255,7 +283,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                                 zi[i] = 0.0
                                 peak2[i] = 0.0
                 e += 1
-            na = _gather(voice, gr, gi, work, gwr, gwi, idx)
+            na = _gather(voice, gr, gi, work, gwr, gwi, idx, span)
         # ---- run to the next grid point / event / source boundary / block end
         stop = end
         g = (pos // grid + 1) * grid
@@ -277,7 +305,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
         if nact == 0:
             bank_free(work, na, out, o0, stop - pos, zero)
         else:
-            bank_forced(work, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact)
+            bank_forced(work, na, out, o0, stop - pos, zero, gwr, gwi, F, act, nact, span)
         pos = stop
     _scatter(zr, zi, wr, wi, idx, na)
 
