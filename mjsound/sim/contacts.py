@@ -263,6 +263,8 @@ class ContactReader:
         (cleared in place): the kernel's compiled entry point stays valid."""
         if getattr(self, "_state", None) is None or getattr(self, "buffers", None) is None:
             self.counts = np.zeros(1, READER_COUNTS)
+            # plain int64 views of the fields Python reads after every kernel call
+            self._n_records, self._n_bad, self._n_huge = (self.counts[k] for k in ("n_records", "n_bad", "n_huge"))
             self._pairs = np.zeros(0, PAIR)
             self._hkeys = np.full(0, -1, np.int64)
             self._hvals = np.zeros(0, np.int64)
@@ -364,14 +366,13 @@ class ContactReader:
     def take_records(self) -> None:
         """Turn the record rows the kernel wrote into :class:`ImpactRecord` (each closes its
         slot's previous record) and report clamped forces (once)."""
-        c = self.counts[0]
-        n = int(c["n_records"])
+        n = int(self._n_records[0])
         if n:
             self.add_records(self.buffers.records[:n])
-            c["n_records"] = 0
-        if c["n_bad"] or c["n_huge"]:
-            nbad, nhuge = int(c["n_bad"]), int(c["n_huge"])
-            c["n_bad"] = c["n_huge"] = 0
+            self._n_records[0] = 0
+        if self._n_bad[0] or self._n_huge[0]:
+            nbad, nhuge = int(self._n_bad[0]), int(self._n_huge[0])
+            self._n_bad[0] = self._n_huge[0] = 0
             self.n_clamped += nbad + nhuge
             self._warn_once(
                 "force",

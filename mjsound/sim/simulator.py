@@ -423,9 +423,11 @@ class AudioSimulator(SimulatorReports):
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
         k0, n0 = self._seg
         c = self.clock
-        if c.k > k0:
-            self._count(n0, c.n, c.k - k0)
-        self._seg = (c.k, c.n)
+        k = c.k
+        n = c.sample_at(k)
+        if k > k0:
+            self._count(n0, n, k - k0)
+        self._seg = (k, n)
 
     def _call(self, nstep: int, call_step: bool, explicit=None) -> None:
         """One call of the step kernel (and its hand-backs), then collect what it produced."""

@@ -40,13 +40,15 @@ class EventQueue:
         self._take = None
         self.counts = np.zeros(1, QUEUE)
         self.counts[0]["next_sample"] = NONE
+        # plain int64 views of the fields (read on every render: a structured scalar costs more)
+        self._count, self._next = self.counts["count"], self.counts["next_sample"]
         self.state = None
         self._alloc(int(capacity), 16 * int(capacity))
 
     @property
     def count(self) -> int:
         """Events waiting."""
-        return int(self.counts[0]["count"])
+        return int(self._count[0])
 
     @property
     def pool_used(self) -> int:
@@ -56,7 +58,7 @@ class EventQueue:
     @property
     def next_sample(self) -> int:
         """Earliest pending sample (:data:`NONE` when empty)."""
-        return int(self.counts[0]["next_sample"])
+        return int(self._next[0])
 
     def _alloc(self, rows: int, pool: int) -> None:
         """Room for ``rows`` events and ``pool`` amplitudes (the queued ones kept)."""

@@ -39,6 +39,7 @@ class StreamTable:
         self.dtype = np.dtype(dtype)
         self.keys: dict = {}
         self.counts = np.zeros(1, STREAMS)
+        self._n = self.counts["n"]  # (a plain int64 view of the field: read on every render)
         self.state: StreamState | None = None
         #: an empty state of the same types (kernels that run before any stream exists)
         self.empty = self._make(0, 0, 1)
@@ -46,7 +47,7 @@ class StreamTable:
     @property
     def n(self) -> int:
         """Streams in use."""
-        return int(self.counts[0]["n"])
+        return int(self._n[0])
 
     def _make(self, cap, nmax, ring) -> StreamState:
         table = np.zeros(cap, STREAM)

@@ -167,6 +167,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         self._contacts = {}  # channel -> (object name or None, point, axis) in the object frame
         self._chan_w = np.zeros(0, np.complex128)
         self._consts = np.zeros(1, SYNTH_CONSTS)
+        self._rendered = self._consts["rendered"]  # (a plain int64 view: read on every render)
         for k, v in (("c", c), ("fs", float(self.sample_rate)), ("rmin", R_MIN_M), ("tol", SAMPLE_TOL),
                      ("grid", GRID), ("slack", RING_SLACK), ("cull2", self._cull2), ("floor2", FLOOR_PA**2)):
             self._consts[0][k] = v
@@ -185,11 +186,11 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
     @property
     def samples_rendered(self) -> int:
         """Samples produced by :meth:`render` since construction / :meth:`reset`."""
-        return int(self._consts[0]["rendered"])
+        return int(self._rendered[0])
 
     @samples_rendered.setter
     def samples_rendered(self, n: int) -> None:
-        self._consts[0]["rendered"] = n
+        self._rendered[0] = n
 
     @property
     def microphones(self) -> np.ndarray:
