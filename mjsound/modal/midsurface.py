@@ -31,17 +31,21 @@ __all__ = ["MidSurface", "mid_surface", "ray_hits"]
 
 #: a wall's far side faces back: normals within ~45 degrees of opposite
 WALL_FACING = 0.7
+#: a fold sharper than this [degrees] is a crease (a can's rim between wall and cap)
+CREASE_DEGREES = 30.0
 
 
 @dataclass
 class MidSurface:
-    """A mid-surface: ``vertices`` (V, 3) [m], ``faces`` (F, 3), ``thickness`` (V,) [m]
-    and ``coverage``: the fraction of the solid's surface area that is wall (both sheets)."""
+    """A mid-surface: ``vertices`` (V, 3) [m], ``faces`` (F, 3), ``thickness`` (V,) [m],
+    ``coverage``: the fraction of the solid's surface area that is wall (both sheets), and
+    ``creases``: its edges where the surface folds by more than :data:`CREASE_DEGREES`."""
 
     vertices: np.ndarray
     faces: np.ndarray
     thickness: np.ndarray
     coverage: float
+    creases: int = 0
 
 
 def _proxies(tris: np.ndarray, spacing: float, max_level: int = 32):
@@ -172,4 +176,5 @@ def mid_surface(mesh: trimesh.Trimesh) -> MidSurface:
     t_face = dist[keep]
     t_vert = np.bincount(inv, weights=np.repeat(t_face, 3), minlength=len(used)) / np.bincount(inv, minlength=len(used))
     offset = vertex_offsets(sub, 1.0) * (0.5 * t_vert)[:, None]
-    return MidSurface(np.asarray(sub.vertices) - offset, np.asarray(sub.faces), t_vert, coverage)
+    creases = int(np.sum(sub.face_adjacency_angles > np.radians(CREASE_DEGREES)))
+    return MidSurface(np.asarray(sub.vertices) - offset, np.asarray(sub.faces), t_vert, coverage, creases)
