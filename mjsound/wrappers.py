@@ -54,7 +54,7 @@ def scene_materials(materials=None, default_material=None) -> dict:
     return mapping
 
 
-def build_scene(model, mapping, sample_rate, quality="draft", method="hex", microphones=None,
+def build_scene(model, mapping, sample_rate, quality="draft", method="auto", microphones=None,
                 budget_modes=None, progress=True, models=None, **scene_kw):
     """:meth:`SoundScene.from_model` as the wrappers use it: no error estimate (a second,
     coarser solve that only reports accuracy: about 2/3 of the time of a small model), models

@@ -22,6 +22,13 @@ def test_method_choice_per_object(monkeypatch):
     kind, reason = choose_method(load_mesh("bowl:0.1,0.004"))
     assert kind == "tet-wall" and "only 98 %" in reason
     monkeypatch.undo()
+    # thin walls folded at sharp edges: a 1 mm can is a shell (43 c at its rim), a box with a
+    # 5 mm wall is not (its creases would cost ~216 c)
+    from mjsound.modal.surface import hollow
+
+    assert choose_method(hollow(load_mesh("cylinder:0.04,0.12"), 0.001))[0] == "facet"
+    kind, reason = choose_method(hollow(load_mesh("box:0.12,0.1,0.08"), 0.005))
+    assert kind == "tet-wall" and "creases" in reason and "216 cents" in reason
     for spec in ("box:0.5,0.01,0.01", "sphere:0.1", "cylinder:0.01,0.5", "box:0.2,0.15,0.008"):
         kind, reason = choose_method(load_mesh(spec))
         assert kind == "hex" and "solid, bar or plate" in reason, spec

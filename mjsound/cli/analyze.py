@@ -23,7 +23,8 @@ def register(sub) -> None:
     p.add_argument("mesh", nargs="?", default="bowl:0.1,0.004", help="mesh file or built-in shape (default: bowl:0.1,0.004)")
     p.add_argument("--material", "-m", default="aluminium",
                    help="named material (steel, glass, oak, ...) or inline 'E=70e9,nu=0.33,rho=2700[,alpha=..,beta=..]'")
-    p.add_argument("--method", choices=["hex", "tet", "shell"], default="hex", help="discretization (default hex)")
+    p.add_argument("--method", choices=["auto", "hex", "tet", "facet", "shell"], default="auto",
+                   help="discretization (default auto: shell triangles for thin curved walls, hex otherwise)")
     p.add_argument("--quality", choices=["draft", "default", "high"], default="default", help="elements per wavelength preset")
     p.add_argument("--resolution", type=int, default=None, help="N elements along the longest side (overrides --quality)")
     p.add_argument("--f-max", type=float, default=None, help="highest frequency in Hz (default min(20 kHz, 0.45*sample rate))")

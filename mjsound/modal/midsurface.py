@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-__all__ = ["MidSurface", "mid_surface", "ray_hits"]
+__all__ = ["MidSurface", "mid_surface", "ray_hits", "crease_cents"]
 
 #: a wall's far side faces back: normals within ~45 degrees of opposite
 WALL_FACING = 0.7
@@ -178,3 +178,21 @@ def mid_surface(mesh: trimesh.Trimesh) -> MidSurface:
     offset = vertex_offsets(sub, 1.0) * (0.5 * t_vert)[:, None]
     creases = int(np.sum(sub.face_adjacency_angles > np.radians(CREASE_DEGREES)))
     return MidSurface(np.asarray(sub.vertices) - offset, np.asarray(sub.faces), t_vert, coverage, creases)
+
+
+def crease_cents(thickness: float, smallest_side: float) -> float:
+    r"""How many cents flat a shell's modes next to a crease may be [cents, >= 0].
+
+    Where two walls meet at a sharp fold (a can's rim) the shell's plates span to the other
+    wall's mid-surface, half a wall farther than the solid's stiff ``t x t`` corner lets
+    them bend, so a plate mode of span ``a`` (taken as half the smallest side) is flat by
+    about ``(a / (a - t/2))^2``:
+
+    .. math:: \Delta c pprox rac{1200}{\ln 2}\,rac{t}{a}
+
+    (a 1 mm can of radius 40 mm: 43 c; measured -36 and -37 c on its end-cap modes, -13
+    and -4 c on its wall's, against extrapolated quadratic tets). The error estimate adds
+    half of it (about half the low modes of a capped can are cap modes).
+    """
+    a = 0.5 * smallest_side
+    return float(1200.0 / np.log(2.0) * thickness / a) if a > 0 else 0.0

@@ -68,6 +68,9 @@ THIN_WALL_RATIO = 0.25
 #: the facet shell applies when at least this fraction of the surface is wall (both sheets
 #: paired; the rest, a rim or end faces, is left out of the model)
 FACET_MIN_COVERAGE = 0.9
+#: ... and when its creases cost at most this many cents (:func:`.midsurface.crease_cents`:
+#: a 1 mm can of radius 40 mm, 43 c; thicker walls folded at sharp edges go to the tets)
+FACET_MAX_CREASE_CENTS = 50.0
 
 #: Quality presets. hex: elements per wavelength, least elements along the longest side,
 #: fine cells per coarse cell, least cells across a bar. wall (thin walls, quadratic
@@ -243,20 +246,25 @@ def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tupl
     if not (t < THIN_WALL_RATIO * smallest):
         return "hex", (f"hex: a solid, bar or plate (wall 2V/A = {t * 1e3:.3g} mm against its smallest side "
                        f"{smallest * 1e3:.3g} mm), where voxel hexahedra are exact in bending and fast")
-    from .midsurface import mid_surface
+    from .midsurface import crease_cents, mid_surface
 
-    coverage = mid_surface(mesh).coverage
-    if coverage >= FACET_MIN_COVERAGE:
+    mid = mid_surface(mesh)
+    coverage = mid.coverage
+    crease = crease_cents(float(np.median(mid.thickness)), smallest) if mid.creases else 0.0
+    if coverage >= FACET_MIN_COVERAGE and crease <= FACET_MAX_CREASE_CENTS:
         return "facet", (f"facet: thin curved wall ({t * 1e3:.3g} mm against a smallest side of "
                          f"{smallest * 1e3:.3g} mm), {100 * coverage:.0f} % of its surface pairs across the wall: "
                          "shell triangles on its mid-surface")
+    if coverage < FACET_MIN_COVERAGE:
+        why = f"only {100 * coverage:.0f} % of it pairs across the wall (a shell needs 90 %)"
+    else:
+        why = (f"its sharp creases would leave a shell about {crease:.0f} cents flat (over "
+               f"{FACET_MAX_CREASE_CENTS:.0f})")
     if not _tet_available():
-        return "hex", (f"hex: thin curved wall ({t * 1e3:.3g} mm) but only {100 * coverage:.0f} % of it pairs across "
-                       "the wall and TetGen is not installed (pip install 'mjsound[tet]'); expect the staircase "
-                       "error in error_estimate_cents")
-    return "tet-wall", (f"tet10 through the wall: thin curved wall ({t * 1e3:.3g} mm against a smallest side "
-                        f"of {smallest * 1e3:.3g} mm), of which only {100 * coverage:.0f} % pairs across the wall "
-                        "(a shell needs 90 %); voxels would make a staircase")
+        return "hex", (f"hex: thin wall ({t * 1e3:.3g} mm), but {why} and TetGen is not installed "
+                       "(pip install 'mjsound[tet]'); expect the staircase error in error_estimate_cents")
+    return "tet-wall", (f"tet10 through the wall: thin wall ({t * 1e3:.3g} mm against a smallest side "
+                        f"of {smallest * 1e3:.3g} mm), but {why}; voxels would make a staircase")
 
 
 def _estimate_dofs(kind: str, mesh: trimesh.Trimesh, h: float, order: int, refine: int | None,

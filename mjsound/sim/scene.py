@@ -171,7 +171,7 @@ class SoundScene:
         quality: str = "default",
         progress: bool = True,
         *,
-        method: str = "hex",
+        method: str = "auto",
         models: dict | None = None,
         cache: bool = True,
         objects: str = "body",
@@ -205,7 +205,9 @@ class SoundScene:
         progress : bool
             Progress bar (stderr) over the analyses; it appears once they take over a second.
         method : str
-            Discretization (``"hex"`` default); on failure falls back to ``hex``, then silence.
+            Discretization (``"auto"`` default: per object, shell triangles for thin curved
+            walls, voxel hexahedra otherwise; see :func:`mjsound.analyze`); on failure falls
+            back to ``hex``, then silence.
         models : dict, optional
             Precomputed ``{object_name: ModalModel}``; those objects skip analysis.
         cache : bool
