@@ -256,7 +256,7 @@ def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tupl
                          f"{smallest * 1e3:.3g} mm), {100 * coverage:.0f} % of its surface pairs across the wall: "
                          "shell triangles on its mid-surface")
     if coverage < FACET_MIN_COVERAGE:
-        why = f"only {100 * coverage:.0f} % of it pairs across the wall (a shell needs 90 %)"
+        why = f"only {100 * coverage:.0f} % of it pairs across the wall (a shell needs {100 * FACET_MIN_COVERAGE:.0f} %)"
     else:
         why = (f"its sharp creases would leave a shell about {crease:.0f} cents flat (over "
                f"{FACET_MAX_CREASE_CENTS:.0f})")
