@@ -409,7 +409,7 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
         w("")
         w("First-eight error: the bowl's first eight modes (those below f_max) against the converged "
           "reference; estimate: the model's own `error_estimate_cents`. auto = the per-object choice "
-          "(tet10 through the wall for the bowl).")
+          "(shell triangles on the mid-surface, `facet`, for the bowl).")
         w("")
         w("| method | f_max [Hz] | modes | dofs | wall [s] | peak mem [MB] | first-eight RMS [c] | max [c] | estimate [c] |")
         w("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -495,8 +495,8 @@ def _knobs(modal, fmax, synth, e2e):
             q.append(f"{shape}: " + "; ".join(parts))
     out.append("* **quality** (RMS cents / wall time): " + " — ".join(q) + ". "
                "Draft is for previews and training at scale; default is the recommended setting; the default "
-               "method (auto) uses hex for compact and bar-like objects and one quadratic tet through the wall "
-               "for thin curved walls such as bowls, where hex is a staircase; `high` for final renders.")
+               "method (auto) uses hex for compact and bar-like objects and shell triangles on the mid-surface "
+               "(`facet`) for thin curved walls such as bowls, where hex is a staircase; `high` for final renders.")
     for method in dict.fromkeys(r.get("method", "hex") for r in fmax):
         rows = [r for r in fmax if r.get("method", "hex") == method]
         s = ", ".join(f"{r['f_max']:.0f} Hz: {r['n_modes']} modes in {_f(r['wall_s'], '{:.1f}')} s, first eight "
@@ -539,8 +539,8 @@ def _knobs(modal, fmax, synth, e2e):
                        f"{r['label']}: RTF {_f(r['rtf'], '{:.0f}')}, bands {_f(r['band_rms_db'], '{:.2f}')} dB RMS"
                        for r in ts) + ".")
     out.append("")
-    out.append("**Recommended defaults**: `quality='default'`, `method='auto'` (hex for solids and bars, one "
-               "quadratic tet through thin curved walls), `f_max` = min(20 kHz, 0.45 fs), float32 state, "
+    out.append("**Recommended defaults**: `quality='default'`, `method='auto'` (hex for solids and bars, shell "
+               "triangles on the mid-surface of thin curved walls), `f_max` = min(20 kHz, 0.45 fs), float32 state, "
                "`cull_db=-100`, all modes "
                "(a `budget_modes` only for scenes with many objects).")
     return out
