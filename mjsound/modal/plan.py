@@ -203,30 +203,19 @@ def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, qualit
 
 
 def wall_element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
-                      resolution: int | None = None) -> float:
-    """In-wall element size [m] of a thin wall (one quadratic tet through it): the bending
-    wavelength of the wall at ``f_max`` over ``wall_per_wavelength``, at most the longest
-    side over ``wall_min_per_side`` (the lowest modes' floor, independent of f_max)."""
+                      resolution: int | None = None, kind: str = "wall") -> float:
+    """In-wall element size [m] of a thin wall: the bending wavelength of the wall at
+    ``f_max`` over ``{kind}_per_wavelength``, at most the longest side over
+    ``{kind}_min_per_side`` (the lowest modes' floor, independent of f_max). ``kind``:
+    ``"wall"`` (one quadratic tet through the wall) or ``"facet"`` (the shell's longest
+    mid-surface edge; the 20 cm bowl's first eight modes are within 1.8 cents at 33 per
+    side, 5 .. 13 cents at 16 and 20)."""
     size = float(np.max(mesh.extents))
     if resolution is not None:
         return size / int(resolution)
     q = _quality(quality)
     lam_b = _bending_wavelength(material, thin_wall(mesh), f_max)
-    return float(min(lam_b / q["wall_per_wavelength"], size / q["wall_min_per_side"]))
-
-
-def facet_element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, quality: str = "default",
-                       resolution: int | None = None) -> float:
-    """Longest mid-surface edge [m] of the facet shell: the wall's bending wavelength at
-    ``f_max`` over ``facet_per_wavelength``, at most the longest side over
-    ``facet_min_per_side`` (the lowest modes' floor, independent of f_max: the 20 cm bowl's
-    first eight modes are within 3.3 cents at 33 per side, 5.6 .. 14 cents at 20)."""
-    size = float(np.max(mesh.extents))
-    if resolution is not None:
-        return size / int(resolution)
-    q = _quality(quality)
-    lam_b = _bending_wavelength(material, thin_wall(mesh), f_max)
-    return float(min(lam_b / q["facet_per_wavelength"], size / q["facet_min_per_side"]))
+    return float(min(lam_b / q[f"{kind}_per_wavelength"], size / q[f"{kind}_min_per_side"]))
 
 
 def _tet_available() -> bool:
@@ -388,7 +377,7 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
         if kind == "tet-wall":
             h = wall_element_size(mesh, material, f_max, q, resolution)
         elif kind == "facet":
-            h = facet_element_size(mesh, material, f_max, q, resolution)
+            h = wall_element_size(mesh, material, f_max, q, resolution, kind="facet")
         else:
             h = element_size(mesh, material, f_max, q, resolution, thickness, order if kind != "shell" else 1)
         r = refine
