@@ -132,31 +132,42 @@ def test_bowl_first_eight_modes_against_the_converged_reference(f_max):
         assert 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)
 
 
-def test_hollow_can_against_tet10_and_the_converged_shell():
+def test_hollow_can_against_tet10():
     """Aluminium can (cylinder radius 40 mm, 120 mm, 48 sections) made hollow with a 1 mm wall.
 
     Reference, solid: one quadratic tet through the wall, surface edges 6, 4, 3 mm
     (``discretize_tet(hollow(can, 0.001), AL, h, pts, through_wall=False)``; 250 059 ..
     627 936 dofs): 1589.0, 1521.6, 1501.5 Hz (first mode), extrapolated with the measured
-    order 2.45 to 1481.9, 1601.9, 2472.4, 2472.4, 2793.3, 2793.3 Hz. The shell is flat in the
-    end caps' modes by about t / R (-37 and -36 cents: its caps span to the wall's
-    mid-surface, where the solid's t x t corner is stiff) and within 13 cents on the wall's.
-    Reference, shell: ``method="facet", resolution=60`` (138 648 dofs): 1449.97, 1569.45,
-    2452.99, 2453.24, 2784.77, 2785.95 Hz; draft is within 5 cents of it. The error estimate
-    includes the creases' share; the mass is the wall's; pairs within 0.5 cent."""
+    order 2.45 to 1481.9, 1601.9, 2472.4, 2472.4, 2793.3, 2793.3 Hz. The shell (draft here)
+    measured -14.9, -13.2, -6.9, -6.5, +0.3, +0.5 cents (default: -8.3, -7.4, -9.0, -8.6,
+    -1.9, -1.5; ``resolution=60``: -2.7, -2.5, -8.9, -8.8, -3.2, -2.5): the end caps' modes
+    depend on the rigid-corner correction at the rim (without it -38 and -36 cents). The
+    error estimate includes the crease's share and is within a factor of two of the
+    measured RMS; the mass is the wall's; pairs within 0.5 cent."""
     from mjsound.modal.surface import hollow
 
     m = analyze("cylinder:0.04,0.12", "aluminium", wall="1mm", quality="draft", f_max=3000, cache=False)
     assert m.method == "facet" and m.info["wall"] == 0.001 and m.info["crease_edges"] > 0
-    f = m.frequencies_hz[:6]
-    shell = np.array([1449.97, 1569.45, 2452.99, 2453.24, 2784.77, 2785.95])
-    assert np.all(np.abs(cents(f, shell)) < 5), cents(f, shell)
     solid = np.array([1481.9, 1601.9, 2472.4, 2472.4, 2793.3, 2793.3])
-    c = cents(f, solid)
-    assert np.all((c[:2] > -45) & (c[:2] < -25)) and np.all(np.abs(c[2:]) < 15), c
+    c = cents(m.frequencies_hz[:6], solid)
+    assert np.all(np.abs(c) < 16), c
     assert abs(c[2] - c[3]) < 0.5 and abs(c[4] - c[5]) < 0.5
-    # the error estimate says so (crease_cents): within a factor of two of the measured RMS
     rms = np.sqrt(np.mean(c**2))
-    assert m.info["crease_cents"] < -20 and 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)
+    assert m.info["crease_cents"] < -5 and 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)
     wall = hollow(load_mesh("cylinder:0.04,0.12"), 0.001)
     assert m.mass_kg == pytest.approx(wall.volume * AL.rho, rel=0.005)
+
+
+def test_rigid_corner_stiffens_only_triangles_along_a_crease():
+    """Flat plate: no factor; a right-angle fold: the triangles on the fold by l / (l - t/2)."""
+    from mjsound.modal.facet_shell import rigid_corner_factor
+
+    V, F = square_plate(4, 0.1)
+    assert np.all(rigid_corner_factor(V, F, np.full(len(F), 0.002)) == 1.0)
+    W = V.copy()
+    fold = W[:, 0] > 0.05 + 1e-9  # x > 5 cm folds up into z
+    W[fold, 2], W[fold, 0] = W[fold, 0] - 0.05, 0.05
+    f = rigid_corner_factor(W, F, np.full(len(F), 0.002))
+    on_line = np.isclose(W[:, 0], 0.05) & np.isclose(W[:, 2], 0.0)
+    on = on_line[F].sum(axis=1) == 2  # a side on the fold: 25 mm long, 25 mm high across it
+    assert on.sum() == 8 and np.allclose(f[on], 1 / (1 - 0.001 / 0.025)) and np.all(f[~on] == 1.0)

@@ -409,11 +409,11 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
             order = HEX_STAIRCASE_ERROR_ORDER
         err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=order)
     if method == "facet" and disc.info.get("crease_edges", 0) > 0:
-        from .midsurface import crease_cents
+        from .midsurface import CREASE_RESIDUAL, crease_cents
 
-        crease = crease_cents(float(np.median(disc.info["thickness"])), float(np.min(tm.extents)))
+        crease = CREASE_RESIDUAL * crease_cents(float(np.median(disc.info["thickness"])), float(np.min(tm.extents)))
         info["crease_cents"] = -crease
-        err = float(np.hypot(err, 0.5 * crease)) if np.isfinite(err) else err
+        err = float(np.hypot(err, crease)) if np.isfinite(err) else err
     if pool is not None:
         pool.shutdown(wait=True, cancel_futures=True)
     name = method

@@ -84,7 +84,7 @@ import scipy.sparse as sp
 
 from .discretization import Discretization
 
-__all__ = ["facet_matrices", "discretize_facet", "DRILL_ALPHA", "DRILL_INERTIA", "MASS_LUMPING"]
+__all__ = ["facet_matrices", "discretize_facet", "rigid_corner_factor", "DRILL_ALPHA", "DRILL_INERTIA", "MASS_LUMPING"]
 
 #: drilling spring as a fraction of G t A (small: it must not stiffen the membrane)
 DRILL_ALPHA = 1e-4
@@ -365,6 +365,7 @@ def discretize_facet(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndar
     n_nodes = len(V)
     te = tv[F].mean(axis=1)
     Ke, Me = facet_matrices(V[F], te, material.E, material.nu, material.rho)
+    Ke *= rigid_corner_factor(V, F, te)[:, None, None]
     K, M = _assemble(F, Ke, Me, n_nodes)
     pts = np.asarray(points, float).reshape(-1, 3)
     p = len(pts)
@@ -422,3 +423,36 @@ def _nearest_on_triangles(V: np.ndarray, F: np.ndarray, pts: np.ndarray, k: int 
     best = np.argmin(dist, axis=1)
     r = np.arange(len(pts))
     return q[r, best], dist[r, best], cand[r, best]
+
+
+def rigid_corner_factor(V: np.ndarray, F: np.ndarray, thickness: np.ndarray,
+                        crease_degrees: float = 30.0) -> np.ndarray:
+    r"""Stiffness factor (F,) of each triangle for the solid corner at a crease.
+
+    Where two walls meet at a sharp fold (a can's rim) the mid-surfaces meet at the middle
+    of the solid's ``t x t`` corner, so each wall's shell reaches ``w = t / 2`` into a
+    block that hardly deforms. A triangle along the crease (height ``l`` across it) bends
+    and stretches over ``l - w`` only; with the strain constant across it its stiffness
+    is ``l / (l - w)`` times the shell's (``w / l`` at most 1/2):
+
+    .. math:: K_e \leftarrow \frac{1}{1 - \min(t / 2 l,\ 1/2)} K_e
+
+    A 1 mm aluminium can of radius 40 mm: its end caps' modes -38 / -36 cents against
+    extrapolated quadratic tets without this, -8 / -7 with it (default quality).
+    """
+    import trimesh
+
+    m = trimesh.Trimesh(V, F, process=False)
+    adj = m.face_adjacency
+    sharp = m.face_adjacency_angles > np.radians(crease_degrees)
+    factor = np.ones(len(F))
+    if not sharp.any():
+        return factor
+    e = m.face_adjacency_edges[sharp]
+    length = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    for side in (0, 1):
+        f = adj[sharp, side]
+        height = 2.0 * m.area_faces[f] / length
+        w = np.minimum(0.5 * thickness[f] / height, 0.5)
+        factor[f] = np.maximum(factor[f], 1.0 / (1.0 - w))
+    return factor
