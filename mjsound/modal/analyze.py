@@ -314,6 +314,8 @@ def analyze(
         from .surface import hollow
 
         tm = hollow(tm, float(wall))
+    elif method == "auto" and thickness is not None and not tm.is_watertight:
+        tm = _open_surface_as_shell(tm, float(thickness))
     # Modes above the frequency where Rayleigh damping leaves them less than a cycle of
     # ringing (Q < MIN_Q; overdamped a little higher) make a thud, not a tone: neither the
     # mesh nor the solve is sized for them (rubber: 0.7 kHz instead of 20 kHz shear waves,
@@ -357,6 +359,21 @@ def analyze(
         except OSError as exc:
             warnings.warn(f"could not write cache entry {path}: {exc}", stacklevel=2)
     return model
+
+
+def _open_surface_as_shell(tm, thickness: float):
+    """An open surface standing for a wall of ``thickness`` [m]: the closed slab of that
+    wall around it (:func:`.surface.hollow`) when the shell applies to the slab (a curved
+    wall: a bowl given by one sheet), so auto analyses its mid-surface; otherwise the
+    surface unchanged (hex makes it a slab of voxels: exact for a flat plate)."""
+    from .plan import choose_method
+    from .surface import hollow
+
+    try:
+        slab = hollow(tm, thickness)
+    except ValueError:  # non-manifold, or too thick for its features: hex copes
+        return tm
+    return slab if choose_method(slab)[0] == "facet" else tm
 
 
 def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, progress, f_ring, resolution,
