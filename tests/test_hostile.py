@@ -305,6 +305,8 @@ def test_streamed_file_equals_the_whole_take(scene, tmp_path, normalize):
     assert fs == 48000 and got.shape == (120000, 1)
     np.testing.assert_array_equal(got.T, want)
     assert 0 < s["warmup_seconds"] < s["wall_seconds"] and np.isfinite(s["realtime_factor"])
+    assert s["timed_wall_seconds"] + s["warmup_seconds"] <= s["wall_seconds"] + 1e-9
+    assert s["realtime_factor"] == pytest.approx(s["timed_sim_seconds"] / s["timed_wall_seconds"])
     assert not [n for n in os.listdir(tmp_path) if n.startswith(".mjsound-tmp")]
 
 

@@ -140,8 +140,8 @@ def _report(summary, args) -> int:
     extra = f"; rerun logging {obs:.2f} s more" if obs > 0 else ""
     warm = s.get("warmup_seconds", 0.0)
     extra += f"; kernel warm-up (numba compiles on a first run) and first block {warm:.2f} s excluded" if warm > 0 else ""
-    print(f"speed      {s['realtime_factor']:.1f}x real time ({s['wall_seconds'] - obs:.2f} s wall for simulation and "
-          f"audio, analysis excluded{extra})")
+    print(f"speed      {s['realtime_factor']:.1f}x real time ({s['timed_sim_seconds']:.2f} s simulated with its audio in "
+          f"{s['timed_wall_seconds']:.2f} s wall, analysis excluded{extra})")
     if s["max_qpos_error"] is not None:
         print(f"resim      max |qpos - recorded| = {s['max_qpos_error']:.3g}")
     for key in ("out", "rrd", "png"):

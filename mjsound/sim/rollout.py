@@ -274,9 +274,9 @@ def sonify(
         ``wall_seconds``, ``observer_seconds`` (spent in ``on_block``), ``analysis_seconds``,
         ``warmup_seconds`` (wall time of :func:`mjsound.sim.warmup.warmup`, once per process:
         every kernel compiled or loaded, and of the first rendered block), ``realtime_factor``
-        (simulated seconds per wall second after the first block, analysis, warm-up and
-        ``on_block`` excluded), ``samples``,
-        ``channels``, ``channel_names`` (air microphones, then contact microphones),
+        (``timed_sim_seconds`` simulated per ``timed_wall_seconds`` of wall time: after the first
+        block, analysis, warm-up and ``on_block`` excluded), ``samples``, ``channels``,
+        ``channel_names`` (air microphones, then contact microphones),
         ``peak_pa`` (air channels), ``clipped``, ``out``, ``mode``, ``max_qpos_error`` (resim
         of a rollout), and ``audio`` (the (channels, n) float32 pressure array [Pa], or None).
     """
@@ -439,6 +439,8 @@ def sonify(
         "analysis_seconds": scene.analysis_seconds,
         "warmup_seconds": w0 if timed_sim < sim_seconds else t_warm,
         "realtime_factor": timed_sim / timed_wall if timed_wall > 0 else float("inf"),
+        "timed_sim_seconds": timed_sim,
+        "timed_wall_seconds": timed_wall,
         "samples": int(take.samples),
         "channels": int(sim.n_channels),
         "channel_names": list(sim.channel_names),
