@@ -95,6 +95,21 @@ def ray_hits(tris: np.ndarray, origins: np.ndarray, dirs: np.ndarray, guess: np.
     k = min(k, len(pts))
     _, near = cKDTree(pts).query(guess, k=k)
     cand = owner[near.reshape(len(origins), k)]
+    dist = np.full(len(origins), np.inf)
+    face = np.full(len(origins), -1)
+    for s0 in range(0, len(origins), RAY_CHUNK):  # bounded memory: (chunk, k, 3) arrays
+        sl = slice(s0, s0 + RAY_CHUNK)
+        dist[sl], face[sl] = _moller_trumbore(tris, cand[sl], origins[sl], dirs[sl])
+    return dist, face
+
+
+#: rays tested at once in :func:`ray_hits`
+RAY_CHUNK = 8192
+
+
+def _moller_trumbore(tris, cand, origins, dirs):
+    """Nearest hit (R,) distances and (R,) triangles (-1: none) of each ray among its
+    candidate triangles ``cand`` (R, k)."""
     a, b, c = (tris[cand, i] for i in range(3))  # (R, k, 3)
     e1, e2 = b - a, c - a
     d = np.broadcast_to(dirs[:, None, :], e1.shape)
