@@ -236,9 +236,11 @@ def test_zero_negative_damping_and_nyquist():
                    [[0, 0, 0]], [[0, 0, 1]], np.ones((1, 3, 7)), np.ones(7), get_material("steel"))
     syn.add_object("o", m)
     assert syn.n_modes("o") == 3  # 200, 500 (damping floored), 7199; >= 0.45 fs and overdamped dropped
-    ob = syn._objects["o"]
-    assert np.all(ob.d >= D_MIN_PER_S)
-    assert np.all(ob.pr.astype(np.float64) ** 2 + ob.pi.astype(np.float64) ** 2 < 1)
+    ob = syn.object_modes("o")
+    assert np.all(ob.decay >= D_MIN_PER_S)
+    np.testing.assert_array_equal(ob.keep, [0, 1, 2])
+    np.testing.assert_allclose(ob.damped_omega, np.sqrt((2 * np.pi * np.array([200.0, 500.0, 7199.0])) ** 2
+                                                        - ob.decay**2))
     syn.impact("o", [0, 0, 0], [0, 0, 1.0], 0.0)
     a = np.abs(syn.render(fs)).max()
     for _ in range(5):
@@ -434,9 +436,10 @@ def test_many_objects_keep_their_poses_and_delays():
         syn.add_object(f"o{i}", one_mode(f=500.0 + 10 * i), position=(1.0 + i, 0, 0))
     syn.set_pose("o3", (0, 5.0, 0), np.eye(3)[[1, 0, 2]])
     for i in range(20):
-        ob = syn._objects[f"o{i}"]
-        np.testing.assert_array_equal(ob.pos, (0, 5.0, 0) if i == 3 else (1.0 + i, 0, 0))
-    np.testing.assert_array_equal(syn._objects["o3"].R, np.eye(3)[[1, 0, 2]])
+        pos, R = syn.object_pose(f"o{i}")
+        np.testing.assert_array_equal(pos, (0, 5.0, 0) if i == 3 else (1.0 + i, 0, 0))
+        np.testing.assert_array_equal(R, np.eye(3)[[1, 0, 2]] if i == 3 else np.eye(3))
+    np.testing.assert_allclose(syn.object_modes("o19").mic_distances, [20.0])
     syn.impact("o19", (20.0, 0, 0), (0, 0, 0.01), 0.0, pulse_s=0.0)
     y = syn.render(FS // 10)[0]
     first = np.flatnonzero(y)[0]

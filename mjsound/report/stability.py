@@ -45,7 +45,7 @@ class Row:
 
 # ---------------------------------------------------------------------------- helpers
 def _obj(syn, name):
-    return syn._objects[name]
+    return syn.object_modes(name)
 
 
 def amplitude_bound(syn, name, points, impulses) -> float:
@@ -53,12 +53,12 @@ def amplitude_bound(syn, name, points, impulses) -> float:
     ob = _obj(syn, name)
     P = np.asarray(points, float).reshape(-1, 3)
     J = np.asarray(impulses, float).reshape(-1, 3)
-    Pl = (P - ob.pos) @ ob.R
-    Jl = J @ ob.R
+    Pl = (P - ob.position) @ ob.rotation
+    Jl = J @ ob.rotation
     idx = ob.model.nearest_points(Pl)
-    G = np.abs(np.einsum("kcn,kc->kn", ob.shk[idx], Jl)).sum(axis=0)  # (n,)
-    r = float(np.min(syn._distances(ob)))
-    return float(np.sum(np.abs(ob.weights) * G / ob.wd) / r)
+    G = np.abs(np.einsum("kcn,kc->kn", ob.shapes[idx], Jl)).sum(axis=0)  # (n,)
+    r = float(np.min(ob.mic_distances))
+    return float(np.sum(np.abs(ob.weights) * G / ob.damped_omega) / r)
 
 
 def closed_form(syn, name, points, impulses, times, n0, n1, mic=0):
@@ -68,11 +68,11 @@ def closed_form(syn, name, points, impulses, times, n0, n1, mic=0):
     P = np.asarray(points, float).reshape(-1, 3)
     J = np.asarray(impulses, float).reshape(-1, 3)
     T = np.broadcast_to(np.asarray(times, float), (len(P),))
-    Pl = (P - ob.pos) @ ob.R
-    Jl = J @ ob.R
+    Pl = (P - ob.position) @ ob.rotation
+    Jl = J @ ob.rotation
     idx = ob.model.nearest_points(Pl)
-    G = np.einsum("kcn,kc->kn", ob.shk[idx], Jl)
-    r = float(syn._distances(ob)[mic])
+    G = np.einsum("kcn,kc->kn", ob.shapes[idx], Jl)
+    r = float(ob.mic_distances[mic])
     # events at the same time superpose exactly: sum their modal amplitudes first
     tu, inv = np.unique(T, return_inverse=True)
     Gu = np.zeros((len(tu), G.shape[1]))
@@ -82,15 +82,16 @@ def closed_form(syn, name, points, impulses, times, n0, n1, mic=0):
     n = np.arange(n0, n1)
     out = np.zeros(len(n))
     for k in range(len(tu)):
-        c = Gu[k] / ob.wd * ob.weights / r  # (modes,)
+        c = Gu[k] / ob.damped_omega * ob.weights / r  # (modes,)
         live = n >= na[k]
         if not live.any():
             continue
         # sum over modes in chunks (exact exponent, no recursion)
         tt = n[live] / fs - ta[k]
         acc = np.zeros(live.sum())
+        lam = -ob.decay + 1j * ob.damped_omega
         for a in range(0, len(c), 64):
-            acc += np.imag(np.exp(np.outer(tt, ob.lam[a:a + 64])) @ c[a:a + 64])
+            acc += np.imag(np.exp(np.outer(tt, lam[a:a + 64])) @ c[a:a + 64])
         out[live] += acc
     return out
 
@@ -198,7 +199,7 @@ def case_damping(quick):
     okb, mx = _bounded(y, b)
     ref = closed_form(syn, "o", p, J, 0.0, 0, len(y))
     e = _err_db(y, ref)
-    d = float(np.min(_obj(syn, "o").d))
+    d = float(np.min(_obj(syn, "o").decay))
     rows.append(Row("nearly undamped", "aluminium alpha=beta=0 (beam, 2 s)", okb and e < -60 and d > 0,
                     f"decay floored at {d:g} 1/s; error vs closed form {e:.1f} dB; max|p| = {mx / b:.3f} of bound",
                     time.perf_counter() - t0))
@@ -299,12 +300,12 @@ def case_timesteps(quick):
         wall = time.perf_counter() - ts
         n_exp = math.ceil(round(round(dur / dt) * dt, 12) * FS)
         ob = _obj(sim.synth, "plate")
-        r = float(np.min(sim.synth._distances(ob)))
-        phimax = np.max(np.linalg.norm(ob.shk, axis=1), axis=0)  # (n,)
+        r = float(np.min(ob.mic_distances))
+        phimax = np.max(np.linalg.norm(ob.shapes, axis=1), axis=0)  # (n,)
         gp = scene.by_geom()
         plate_hits = [e for e in sim.event_log if e[1] == "impact" and (e[2] in gp or e[3] in gp)]
         Jsum = sum(abs(float(e[4])) for e in plate_hits)
-        b = Jsum * float(np.sum(np.abs(ob.weights) * phimax / ob.wd)) / r
+        b = Jsum * float(np.sum(np.abs(ob.weights) * phimax / ob.damped_omega)) / r
         okb, mx = _bounded(y, b)
         ok = okb and len(y) == n_exp and np.all(np.isfinite(y))
         rows.append(Row("physics timestep", f"dt = {dt:g} s, drop scene, {dur} s", ok,

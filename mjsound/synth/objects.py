@@ -17,7 +17,7 @@ import numpy as np
 from .constants import D_MIN_PER_S, GRID, RHO_AIR
 from .records import Bank, BankLayout, ObjectTable
 
-__all__ = ["finite_array", "VoiceState", "PoseTable", "SynthObject", "prepare_object", "Layout", "build_layout"]
+__all__ = ["finite_array", "VoiceState", "PoseTable", "SynthObject", "ObjectModes", "prepare_object", "Layout", "build_layout"]
 
 
 def finite_array(x, _unused, what, fix):
@@ -81,6 +81,22 @@ class SynthObject:
     @R.setter
     def R(self, R) -> None:
         self.poses.R[self.index] = R
+
+
+class ObjectModes(NamedTuple):
+    """The modes the synthesizer renders for one object, as it holds them (read-only copies;
+    for references and reports, :meth:`.Synthesizer.object_modes`). ``n`` kept modes, ``p``
+    surface samples, ``m`` microphones."""
+
+    position: np.ndarray  #: (3,) [m], object to world
+    rotation: np.ndarray  #: (3, 3), object to world
+    model: object  #: the :class:`~mjsound.modal.model.ModalModel` added
+    keep: np.ndarray  #: (n,) int, indices of the kept modes in ``model`` (audible, underdamped)
+    shapes: np.ndarray  #: (p, 3, n) mass-normalised mode shapes at the surface samples
+    decay: np.ndarray  #: (n,) decay rate d [1/s]
+    damped_omega: np.ndarray  #: (n,) damped angular frequency sqrt(w0^2 - d^2) [rad/s]
+    weights: np.ndarray  #: (n,) radiation weight [Pa m]: a modal displacement q gives weights * q / r at r
+    mic_distances: np.ndarray  #: (m,) distance to each microphone [m] (floored at R_MIN_M)
 
 
 def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiation, f_max, n_mics) -> SynthObject:

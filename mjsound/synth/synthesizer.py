@@ -53,7 +53,7 @@ from .constants import (D_MIN_PER_S, FLOOR_PA, GRID, MAX_AMPLITUDE, R_MIN_M, ROL
                         SAMPLE_TOL, SLIDE_GRAIN_M, SLIDE_ROUGHNESS, TIME_TOLERANCE_S)
 from .impacts import ImpactMethods
 from .interrupt import interruptible
-from .objects import PoseTable, SynthObject, VoiceState, build_layout, finite_array, prepare_object
+from .objects import ObjectModes, PoseTable, SynthObject, VoiceState, build_layout, finite_array, prepare_object
 from .queue import EventQueue
 from .records import AIR, CHANNEL, DEAF, SYNTH_CONSTS, EventRows, SourceRows, SynthState
 from .sources import ForcingSources
@@ -274,6 +274,14 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         """``(position (3,), rotation (3, 3))`` of object ``name`` (object to world), copies."""
         ob = self._get(name)
         return ob.pos.copy(), ob.R.copy()
+
+    def object_modes(self, name) -> ObjectModes:
+        """The kept modes of object ``name`` as this synthesizer renders them (copies): pose,
+        shapes, decay, damped frequency, radiation weights and microphone distances. For
+        references computed outside the renderer (closed forms, bounds)."""
+        ob = self._get(name)
+        return ObjectModes(ob.pos.copy(), ob.R.copy(), ob.model, ob.keep.copy(), ob.shk.copy(), ob.d.copy(),
+                           ob.wd.copy(), np.array(ob.weights, np.float64), self._distances(ob))
 
     def object_points_world(self, name) -> np.ndarray:
         """The surface samples of ``name``'s model in world coordinates, (p, 3) [m]."""
