@@ -37,6 +37,33 @@ def test_method_choice_per_object(monkeypatch):
     assert kind == "hex" and "open" in reason
 
 
+def test_unions_of_overlapping_parts_go_to_the_voxels():
+    """A body of several geoms is a union whose closed parts cut into each other (a kitchen
+    cabinet of gymnasium-robotics' FrankaKitchen: 13 thin boards; TetGen crashed the process on
+    it): auto gives it to hex, and the tet method refuses it with an error. Parts apart, or a
+    cavity inside its shell, are not overlaps."""
+    from mjsound.modal.plan import overlapping_parts
+    from mjsound.modal.surface import hollow
+    from mjsound.modal.tet import tetrahedralize
+
+    def board(extents, at):
+        b = trimesh.creation.box(extents=extents)
+        b.apply_translation(at)
+        return b
+
+    # two thin boards crossing (an L of a cabinet's side and shelf), a third one apart
+    parts = [board([0.2, 0.004, 0.1], [0, 0, 0]), board([0.004, 0.1, 0.1], [0.05, 0.02, 0]),
+             board([0.1, 0.1, 0.004], [0.5, 0, 0])]
+    union = trimesh.util.concatenate(parts)
+    assert union.is_watertight and overlapping_parts(union) == 2
+    kind, reason = choose_method(union)
+    assert kind == "hex" and "2 of which overlap" in reason
+    with pytest.raises(ValueError, match="union of closed parts"):
+        tetrahedralize(union, 0.01)
+    assert overlapping_parts(trimesh.util.concatenate([parts[0], parts[2]])) == 0
+    assert overlapping_parts(hollow(load_mesh("cylinder:0.04,0.12"), 0.001)) == 0
+
+
 def test_mode_estimate_against_measured_counts():
     """Weyl / thin-wall / bar estimates within a factor of two of counts the analysis found:
     bowl 114 modes to 20 kHz, beam 9 modes to 6 kHz (reports/accuracy.md)."""

@@ -226,10 +226,40 @@ def _tet_available() -> bool:
     return True
 
 
+def overlapping_parts(mesh: trimesh.Trimesh) -> int:
+    """How many of the mesh's closed parts may cut into another: parts whose bounding boxes
+    overlap without one holding the other (a cavity inside its shell is nested, separate
+    pieces are apart). A body made of several collision geoms is such a union; TetGen needs
+    one surface that does not cut itself (on a union it may crash the process) and the
+    mid-surface rays would pair walls of different parts, so ``auto`` gives it to the voxels,
+    whose winding rule fills unions exactly."""
+    if len(mesh.faces) == 0:
+        return 0
+    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(mesh.faces))
+    n = int(labels.max()) + 1 if len(labels) else 0
+    if n < 2:
+        return 0
+    tri = mesh.triangles  # (F, 3, 3)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, labels, tri.min(axis=1))
+    np.maximum.at(hi, labels, tri.max(axis=1))
+    eps = 1e-9 * float(np.max(mesh.extents))
+    meet = np.all(lo[:, None, :] < hi[None, :, :] - eps, axis=2) & np.all(lo[None, :, :] < hi[:, None, :] - eps, axis=2)
+    holds = np.all(lo[:, None, :] <= lo[None, :, :], axis=2) & np.all(hi[:, None, :] >= hi[None, :, :], axis=2)
+    cut = meet & ~holds & ~holds.T
+    np.fill_diagonal(cut, False)
+    return int(np.count_nonzero(cut.any(axis=1)))
+
+
 def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tuple[str, str]:
     """``("facet" | "tet-wall" | "hex", reason)`` for ``method="auto"`` (module docstring)."""
     if not mesh.is_watertight:
         return "hex", "hex: the mesh is open or non-manifold (voxel embedding handles any surface)"
+    k = overlapping_parts(mesh)
+    if k:
+        return "hex", (f"hex: a union of closed parts, {k} of which overlap another (several geoms of one "
+                       "body); the voxel embedding fills unions exactly")
     t = thin_wall(mesh, thickness)
     smallest = float(np.min(mesh.extents))
     if not (t < THIN_WALL_RATIO * smallest):

@@ -216,6 +216,13 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         raise ValueError(f"tet method: the mesh is empty or has non-finite vertices; {_HEX_HINT}")
     if h is not None and not (np.isfinite(h) and h > 0):
         raise ValueError(f"tet method: element size h={h!r} must be a positive length in metres")
+    from .plan import overlapping_parts
+
+    k = overlapping_parts(mesh)
+    if k:  # TetGen may crash the whole process on a surface that cuts itself
+        raise ValueError(f"tet method: the mesh is a union of closed parts, {k} of which overlap another "
+                         f"(several geoms of one body?); TetGen needs one surface that does not cut itself; "
+                         f"{_HEX_HINT}")
     if minratio is None:
         lmin = float(mesh.edges_unique_length.min())
         minratio = 2.0 if h is None or lmin <= 0 else float(np.clip(h / lmin, 2.0, 20.0))
