@@ -8,6 +8,7 @@ import pytest
 import scipy.sparse.linalg as sla
 import trimesh
 
+from mjsound.geometry import load_mesh
 from mjsound.materials import Material
 from mjsound.modal.tet import discretize_tet
 
@@ -174,3 +175,19 @@ def test_hollow_mesh_gets_a_cavity_in_tetgen():
     both = trimesh.util.concatenate([outer, inner])
     d = discretize_tet(both, AL, 0.01, both.vertices[:4], through_wall=False)
     assert d.info["volume"] == pytest.approx(0.1 * 0.08 * 0.06 - 0.08 * 0.06 * 0.04, rel=1e-9)
+
+
+def test_a_tetgen_crash_is_an_error_not_the_end_of_the_process(monkeypatch):
+    """TetGen runs in a child process: when it crashes (it segfaulted on a union of boards from
+    FrankaKitchen-v1) the caller gets a ValueError suggesting hex and lives on."""
+    import signal
+
+    import mjsound.modal.tet as T
+
+    box = load_mesh("box:0.1,0.1,0.1")
+    nodes, tets = T.tetrahedralize(box, 0.05)
+    e = nodes[tets[:, 1:]] - nodes[tets[:, :1]]  # (E, 3, 3) edge vectors
+    assert tets.shape[1] == 4 and np.isclose(np.linalg.det(e).sum() / 6, abs(box.volume))  # fills the box
+    monkeypatch.setattr(T, "_TETGEN_CHILD", f"import os; os.kill(os.getpid(), {int(signal.SIGSEGV)})")
+    with pytest.raises(ValueError, match=r"TetGen crashed \(signal 11\).*method=\"hex\""):
+        T.tetrahedralize(box, 0.05)

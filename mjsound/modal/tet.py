@@ -47,7 +47,12 @@ degree-4 rule such as Keast's 11-point one, without its negative weight).
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
+import tempfile
 import time
 from itertools import product
 
@@ -147,6 +152,46 @@ _MREF = {1: _reference_mass(1), 2: _reference_mass(2)}
 # --------------------------------------------------------------------------------------
 # meshing
 # --------------------------------------------------------------------------------------
+#: The child's program: load the surface, holes and switches, tetrahedralize, save the result.
+_TETGEN_CHILD = """
+import json, sys
+import numpy as np, tetgen
+d = np.load(sys.argv[1])
+t = tetgen.TetGen(d["V"], d["F"])
+for p in d["holes"]:
+    t.add_hole(p)
+try:
+    nodes, tets = t.tetrahedralize(**json.loads(sys.argv[3]))[:2]
+except Exception as exc:
+    sys.stderr.write(f"{type(exc).__name__}: {exc}\\n")
+    sys.exit(3)
+np.save(sys.argv[2], np.asarray(nodes, np.float64))
+np.save(sys.argv[2] + ".tets.npy", np.asarray(tets, np.int64))
+"""
+
+
+def _tetgen_in_child(V, F, holes, switches: dict):
+    """TetGen's ``tetrahedralize(**switches)`` of surface ``(V, F)`` with hole points ``holes``,
+    run in a child Python process: ``(nodes (N, 3) float64, tets (E, 4) int64)``.
+
+    TetGen is C++ and can crash outright (a segmentation fault, seen on a surface that cuts
+    itself) where it should raise; in a child the crash costs a :class:`RuntimeError` (and the
+    caller falls back to another method) instead of the caller's whole process. The child
+    imports only numpy and tetgen (~0.2 s of start-up).
+    """
+    with tempfile.TemporaryDirectory(prefix="mjsound-tetgen-") as tmp:
+        src, dst = os.path.join(tmp, "surface.npz"), os.path.join(tmp, "nodes.npy")
+        np.savez(src, V=V, F=F, holes=np.asarray(list(holes), np.float64).reshape(-1, 3))
+        r = subprocess.run([sys.executable, "-c", _TETGEN_CHILD, src, dst, json.dumps(switches)],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            lines = r.stderr.strip().splitlines()
+            if r.returncode < 0:
+                raise RuntimeError(f"TetGen crashed (signal {-r.returncode})")
+            raise RuntimeError(lines[-1] if lines else f"TetGen exited with status {r.returncode}")
+        return np.load(dst), np.load(dst + ".tets.npy")
+
+
 def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
                    mindihedral: float = 0.0, refine: bool = True):
     """Quality tetrahedralization of a watertight triangle mesh with TetGen.
@@ -187,7 +232,7 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         When the mesh is not watertight or TetGen fails; the message suggests ``hex``.
     """
     try:
-        import tetgen
+        import tetgen  # noqa: F401  (used in a child process, _tetgen_in_child)
     except ImportError:
         raise ValueError(
             "tet method needs the optional TetGen wrapper: pip install 'mjsound[tet]' "
@@ -237,11 +282,8 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         # TetGen out of memory; the mesh stays valid, only less refined.
         kwargs["steinerleft"] = int(max(1e5, 20.0 * abs(mesh.volume) / maxvol))
     try:
-        tgen = tetgen.TetGen(V, F)
-        for point in _cavity_points(mesh):
-            tgen.add_hole(point)
-        nodes, tets = tgen.tetrahedralize(**kwargs)[:2]
-    except Exception as exc:  # TetGen raises RuntimeError on self-intersections etc.
+        nodes, tets = _tetgen_in_child(V, F, _cavity_points(mesh), kwargs)
+    except RuntimeError as exc:  # TetGen's own error, or its crash
         raise ValueError(
             f"tet method: TetGen could not tetrahedralize this mesh ({exc}); it may be "
             f"self-intersecting or badly shaped; {_HEX_HINT}"
