@@ -30,7 +30,7 @@ import os
 __all__ = [
     "SAMPLE_RATE_RANGE", "TIMESTEP_RANGE", "MAX_DURATION_S", "MAX_STEPS",
     "check_sample_rate", "check_timestep", "check_duration", "check_steps", "memory_budget_bytes",
-    "check_array_bytes", "finite_number", "MAX_MEMORY_ENV", "DEFAULT_MAX_MEMORY_GB",
+    "check_array_bytes", "finite_number", "max_memory_gb", "MAX_MEMORY_ENV", "DEFAULT_MAX_MEMORY_GB",
 ]
 
 #: Accepted audio sample rates [Hz] (inclusive).
@@ -41,8 +41,9 @@ TIMESTEP_RANGE = (1e-6, 1.0)
 MAX_DURATION_S = 86400.0
 #: Most physics steps one job may ask for.
 MAX_STEPS = 10**9
-#: Environment variable of the memory cap [GB = 1e9 bytes].
+#: Environment variable of the memory cap [GB = 1e9 bytes] (arrays and modal analyses).
 MAX_MEMORY_ENV = "MJSOUND_MAX_MEMORY_GB"
+#: Default memory cap [GB]: a 24 GB machine keeps 16 GB for everything else.
 DEFAULT_MAX_MEMORY_GB = 8.0
 _GB = 1e9
 
@@ -106,15 +107,27 @@ def check_steps(n_steps, what: str, fix: str = "shorten the take or use a larger
     return int(n_steps)
 
 
+def max_memory_gb(value: float | None = None) -> float:
+    """The memory cap [GB]: ``value``, else ``$MJSOUND_MAX_MEMORY_GB``, else
+    :data:`DEFAULT_MAX_MEMORY_GB`."""
+    source = "max_memory_gb"
+    if value is None:
+        env = os.environ.get(MAX_MEMORY_ENV)
+        if env is None or not env.strip():
+            return DEFAULT_MAX_MEMORY_GB
+        value, source = env, f"${MAX_MEMORY_ENV}"
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{source}={value!r} is not a number of gigabytes") from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{source}={value!r} must be a positive number of gigabytes")
+    return v
+
+
 def memory_budget_bytes() -> int:
-    """The most bytes one in-memory array may take: ``$MJSOUND_MAX_MEMORY_GB`` GB (default 8)."""
-    text = os.environ.get(MAX_MEMORY_ENV, "").strip()
-    if not text:
-        return int(DEFAULT_MAX_MEMORY_GB * _GB)
-    gb = finite_number(text, f"${MAX_MEMORY_ENV}")
-    if gb <= 0:
-        raise ValueError(f"${MAX_MEMORY_ENV}={text!r} must be a positive number of gigabytes")
-    return int(gb * _GB)
+    """The most bytes one in-memory array may take: :func:`max_memory_gb` in bytes."""
+    return int(max_memory_gb() * _GB)
 
 
 def check_array_bytes(nbytes, what: str, fix: str) -> None:

@@ -43,23 +43,18 @@ the accuracy report's runs (measured peaks 0.5 .. 1.5 x the estimate).
 from __future__ import annotations
 
 import math
-import os
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
 
+from ..limits import DEFAULT_MAX_MEMORY_GB, MAX_MEMORY_ENV, max_memory_gb
 from ..materials import Material
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
            "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER"]
 
-#: default cap on the analysis' estimated peak memory [GB]: a 24 GB machine keeps 16 GB
-#: for the simulator, the renderer and everything else
-DEFAULT_MAX_MEMORY_GB = 8.0
-#: environment variable that overrides the default cap [GB]
-MAX_MEMORY_ENV = "MJSOUND_MAX_MEMORY_GB"
 MEMORY_PER_DOF = 20e3  # bytes per dof at 1e5 dofs (factor, matrices, assembly)
 QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
 MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
@@ -92,24 +87,6 @@ QUALITY_ORDER = ("high", "default", "draft")
 
 class AnalysisBudgetError(ValueError):
     """The analysis would exceed its memory cap even at draft resolution."""
-
-
-def max_memory_gb(value: float | None = None) -> float:
-    """The memory cap [GB]: ``value``, else ``$MJSOUND_MAX_MEMORY_GB``, else
-    :data:`DEFAULT_MAX_MEMORY_GB`."""
-    source = "max_memory_gb"
-    if value is None:
-        env = os.environ.get(MAX_MEMORY_ENV)
-        if env is None or not env.strip():
-            return DEFAULT_MAX_MEMORY_GB
-        value, source = env, f"${MAX_MEMORY_ENV}"
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{source}={value!r} is not a number of gigabytes") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{source}={value!r} must be a positive number of gigabytes")
-    return v
 
 
 def thin_wall(mesh: trimesh.Trimesh, thickness: float | None = None) -> float:
