@@ -54,9 +54,10 @@ def _one(name, quality, baseline, queue, method="auto", f_max=None):
     cents = None
     if name == "bowl":
         from mjsound.report.accuracy_modal import BOWL_REFERENCE
+        from mjsound.report.measure import cents as cents_of
 
         f8 = model.frequencies_hz[:8]
-        cents = float(np.sqrt(np.mean((1200 * np.log2(f8 / BOWL_REFERENCE[:len(f8)])) ** 2)))
+        cents = float(np.sqrt(np.mean(cents_of(f8, BOWL_REFERENCE[:len(f8)]) ** 2)))
     row = dict(name=name, method=model.method, bowl_rms_cents=cents, mesh=mesh, material=mat, dofs=int(model.dofs),
                n_modes=int(model.n_modes),
                seconds=seconds, cpu_seconds=cpu_seconds, solve_seconds=model.info["solve_seconds"], solver=model.info["solver"],

@@ -29,6 +29,8 @@ import time
 
 import numpy as np
 
+from .measure import cents
+
 __all__ = ["run_report", "run_cases", "closed_form", "amplitude_bound"]
 
 FS = 48000
@@ -104,7 +106,7 @@ def _err_db(y, ref):
 
 def _child_limited(fn, args, timeout, mem_gb):
     """Run in a forked child with a time limit and an address-space limit."""
-    from .accuracy import measure
+    from .measure import measure
 
     def limited(*a):
         import resource
@@ -467,7 +469,7 @@ def _degenerate_case(label, inp, builder, kw, ref_builder=None, expect_error=Fal
     ok = out["finite"] and out["n_modes"] > 0
     if out.get("ref") is not None and out["n_modes"]:
         m = min(len(out["ref"]), len(out["f"]), 6)
-        c = np.max(np.abs(1200 * np.log2(np.array(out["f"][:m]) / np.array(out["ref"][:m]))))
+        c = np.max(np.abs(cents(out["f"][:m], out["ref"][:m])))
         meas += f"; first {m} modes within {c:.2f} cents of the clean mesh"
         ok = ok and c < tol_cents
     return Row("degenerate mesh", f"{label}: {inp}", ok, meas, secs)
