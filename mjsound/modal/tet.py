@@ -231,13 +231,13 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
     ValueError
         When the mesh is not watertight or TetGen fails; the message suggests ``hex``.
     """
-    try:
-        import tetgen  # noqa: F401  (used in a child process, _tetgen_in_child)
-    except ImportError:
+    from .plan import _tet_available, overlapping_parts
+
+    if not _tet_available():  # (TetGen itself runs in a child process, _tetgen_in_child)
         raise ValueError(
             "tet method needs the optional TetGen wrapper: pip install 'mjsound[tet]' "
             f"(or pip install tetgen); {_HEX_HINT}"
-        ) from None
+        )
 
     if not mesh.is_watertight:
         raise ValueError(
@@ -261,8 +261,6 @@ def tetrahedralize(mesh, h: float | None, minratio: float | None = None,
         raise ValueError(f"tet method: the mesh is empty or has non-finite vertices; {_HEX_HINT}")
     if h is not None and not (np.isfinite(h) and h > 0):
         raise ValueError(f"tet method: element size h={h!r} must be a positive length in metres")
-    from .plan import overlapping_parts
-
     k = overlapping_parts(mesh)
     if k:  # TetGen may crash the whole process on a surface that cuts itself
         raise ValueError(f"tet method: the mesh is a union of closed parts, {k} of which overlap another "
