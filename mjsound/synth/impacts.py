@@ -152,11 +152,6 @@ class ImpactMethods:
         M = self.n_channels
         self._ev.reserve(M * k, M * k * self._nmax)
 
-    def has_room_for_impacts(self, k: int) -> bool:
-        """Whether ``k`` more impacts fit in the event queue without growing it."""
-        M = self.n_channels
-        return not self._dirty and self._ev.room(M * k, M * k * self._nmax)
-
     def amplitude_error(self, struck) -> ValueError:
         """The error for impacts on object indices ``struck`` whose modal amplitude is out of
         range (nothing of them was queued)."""

@@ -88,10 +88,6 @@ class EventQueue:
         if self.count + rows > len(self.events) or self.pool_used + pool > self.re.shape[0]:
             self._alloc(max(2 * len(self.events), self.count + rows), max(2 * self.re.shape[0], 2 * (self.pool_used + pool)))
 
-    def room(self, rows: int, pool: int) -> bool:
-        """Whether ``rows`` more events with ``pool`` more amplitudes fit without growing."""
-        return self.count + rows <= len(self.events) and self.pool_used + pool <= self.re.shape[0]
-
     def push(self, obj: int, mic: np.ndarray, sample: np.ndarray, kind: np.ndarray, amp: np.ndarray) -> None:
         """Queue ``k`` events of object index ``obj``: microphones ``mic`` (k,), samples
         ``sample`` (k,), kinds (k,) int8 and complex amplitudes ``amp`` (k, modes)."""

@@ -4,7 +4,6 @@ methods that drive and render them (:class:`StreamMethods`)."""
 
 from __future__ import annotations
 
-import math
 import zlib
 
 import numpy as np
@@ -12,7 +11,7 @@ import numpy as np
 from . import kernels
 from .dispatch import EntryPoint
 from .records import STREAM, STREAMS, SourceRows, StreamState
-from .streams import any_due, stream_drive, stream_seed, streams_bank_rows, streams_gains
+from .streams import any_due, stream_seed, streams_bank_rows, streams_gains
 
 __all__ = ["StreamTable", "StreamMethods"]
 
@@ -149,24 +148,6 @@ class StreamMethods:
         #: render blocks with streams and no forcing sources in one numba call (same sound to
         #: float32 rounding: 1.5e-6 of the peak on Ant-v5; False: one call per stage)
         self.fused_streams = True
-
-    def _stream_drive(self, j, p, nv, fn, v, k0, k1, rough, length, regain) -> None:
-        """Drive stream ``j`` (:meth:`stream`) on synth samples ``[k0, k1)`` with
-        sliding/rolling noise of force ``fn`` [N] and speed ``v`` [m/s] at world ``p`` along
-        world unit ``nv`` (see :meth:`slide`); the noise is generated now, so several drives may
-        come before one :meth:`render`. The gains follow the point every ``regain`` samples
-        (computed at the next render from the last point). (Drivers drive many streams per
-        step in numba: :func:`.streams.stream_drive`.)"""
-        fs = self.sample_rate
-        amp = rough * abs(fn) * abs(v)
-        fc = min(abs(v) / length, 0.45 * fs)
-        alpha = 1.0 - math.exp(-2 * math.pi * fc / fs)
-        args = (int(j), int(k0), int(k1), amp, alpha, np.asarray(p, np.float64), np.asarray(nv, np.float64),
-                int(regain))
-        need = stream_drive(self._streams.state, self._consts, *args)
-        if need:
-            self._streams.grow_ring(need)
-            stream_drive(self._streams.state, self._consts, *args)
 
     def _streams_regain(self, n) -> None:
         """Gains of the streams marked due (from their last point and normal, the objects'
