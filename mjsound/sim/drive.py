@@ -19,15 +19,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..synth.constants import MAX_AMPLITUDE
 from ..synth.kernels import commit_queued, impacts_to_queue
 from ..synth.pulse import contact_time
 from ..synth.streams import ring_need, stream_drive
 
 __all__ = ["sync_poses", "impact_sides", "queue_impacts", "missing_streams", "drive_sustained", "pose_rows",
            "follow_rows"]
-
-#: Largest accepted modal amplitude at a microphone [Pa] (as ``Synthesizer.MAX_AMPLITUDE``).
-MAX_AMPLITUDE = 1e30
 
 
 @njit(cache=True)
