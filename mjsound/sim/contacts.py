@@ -64,6 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .impulses import restitution_of
 from .pairs import contact_quantities, rehash
 from .records import (BODY, GEOM, HIT, IMPACT, LOG, MISSING, ONSET, PAIR, PAIR_ROW, READER_COUNTS, READER_PARAMS,
                       RECORD, ReaderState, StepBuffers)
@@ -533,7 +534,7 @@ class ContactReader:
         if imp is not None:
             for r in imp:
                 g1, g2 = int(r["g1"]), int(r["g2"])
-                e = self._pair_restitution(g1, g2)
+                e = float(restitution_of(self.geoms, g1, g2))
                 vi = float(r["speed"])
                 impacts.append(ImpactEvent(time=t0, geom1=g1, geom2=g2, point=r["point"].copy(),
                                            normal=r["normal"].copy(), impulse=float(r["impulse"]), speed=vi,
@@ -542,14 +543,3 @@ class ContactReader:
             ContactEvent("slide" if r["kind"] == 1 else "roll", t0, t1, int(r["g1"]), int(r["g2"]), r["point"].copy(),
                          r["normal"].copy(), float(r["force"]), float(r["speed"])) for r in sus]
         return impacts, contacts, cf
-
-    def _pair_restitution(self, g1, g2) -> float:
-        """As :func:`.impulses.restitution_of`: ``sqrt(e1 e2)``, the one known, or 0.5."""
-        e1, e2 = self.restitution[g1], self.restitution[g2]
-        if e1 == e1 and e2 == e2:
-            return float(np.sqrt(e1 * e2))
-        if e1 == e1:
-            return float(e1)
-        if e2 == e2:
-            return float(e2)
-        return 0.5
