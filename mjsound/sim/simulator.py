@@ -365,18 +365,26 @@ class AudioSimulator(SimulatorReports):
             n0, n1 = c.advance()
             self._count(n0, n1)
         else:
-            self.synth.poses_current = False  # (a physics step was taken)
             n0 = c.n
-            if self.data.ncon == 0 and not self.reader.any_open:  # nothing to read
-                self.reader.count_quiet_step()
-                c.advance()
-            else:
-                tc = _time.perf_counter()
-                self._call(1, call_step=False)
+            tc = _time.perf_counter()
+            if self._read_step():
                 self.seconds_contacts += _time.perf_counter() - tc
-                self.synth.poses_current = False
+            else:
+                c.advance()
             self._count(n0, c.n)
         return self._render_pending() if render else None
+
+    def _read_step(self, explicit=None) -> bool:
+        """Read the contacts of the step just taken and queue its sound (one kernel call;
+        ``explicit``: see :meth:`.runner.StepKernel.call`); False when nothing touches and no
+        impact record is open (the step is only counted, the clock not advanced)."""
+        self.synth.poses_current = False  # (a physics step was taken)
+        if self.data.ncon == 0 and not self.reader.any_open:  # nothing to read
+            self.reader.count_quiet_step()
+            return False
+        self._call(1, call_step=False, explicit=explicit)
+        self.synth.poses_current = False
+        return True
 
     def replay_step(self, n0: int, n1: int, t0: float, t1: float, origin: int | None = None, render: bool = True):
         """Process a recorded step (``data`` set to its frame): samples ``[n0, n1)`` and times
@@ -387,12 +395,7 @@ class AudioSimulator(SimulatorReports):
             self._origin = int(origin)
         self._count(n0, n1)
         if self.synth is not None:
-            self.synth.poses_current = False
-            if self.data.ncon == 0 and not self.reader.any_open:
-                self.reader.count_quiet_step()
-            else:
-                self._call(1, call_step=False, explicit=(t0, t1, n0, n1))
-                self.synth.poses_current = False
+            self._read_step(explicit=(t0, t1, n0, n1))
         return self._render_pending() if render else None
 
     def substeps(self, nstep: int) -> None:
