@@ -24,6 +24,7 @@ import warnings
 
 import numpy as np
 
+from ..synth.constants import ROLL_PATCH_M, ROLL_ROUGHNESS, SLIDE_GRAIN_M, SLIDE_ROUGHNESS
 from ..synth.dispatch import EntryPoint
 from .clock import SampleClock
 from .contacts import ContactReader
@@ -163,12 +164,11 @@ class AudioSimulator(SimulatorReports):
         moving = {}
         prm = np.zeros(1, DRIVE_PARAMS)
         if scene.sounding or needs_pulses(model, self._contact_sites, clicks):
-            from ..synth import synthesizer as _sy
             from ..synth.synthesizer import Synthesizer
 
             p = prm[0]
-            p["rough_slide"], p["rough_roll"] = _sy.SLIDE_ROUGHNESS, _sy.ROLL_ROUGHNESS
-            p["len_slide"], p["len_roll"] = _sy.SLIDE_GRAIN_M, _sy.ROLL_PATCH_M
+            p["rough_slide"], p["rough_roll"] = SLIDE_ROUGHNESS, ROLL_ROUGHNESS
+            p["len_slide"], p["len_roll"] = SLIDE_GRAIN_M, ROLL_PATCH_M
             self.synth = Synthesizer(sample_rate=self.sample_rate, microphones=np.asarray(scene.mic_positions),
                                      **dict(synth_kwargs or {}))
             for s in scene.sounding:
