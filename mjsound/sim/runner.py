@@ -10,8 +10,8 @@ clock jumps, out-of-range amplitudes) go to the caller's ``on_stop(reason)``
 from __future__ import annotations
 
 import numpy as np
-from numba import typeof
 
+from ..synth.dispatch import EntryPoint
 from ..synth.records import CHANNEL, SYNTH_CONSTS, ObjectTable, SynthState
 from ..synth.queue import EventQueue
 from ..synth.stream_table import StreamTable
@@ -74,8 +74,7 @@ class StepKernel:
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
         self.clock = clock
-        self._entry = None
-        self._entry_key = None
+        self._advance_call = EntryPoint(advance)
 
     @property
     def can_step(self) -> bool:
@@ -89,18 +88,9 @@ class StepKernel:
         run["ncon"], run["nefc"] = self.reader.copy_contacts(self.data)
 
     def _advance(self, args) -> None:
-        """``advance(*args)``; the compiled entry point is called directly while the argument
-        objects are the ones it was looked up for (numba's dispatch computes the types of
-        tuples in Python, microseconds per call)."""
-        key = tuple(id(a) for a in args)
-        if key == self._entry_key:
-            self._entry(*args)
-            return
-        self._entry_key = None
-        advance(*args)
-        self._keep = args  # (keeps the ids unique while they are the key)
-        self._entry = advance.overloads[tuple(typeof(a) for a in args)].entry_point
-        self._entry_key = key  # (last: an interrupt before it leaves no stale key)
+        """``advance(*args)`` through its compiled entry point (:class:`mjsound.synth.dispatch.EntryPoint`:
+        numba's dispatch computes the types of tuples in Python, microseconds per call)."""
+        self._advance_call(args)
 
     def call(self, drive, synth_state, nstep: int = 1, call_step: bool = False, explicit=None, log_limit: int = 0,
              on_stop=None, synth=None) -> None:
