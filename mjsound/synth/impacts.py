@@ -104,7 +104,7 @@ class ImpactMethods:
             tau = self._hertz_tau(ob, J, other_material, m2, R2, v, radius_m)
         if len(ob.keep) == 0 or k == 0:
             return
-        self._impacts_trusted(ob, P, J, t, tau)
+        self._impact_rows(np.full(k, ob.index, np.int64), P, J, t, tau)
 
     def _hertz_coef(self, ob, other_material, m2, R2, radius_m):
         """``(coef, e)``: :func:`.pulse.hertz_coefficient` of ``ob`` against the other body
@@ -126,16 +126,12 @@ class ImpactMethods:
             v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e)) if not math.isinf(mstar) else np.zeros(len(J))
         return np.array([contact_time(coef, vi) for vi in np.asarray(v, np.float64).reshape(-1).tolist()])
 
-    def _impacts_trusted(self, ob, P, J, t, tau):
-        """Internal fast path of :meth:`impacts`: finite (k, 3) world ``P``, ``J``, (k,) times
-        already >= :attr:`time` and pulse lengths ``tau``. State is unchanged on error."""
-        self._impact_rows(np.full(len(P), ob.index, np.int64), P, J, t, tau)
-
     def _impact_rows(self, obj, P, J, t, tau) -> None:
-        """Impacts on several objects in one numba call (the per-step driver's path): impact
-        ``i`` strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at
-        synth time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s] (rows with
-        non-finite values are skipped). State is unchanged on error."""
+        """Impacts in one numba call (:func:`.kernels.impacts_to_queue`; the per-step driver
+        queues its own in numba: :func:`mjsound.sim.drive.queue_impacts`): impact ``i``
+        strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at synth
+        time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s] (rows with non-finite
+        values are skipped). State is unchanged on error."""
         self.reserve_impacts(len(obj))
         f64 = np.float64
         count, used, nxt, amax = kernels.impacts_to_queue(
