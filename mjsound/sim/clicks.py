@@ -125,6 +125,8 @@ class ImpactPulses:
             self._masses[b] = accel_noise.dipole_masses(self._axes[b])
             self._a_eq[b] = accel_noise.equivalent_radius(self._axes[b])
         self._site_body = np.array([m.site_bodyid[s] for s in self.contact_sites], np.int64)
+        # each contact microphone's site frame in its body's frame (its axis: the frame's z)
+        self._site_frame = np.array([_quat_mat(m.site_quat[s]) for s in self.contact_sites]).reshape(-1, 3, 3)
         if self.active:
             _load_kernels()
         self._coef = {}
@@ -257,7 +259,7 @@ class ImpactPulses:
         for k in sites.tolist():
             s = self.contact_sites[k]
             site = np.asarray(data.xpos[b]) + R @ self.model.site_pos[s]
-            axis = R @ _quat_mat(self.model.site_quat[s])[:, 2]
+            axis = R @ self._site_frame[k][:, 2]
             spin = np.cross(dw, site - com)
             spin_norm = float(np.linalg.norm(spin))
             if spin_norm > cap > 0:
