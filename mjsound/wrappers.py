@@ -35,7 +35,7 @@ import gymnasium as gym
 import numpy as np
 from numba import njit
 
-from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
+from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE, check_contact_full_scale
 
 __all__ = ["AudioObservation", "AudioWindow", "EnvAudio", "scene_materials", "stft_log1p"]
 
@@ -197,9 +197,7 @@ class EnvAudio:
         fsp = float(full_scale_pa)
         if not (math.isfinite(fsp) and fsp > 0):
             raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure [Pa]")
-        fsc = DEFAULT_CONTACT_FULL_SCALE if contact_full_scale is None else float(contact_full_scale)
-        if not (math.isfinite(fsc) and fsc > 0):
-            raise ValueError(f"contact_full_scale={contact_full_scale!r} must be a positive acceleration [m/s^2]")
+        fsc = check_contact_full_scale(contact_full_scale)
         from .limits import check_array_bytes, check_duration, check_sample_rate
 
         self.sample_rate = check_sample_rate(sample_rate)

@@ -298,12 +298,9 @@ def sonify(
     fsp = DEFAULT_FULL_SCALE_PA if full_scale_pa is None else float(full_scale_pa)
     if not normalize and not (np.isfinite(fsp) and fsp > 0):
         raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure in Pa (e.g. 20)")
-    from ..synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
+    from ..synth.contact_mic import check_contact_full_scale
 
-    fsc = DEFAULT_CONTACT_FULL_SCALE if contact_full_scale is None else float(contact_full_scale)
-    if not (np.isfinite(fsc) and fsc > 0):
-        raise ValueError(f"contact_full_scale={contact_full_scale!r} must be a positive acceleration in m/s^2 "
-                         "(e.g. 1000)")
+    fsc = check_contact_full_scale(contact_full_scale)
     mats = load_materials(materials)
     model = mujoco.MjModel.from_xml_path(os.fspath(scene_xml))
     if timestep is not None:

@@ -44,12 +44,21 @@ from ..modal.model import ModalModel
 from .bandlimited import PULSE_DTYPE
 from .pulse import half_sine_spectrum
 
-__all__ = ["DEFAULT_CONTACT_FULL_SCALE", "ContactMicrophone", "modal_weights", "modal_site_acceleration", "free_body_velocity_change",
-           "site_velocity_change", "site_pulse"]
+__all__ = ["DEFAULT_CONTACT_FULL_SCALE", "check_contact_full_scale", "ContactMicrophone", "modal_weights",
+           "modal_site_acceleration", "free_body_velocity_change", "site_velocity_change", "site_pulse"]
 
 #: Acceleration written as full scale on a contact channel (files, observations) [m/s^2]:
 #: about 100 g, where a piezo contact microphone on a struck metal part peaks.
 DEFAULT_CONTACT_FULL_SCALE = 1000.0
+
+
+def check_contact_full_scale(value=None) -> float:
+    """The contact channels' full scale [m/s^2]: ``value`` (None:
+    :data:`DEFAULT_CONTACT_FULL_SCALE`), which must be positive and finite."""
+    fsc = DEFAULT_CONTACT_FULL_SCALE if value is None else float(value)
+    if not (np.isfinite(fsc) and fsc > 0):
+        raise ValueError(f"contact_full_scale={value!r} must be a positive acceleration in m/s^2 (e.g. 1000)")
+    return fsc
 
 
 @dataclass(frozen=True)
