@@ -71,8 +71,8 @@ class ImpactMethods:
         ``speed`` may be scalars or (k,) arrays. Much faster than k calls of :meth:`impact`.
         """
         ob = self._get(name)
-        P = finite_array(points, None, "point", "give world coordinates in metres")
-        J = finite_array(impulses, None, "impulse", "give a finite impulse vector in N s")
+        P = finite_array(points, "point", "give world coordinates in metres")
+        J = finite_array(impulses, "impulse", "give a finite impulse vector in N s")
         if P.ndim != 2 or P.shape[1] != 3:
             raise ValueError(f"point must be (3,) or (k, 3) world coordinates, got shape {P.shape}")
         if J.shape != P.shape:
@@ -80,11 +80,11 @@ class ImpactMethods:
         k = len(P)
         if np.size(times) not in (1, k):
             raise ValueError(f"times must have one value per impact ({k}), got {np.size(times)}")
-        t = finite_array(times, None, "time", "give simulation time in seconds").reshape(-1)
+        t = finite_array(times, "time", "give simulation time in seconds").reshape(-1)
         t = self._check_time(np.broadcast_to(t, (k,)), "time")
         # ---- pulse length
         if pulse_s is not None:
-            tau = finite_array(pulse_s, None, "pulse_s", "give the contact time in seconds (>= 0)")
+            tau = finite_array(pulse_s, "pulse_s", "give the contact time in seconds (>= 0)")
             if np.any(tau < 0):
                 raise ValueError("pulse_s must be >= 0 seconds")
             tau = np.broadcast_to(tau, (k,)).astype(np.float64)
@@ -99,7 +99,7 @@ class ImpactMethods:
                     raise ValueError(f"radius_m={radius_m!r} must be a positive radius in metres")
             v = None
             if speed is not None:
-                v = np.abs(finite_array(speed, None, "speed", "give the normal approach speed in m/s"))
+                v = np.abs(finite_array(speed, "speed", "give the normal approach speed in m/s"))
                 v = np.broadcast_to(v, (k,)).astype(np.float64)
             tau = self._hertz_tau(ob, J, other_material, m2, R2, v, radius_m)
         if len(ob.keep) == 0 or k == 0:

@@ -20,7 +20,7 @@ from .records import Bank, BankLayout, ObjectTable
 __all__ = ["finite_array", "VoiceState", "PoseTable", "SynthObject", "ObjectModes", "prepare_object", "Layout", "build_layout"]
 
 
-def finite_array(x, _unused, what, fix):
+def finite_array(x, what, fix):
     """``x`` as a float64 array; a ``ValueError`` naming ``what`` and the ``fix`` when it is not
     numeric or not finite."""
     try:

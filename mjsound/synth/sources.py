@@ -64,15 +64,15 @@ class ForcingSources:
 
     def _sustained(self, kind, name, point, normal, normal_force, speed, t0, t1, roughness, length):
         ob = self._get(name)
-        p = finite_array(point, None, "point", "give world coordinates in metres").reshape(-1)
-        nv = finite_array(normal, None, "normal", "give a finite direction vector").reshape(-1)
+        p = finite_array(point, "point", "give world coordinates in metres").reshape(-1)
+        nv = finite_array(normal, "normal", "give a finite direction vector").reshape(-1)
         if p.shape != (3,) or nv.shape != (3,):
             raise ValueError("point and normal must be 3-vectors")
-        fn = float(finite_array(normal_force, None, "normal_force", "give the normal force in N"))
-        v = float(finite_array(speed, None, "speed", "give the sliding/rolling speed in m/s"))
-        rough = float(finite_array(roughness, None, "roughness", "give a non-negative number"))
+        fn = float(finite_array(normal_force, "normal_force", "give the normal force in N"))
+        v = float(finite_array(speed, "speed", "give the sliding/rolling speed in m/s"))
+        rough = float(finite_array(roughness, "roughness", "give a non-negative number"))
         t0 = float(self._check_time(t0, "t0"))
-        t1 = float(finite_array(t1, None, "t1", "give the end time in seconds"))
+        t1 = float(finite_array(t1, "t1", "give the end time in seconds"))
         if t1 < t0:
             raise ValueError(f"t1={t1!r} is before t0={t0!r}; give an interval t0 <= t1 in seconds")
         self._sustained_trusted(kind, ob, p, nv, fn, v, t0, t1, rough, length)
@@ -103,11 +103,11 @@ class ForcingSources:
         """Drive ``name`` with a force signal: ``signal[k]`` [N] along ``direction`` (world,
         normalised) at world ``point``, sample k at time ``time + k / fs`` [s]."""
         ob = self._get(name)
-        p = finite_array(point, None, "point", "give world coordinates in metres").reshape(-1)
-        dv = finite_array(direction, None, "direction", "give a finite direction vector").reshape(-1)
+        p = finite_array(point, "point", "give world coordinates in metres").reshape(-1)
+        dv = finite_array(direction, "direction", "give a finite direction vector").reshape(-1)
         if p.shape != (3,) or dv.shape != (3,):
             raise ValueError("point and direction must be 3-vectors")
-        f = finite_array(signal, None, "signal", "give a 1-D force signal in N at the sample rate").reshape(-1)
+        f = finite_array(signal, "signal", "give a 1-D force signal in N at the sample rate").reshape(-1)
         t = float(self._check_time(time, "time"))
         nn = np.linalg.norm(dv)
         if nn == 0 or len(f) == 0 or len(ob.keep) == 0:

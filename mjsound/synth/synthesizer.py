@@ -212,7 +212,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
     # ------------------------------------------------------------------ setup
     @staticmethod
     def _check_mics(positions):
-        p = finite_array(positions, None, "microphones", "give (m, 3) world positions in metres")
+        p = finite_array(positions, "microphones", "give (m, 3) world positions in metres")
         p = p.reshape(-1, 3) if p.size % 3 == 0 and p.size > 0 else None
         if p is None:
             raise ValueError("microphones must be (m, 3) world positions in metres with m >= 1")
@@ -257,8 +257,8 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         (a sensor on a body without a modal model). Returns the channel index."""
         if name is not None:
             ob = self._get(name)
-        p = finite_array(point, None, "point", "give the contact microphone's point in the object frame [m]")
-        a = finite_array(axis, None, "axis", "give the sensing axis as a 3-vector in the object frame")
+        p = finite_array(point, "point", "give the contact microphone's point in the object frame [m]")
+        a = finite_array(axis, "axis", "give the sensing axis as a 3-vector in the object frame")
         na = float(np.linalg.norm(a)) if a.shape == (3,) else 0.0
         if p.shape != (3,) or not na > 0:
             raise ValueError("a contact microphone needs a 3-vector point [m] and a non-zero 3-vector axis")
@@ -290,10 +290,10 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
 
     @staticmethod
     def _check_pose(position, rotation, name):
-        pos = finite_array(position, None, f"position of {name!r}", "give 3 finite coordinates in metres")
+        pos = finite_array(position, f"position of {name!r}", "give 3 finite coordinates in metres")
         if pos.shape != (3,):
             raise ValueError(f"position of {name!r} must have 3 coordinates, got shape {pos.shape}")
-        R = finite_array(rotation, None, f"rotation of {name!r}", "give a 3x3 rotation matrix")
+        R = finite_array(rotation, f"rotation of {name!r}", "give a 3x3 rotation matrix")
         if R.shape != (3, 3) or not np.allclose(R.T @ R, np.eye(3), atol=1e-4):
             raise ValueError(f"rotation of {name!r} must be a 3x3 orthonormal matrix (object -> world)")
         return pos.copy(), R.copy()
