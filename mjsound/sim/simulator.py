@@ -148,10 +148,8 @@ class AudioSimulator(SimulatorReports):
         self._sounding = scene.by_geom()
         self._names = {g: s.name for g, s in self._sounding.items()}
         self._radius = np.array([geom_contact_radius(model, g) for g in range(model.ngeom)])
-        m = model
-        self._other_mass = np.array(
-            [m.body_subtreemass[m.geom_bodyid[g]] if m.body_weldid[m.geom_bodyid[g]] != 0 else np.inf for g in range(m.ngeom)]
-        )
+        # the mass each geom strikes with: its body's subtree (inf: welded to the world)
+        self._other_mass = self.reader.bodies["tree_mass"][np.asarray(model.geom_bodyid)]
         self._contact_sites, self.n_air, self.channel_names, self.contact_channels = channel_layout(model, scene, contact_mics)
         self.n_channels = len(self.channel_names)  # the air microphones, then the contact microphones
         self.synth = None
