@@ -49,8 +49,8 @@ from ..materials import Material, parse_material, parse_length
 from .discretization import Discretization
 from .eigen import solve_band
 from .model import ModalModel
-from .plan import (MAX_REFINE, QUADRATIC_SIZE, QUALITY, AnalysisBudgetError, Plan, element_size,  # noqa: F401
-                   hex_min_cells, plan_analysis)
+from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cells, hex_refine,
+                   plan_analysis, quality_preset, thin_wall)
 
 __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "default_f_max", "AnalysisBudgetError"]
 
@@ -96,19 +96,6 @@ def cache_dir() -> str:
     return platformdirs.user_cache_dir("mjsound")
 
 
-def wall_thickness(mesh: trimesh.Trimesh) -> float:
-    """Thin-wall estimate ``2 V / A`` [m] of a closed mesh (nan if open)."""
-    if not mesh.is_watertight:
-        return float("nan")
-    return float(2.0 * abs(mesh.volume) / mesh.area)
-
-
-def _quality(quality: str) -> dict:
-    if quality not in QUALITY:
-        raise ValueError(f"quality {quality!r} unknown; choose one of {', '.join(QUALITY)}")
-    return QUALITY[quality]
-
-
 def surface_samples(mesh: trimesh.Trimesh, n_points: int = 1024):
     """Deterministic surface points (vertices first, then even samples) and normals."""
     V = np.asarray(mesh.vertices)
@@ -127,15 +114,9 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
     if method == "hex":
         from .hex import discretize_hex
 
-        t = wall_thickness(mesh) if thickness is None else thickness
         min_cells = hex_min_cells(mesh, thickness, quality, order)
         if refine is None:
-            # Fine voxels of at most a quarter of the wall: a wall smeared over partly
-            # filled voxels is too thick in bending (a 20 cm bowl with 4 mm walls rang 12 %
-            # sharp with 2.4 mm voxels and 4 % with 1 mm ones).
-            refine = _quality(quality)["refine"]
-            if np.isfinite(t) and t > 0 and mesh.is_watertight:  # open surfaces are slabs of t
-                refine = int(np.clip(np.ceil(4 * h / t), refine, MAX_REFINE))
+            refine = hex_refine(mesh, h, thickness, quality)
         return discretize_hex(mesh, material, h, points, refine=refine, thickness=thickness, min_cells=min_cells,
                               order=order)
     if method == "tet":
@@ -156,7 +137,7 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
     if method == "shell":
         from .shell import discretize_shell
 
-        t = thickness if thickness is not None else wall_thickness(mesh)
+        t = thin_wall(mesh, thickness)
         if not np.isfinite(t):
             raise ValueError("shell: an open mesh needs thickness=... (wall thickness in metres)")
         return discretize_shell(mesh, material, points, thickness=t)
@@ -278,7 +259,7 @@ def analyze(
     material = parse_material(material)
     if method not in METHODS:
         raise ValueError(f"method {method!r} unknown; choose one of {', '.join(METHODS)}")
-    _quality(quality)
+    quality_preset(quality)
     if sample_rate is not None:
         sample_rate = float(sample_rate)
         if not np.isfinite(sample_rate) or sample_rate < 1000 or sample_rate > 768000:

@@ -53,7 +53,7 @@ from ..limits import DEFAULT_MAX_MEMORY_GB, MAX_MEMORY_ENV, max_memory_gb
 from ..materials import Material
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
-           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER"]
+           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine"]
 
 MEMORY_PER_DOF = 20e3  # bytes per dof at 1e5 dofs (factor, matrices, assembly)
 QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
@@ -144,7 +144,8 @@ class Plan:
                 "budget_notes": list(self.notes)}
 
 
-def _quality(quality: str) -> dict:
+def quality_preset(quality: str) -> dict:
+    """The :data:`QUALITY` preset named ``quality``; an error naming the choices if unknown."""
     if quality not in QUALITY:
         raise ValueError(f"quality {quality!r} unknown; choose one of {', '.join(QUALITY)}")
     return QUALITY[quality]
@@ -170,7 +171,7 @@ def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, qualit
         if int(resolution) < 1:
             raise ValueError(f"resolution must be >= 1 element along the longest side, got {resolution}")
         return size / int(resolution)
-    q = _quality(quality)
+    q = quality_preset(quality)
     lam_s = np.sqrt(material.shear_modulus / material.rho) / f_max
     t = thin_wall(mesh, thickness)
     if not np.isfinite(t) or t <= 0:
@@ -190,7 +191,7 @@ def wall_element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, q
     size = float(np.max(mesh.extents))
     if resolution is not None:
         return size / int(resolution)
-    q = _quality(quality)
+    q = quality_preset(quality)
     lam_b = _bending_wavelength(material, thin_wall(mesh), f_max)
     return float(min(lam_b / q[f"{kind}_per_wavelength"], size / q[f"{kind}_min_per_side"]))
 
@@ -312,10 +313,23 @@ def hex_min_cells(mesh: trimesh.Trimesh, thickness: float | None, quality: str, 
         across = np.where(mesh.extents > 1.5 * t, np.ceil(mesh.extents / (0.5 * t)), 1)
     else:
         across = np.ones(3)
-    min_across = _quality(quality)["min_across"]
+    min_across = quality_preset(quality)["min_across"]
     if order == 2:
         min_across = (min_across + 1) // 2
     return np.minimum(min_across, across).astype(int)
+
+
+def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality: str) -> int:
+    """Fine voxels per coarse hex cell per axis: the quality's ``refine``, raised so that a
+    fine voxel is at most a quarter of a closed mesh's wall (:func:`thin_wall`), at most
+    :data:`MAX_REFINE`. A wall smeared over partly filled voxels is too thick in bending (a
+    20 cm bowl with 4 mm walls rang 12 % sharp with 2.4 mm voxels and 4 % with 1 mm ones);
+    an open surface is a slab of ``thickness`` and keeps the quality's value."""
+    r = quality_preset(quality)["refine"]
+    t = thin_wall(mesh, thickness)
+    if np.isfinite(t) and t > 0 and mesh.is_watertight:
+        r = int(np.clip(np.ceil(4 * h / t), r, MAX_REFINE))
+    return r
 
 
 def memory_gb(dofs: float, modes: float, extra_bytes: float = 0.0) -> float:
@@ -387,11 +401,7 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
             h = wall_element_size(mesh, material, f_max, q, resolution, kind="facet")
         else:
             h = element_size(mesh, material, f_max, q, resolution, thickness, order if kind != "shell" else 1)
-        r = refine
-        if kind == "hex" and r is None:
-            r = QUALITY[q]["refine"]
-            if np.isfinite(t) and t > 0 and mesh.is_watertight:
-                r = int(np.clip(np.ceil(4 * h / t), r, MAX_REFINE))
+        r = hex_refine(mesh, h, thickness, q) if kind == "hex" and refine is None else refine
         dofs, extra = _estimate_dofs(kind, mesh, h, order, r, thickness, q)
         mem = memory_gb(dofs, modes, extra)
         tried.append((q, dofs, mem))
