@@ -128,9 +128,6 @@ def _block_size(n_target: int) -> int:
     return int(np.clip(n_target // 7, 4, BLOCK_MAX_WIDTH))
 
 
-_LAST = {}
-
-
 def _full_pass(step: int) -> bool:
     """Whether Lanczos step ``step`` (1, 2, ...) reorthogonalises against the whole basis.
 
@@ -292,7 +289,6 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         if ok:
             est = np.linalg.norm(R @ S[d0:d], axis=0)
             if np.all(est <= tol * mu * _tol_scale(sigma + 1.0 / mu, lam_max)):
-                _LAST["dim"] = d
                 # Ritz vectors as rows, in two halves (the cut depends on the count only)
                 h = S.shape[1] // 2
                 Qd = Q[:d]

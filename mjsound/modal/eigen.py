@@ -45,8 +45,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .block_lanczos import (BLOCK_MAX_BYTES, BLOCK_MAX_WIDTH, BLOCK_TOL, EARLY_MIN_DIM,  # noqa: F401
-                            PROJECT_SPLIT_MIN, _block_band, _project_out, _SplitSolve)
+from .block_lanczos import BLOCK_TOL, PROJECT_SPLIT_MIN, _block_band, _project_out, _SplitSolve  # noqa: F401
 from .pardiso import PARDISO_MIN_DOFS, backend_name, count_below, factorize  # noqa: F401
 
 __all__ = ["solve_band", "factorize", "count_below", "BandSolution", "backend_name"]
@@ -72,8 +71,6 @@ class BandSolution:
         self.seconds = seconds
         self.n_slices = n_slices
         self.backend = backend
-
-
 
 
 def solve_band(
