@@ -40,6 +40,7 @@ import hashlib
 import os
 import time
 import warnings
+from functools import partial
 
 import numpy as np
 import trimesh
@@ -304,9 +305,10 @@ def analyze(
     f_ring = ringing_below(material)
     if f_ring < f_max:
         f_max = max(f_ring, 2 * F_MIN_HZ)
-    plan = plan_analysis(tm, material, f_max, method=method, quality=quality, resolution=resolution,
-                         thickness=thickness, order=order, refine=refine, max_modes=max_modes,
-                         max_memory=max_memory_gb, over_budget=over_budget)
+    plan_for = partial(plan_analysis, tm, material, quality=quality, resolution=resolution, thickness=thickness,
+                       order=order, refine=refine, max_modes=max_modes, max_memory=max_memory_gb,
+                       over_budget=over_budget)
+    plan = plan_for(f_max, method=method)
     f_max, h = plan.f_max, plan.h
     params = dict(method=plan.method, through_wall=plan.through_wall, h=h, f_max=f_max, thickness=thickness,
                   wall=wall, order=order, refine=refine, n_points=n_points, max_modes=max_modes,
@@ -328,9 +330,7 @@ def analyze(
             raise
         # the robust path: any mesh TetGen refuses (self-intersecting, badly shaped) is voxelized
         reason = f"hex: quadratic tets through the thin wall failed ({exc}); voxel hexahedra instead"
-        plan = plan_analysis(tm, material, plan.f_max, method="hex", quality=quality, resolution=resolution,
-                             thickness=thickness, order=order, refine=refine, max_modes=max_modes,
-                             max_memory=max_memory_gb, over_budget=over_budget)
+        plan = plan_for(plan.f_max, method="hex")
         plan.reason = reason
         model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
                      resolution, wall, t0)
@@ -362,8 +362,9 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     """The analysis itself, as planned: discretize, solve, sample, radiate, estimate."""
     method, order, h, f_max, quality = plan.method, plan.order, plan.h, plan.f_max, plan.quality
     points, normals = surface_samples(tm, n_points)
-    args = (method, tm, material, h, points, quality, thickness, order, refine, plan.through_wall)
-    disc = _discretize(*args)
+    build = partial(_discretize, method, tm, material, points=points, quality=quality, thickness=thickness,
+                    order=order, refine=refine, through_wall=plan.through_wall)
+    disc = build(h=h)
     # The error estimate's coarser discretization does not depend on the solve: it is built
     # on the second core meanwhile (the Lanczos iteration runs on one).
     pool = coarse = None
@@ -372,7 +373,7 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
         from concurrent.futures import ThreadPoolExecutor
 
         pool = ThreadPoolExecutor(1)
-        coarse = pool.submit(_discretize, *((method, tm, material, ratio * h) + args[4:]))
+        coarse = pool.submit(build, h=ratio * h)
     try:
         sol = _solve(disc, f_max, progress, plan.max_modes)
     except BaseException:
