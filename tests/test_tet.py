@@ -191,3 +191,13 @@ def test_a_tetgen_crash_is_an_error_not_the_end_of_the_process(monkeypatch):
     monkeypatch.setattr(T, "_TETGEN_CHILD", f"import os; os.kill(os.getpid(), {int(signal.SIGSEGV)})")
     with pytest.raises(ValueError, match=r"TetGen crashed \(signal 11\).*method=\"hex\""):
         T.tetrahedralize(box, 0.05)
+
+
+def test_analyze_names_tet4_with_the_error_estimate():
+    """The error estimate's convergence order must not overwrite the element order that
+    names the model (tet4 was reported as tet10 when the estimate ran)."""
+    from mjsound.modal.analyze import analyze
+
+    kw = dict(method="tet", order=1, resolution=8, f_max=5000, cache=False)
+    assert analyze("box:0.2,0.03,0.02", "aluminium", error_estimate=True, **kw).method == "tet4"
+    assert analyze("box:0.2,0.03,0.02", "aluminium", error_estimate=False, **kw).method == "tet4"

@@ -403,10 +403,11 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     err = float("nan")
     # the shell model has no resolution to vary (it lives on the given surface mesh)
     if error_estimate and under.sum() > 0 and method != "shell":
-        order = FACET_ERROR_ORDER if method == "facet" else ERROR_ORDER[plan.through_wall]
+        convergence = FACET_ERROR_ORDER if method == "facet" else ERROR_ORDER[plan.through_wall]
         if method == "hex":
-            order = HEX_STAIRCASE_ERROR_ORDER if _thin_curved_wall(tm, thickness) else hex_error_order(tm, plan.order)
-        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=order)
+            convergence = (HEX_STAIRCASE_ERROR_ORDER if _thin_curved_wall(tm, thickness)
+                           else hex_error_order(tm, order))
+        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=convergence)
     if method == "facet" and disc.info.get("crease_edges", 0) > 0:
         from .midsurface import CREASE_RESIDUAL, crease_cents
 
