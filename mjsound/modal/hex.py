@@ -47,7 +47,7 @@ import trimesh
 
 from ..materials import Material
 from .discretization import Discretization
-from .surface import cavities
+from .surface import cavities, face_components
 from .voxelize import surface_voxels, winding_occupancy
 
 __all__ = ["discretize_hex", "hex_element_matrices", "grid_for"]
@@ -308,13 +308,8 @@ def grid_for(bounds, h: float, min_cells=1):
 
 
 def _components(mesh: trimesh.Trimesh) -> list:
-    """Connected pieces of a mesh (faces sharing an edge), via scipy's graph routines."""
-    from scipy.sparse.csgraph import connected_components
-
-    adj = mesh.face_adjacency
-    nf = len(mesh.faces)
-    graph = sp.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(nf, nf))
-    n, label = connected_components(graph, directed=False)
+    """Connected pieces of a mesh (faces sharing an edge, :func:`.surface.face_components`)."""
+    n, label = face_components(mesh)
     if n == 1:
         return [mesh]
     return [trimesh.Trimesh(mesh.vertices, mesh.faces[label == k], process=False) for k in range(n)]

@@ -144,7 +144,7 @@ def mid_surface(mesh: trimesh.Trimesh) -> MidSurface:
     MidSurface
         Empty (no faces, coverage 0) when no part of the surface is a thin wall.
     """
-    from .surface import vertex_offsets
+    from .surface import face_components, vertex_offsets
 
     m = trimesh.Trimesh(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64), process=False)
     if m.is_watertight and m.volume < 0:
@@ -163,14 +163,8 @@ def mid_surface(mesh: trimesh.Trimesh) -> MidSurface:
     if not wall.any():
         return empty
     # sheets: connected components of the wall faces (shared edges)
-    adj = m.face_adjacency
-    adj = adj[wall[adj[:, 0]] & wall[adj[:, 1]]]
     idx = np.flatnonzero(wall)
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    g = sp.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(len(tris), len(tris)))
-    _, label = connected_components(g, directed=False)
+    _, label = face_components(m, wall)
     area = np.asarray(m.area_faces)
     sheet_area = np.bincount(label[idx], weights=area[idx], minlength=label.max() + 1)
     # each sheet's partner: the sheet most of its rays hit (by area)

@@ -51,6 +51,7 @@ import trimesh
 
 from ..limits import DEFAULT_MAX_MEMORY_GB, MAX_MEMORY_ENV, max_memory_gb
 from ..materials import Material
+from .surface import face_components
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
            "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine"]
@@ -213,8 +214,7 @@ def overlapping_parts(mesh: trimesh.Trimesh) -> int:
     whose winding rule fills unions exactly."""
     if len(mesh.faces) == 0:
         return 0
-    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(mesh.faces))
-    n = int(labels.max()) + 1 if len(labels) else 0
+    n, labels = face_components(mesh)
     if n < 2:
         return 0
     tri = mesh.triangles  # (F, 3, 3)

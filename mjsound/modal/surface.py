@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-__all__ = ["refine_to_size", "hollow", "vertex_offsets", "winding_number", "cavities"]
+__all__ = ["refine_to_size", "hollow", "vertex_offsets", "winding_number", "cavities", "face_components"]
 
 
 def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rounds: int = 64,
@@ -249,6 +249,22 @@ def _flipped_faces(V: np.ndarray, F: np.ndarray, normals: np.ndarray) -> int:
     """Faces of the offset surface ``V[F]`` that point against (or collapse from) ``normals``."""
     cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     return int(np.sum(np.einsum("fi,fi->f", cross, normals) <= 0.0))
+
+
+def face_components(mesh: trimesh.Trimesh, faces: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    """Connected pieces of a surface: faces sharing an edge, ``(count, label (F,))``.
+
+    ``faces``: a (F,) boolean mask; only edges between two of its faces join pieces (the
+    others are then pieces of their own)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    adj = mesh.face_adjacency
+    if faces is not None:
+        adj = adj[faces[adj[:, 0]] & faces[adj[:, 1]]]
+    nf = len(mesh.faces)
+    graph = sp.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(nf, nf))
+    return connected_components(graph, directed=False)
 
 
 def winding_number(tris: np.ndarray, p: np.ndarray) -> float:
