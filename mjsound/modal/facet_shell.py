@@ -83,6 +83,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .discretization import Discretization
+from .midsurface import CREASE_DEGREES
 
 __all__ = ["facet_matrices", "discretize_facet", "rigid_corner_factor", "DRILL_ALPHA", "DRILL_INERTIA", "MASS_LUMPING"]
 
@@ -297,7 +298,7 @@ def facet_matrices(X: np.ndarray, thickness: np.ndarray, E: float, nu: float, rh
 def _assemble(F: np.ndarray, Ke: np.ndarray, Me: np.ndarray, n_nodes: int):
     """Sum element matrices (E, 18, 18) over the triangles ``F`` (E, 3) into csr matrices,
     6 x 6 node blocks at a time (one sort of the node-pair keys for both)."""
-    from .hex import _sum_blocks
+    from .hex import _block_pattern, _sum_blocks
 
     n = len(F)
     key = (F[:, :, None].astype(np.int64) * n_nodes + F[:, None, :]).ravel()  # (E 3 3)
@@ -306,9 +307,7 @@ def _assemble(F: np.ndarray, Ke: np.ndarray, Me: np.ndarray, n_nodes: int):
         return np.ascontiguousarray(X.reshape(n, 3, 6, 3, 6).transpose(0, 1, 3, 2, 4)).reshape(-1, 36)
 
     key, Kb, Mb = _sum_blocks(key, blocks(Ke), blocks(Me))
-    brow = key // n_nodes
-    indptr = np.searchsorted(brow, np.arange(n_nodes + 1))
-    bcol = (key - brow * n_nodes).astype(np.int32)
+    indptr, bcol = _block_pattern(key, n_nodes)
     shape = (6 * n_nodes, 6 * n_nodes)
     out = []
     for B in (Kb, Mb):
@@ -426,7 +425,7 @@ def _nearest_on_triangles(V: np.ndarray, F: np.ndarray, pts: np.ndarray, k: int 
 
 
 def rigid_corner_factor(V: np.ndarray, F: np.ndarray, thickness: np.ndarray,
-                        crease_degrees: float = 30.0) -> np.ndarray:
+                        crease_degrees: float = CREASE_DEGREES) -> np.ndarray:
     r"""Stiffness factor (F,) of each triangle for the solid corner at a crease.
 
     Where two walls meet at a sharp fold (a can's rim) the mid-surfaces meet at the middle

@@ -513,9 +513,7 @@ def discretize_hex(
         kb.append(Kc)
         mb.append(Mc)
     key, Kb, Mb = _sum_blocks(np.concatenate(keys), np.concatenate(kb), np.concatenate(mb))
-    brow = key // nn
-    indptr = np.searchsorted(brow, np.arange(nn + 1))
-    bcol = (key - brow * nn).astype(np.int32)
+    indptr, bcol = _block_pattern(key, nn)
     K = sp.bsr_matrix((Kb.reshape(-1, 3, 3), bcol, indptr), shape=(ndof, ndof)).tocsr()
     M_node = sp.csr_matrix((Mb[:, 0], bcol, indptr), shape=(nn, nn))
     M = sp.kron(M_node, sp.identity(3), format="csr")
@@ -542,6 +540,13 @@ def _sum_blocks(key, *data):
     group = np.cumsum(first) - 1
     ng = int(group[-1]) + 1 if len(group) else 0
     return (key[first],) + tuple(_segment_sum(np.ascontiguousarray(d), order, group, ng) for d in data)
+
+
+def _block_pattern(key, n_nodes: int):
+    """Block-sparse pattern ``(indptr (n_nodes + 1,), block columns)`` of the sorted unique
+    node-pair keys ``row n_nodes + col`` that :func:`_sum_blocks` returns."""
+    brow = key // n_nodes
+    return np.searchsorted(brow, np.arange(n_nodes + 1)), (key - brow * n_nodes).astype(np.int32)
 
 
 @nb.njit(cache=True, nogil=True)

@@ -380,7 +380,7 @@ def _assemble_K(conn, vol, gradL, lam, mu, order, n_nodes, chunk=4000):
     ``A^swap[a i, b j] = A[a j, b i]``. Blocks of equal node pairs are summed after one sort
     of their keys (:func:`.hex._sum_blocks`), 3x3 blocks at a time.
     """
-    from .hex import _sum_blocks
+    from .hex import _block_pattern, _sum_blocks
 
     nn = conn.shape[1]
     if order == 1:
@@ -405,9 +405,7 @@ def _assemble_K(conn, vol, gradL, lam, mu, order, n_nodes, chunk=4000):
         keys.append(key)
         blocks.append(Kb)
     key, Kb = _sum_blocks(np.concatenate(keys), np.concatenate(blocks))
-    brow = key // n_nodes
-    indptr = np.searchsorted(brow, np.arange(n_nodes + 1))
-    bcol = (key - brow * n_nodes).astype(np.int32)
+    indptr, bcol = _block_pattern(key, n_nodes)
     K = sp.bsr_matrix((Kb.reshape(-1, 3, 3), bcol, indptr), shape=(3 * n_nodes, 3 * n_nodes)).tocsr()
     K = (K + K.T) * 0.5  # exact symmetry
     return K.tocsr()
