@@ -32,8 +32,18 @@ import trimesh
 __all__ = ["refine_to_size", "hollow", "vertex_offsets", "winding_number", "cavities", "face_components"]
 
 
+#: two triangles are coplanar (an edge flip keeps the surface) when their normals agree to this
+COPLANAR = 1e-9
+
+
+def _face_edges(F: np.ndarray) -> np.ndarray:
+    """Directed edges (3F, 2) of the faces (F, 3), as they run in each face: edge k
+    ``(v_k, v_k+1)`` of face f at row ``k F + f``."""
+    return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+
+
 def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rounds: int = 64,
-                   flat: float = None):
+                   flat: float = COPLANAR):
     """Split edges longer than ``size`` [m] until none is left (conforming bisection).
 
     Parameters
@@ -44,6 +54,9 @@ def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rou
         Longest edge allowed [m].
     max_rounds : int
         Each round splits the longest edge of every triangle whose longest edge is too long.
+    flat : float
+        Tolerance ``1 - cos(angle)`` between two triangles' normals under which the edge
+        between them may be flipped after each round (:func:`_delaunay_flips`).
 
     Returns
     -------
@@ -53,7 +66,7 @@ def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rou
     V = np.asarray(vertices, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)
     for _ in range(max_rounds):
-        e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])  # edge k of face f at k F + f
+        e = _face_edges(F)
         key = np.sort(e, axis=1)
         uniq, inv = np.unique(key, axis=0, return_inverse=True)
         length = np.linalg.norm(V[uniq[:, 0]] - V[uniq[:, 1]], axis=1)
@@ -70,12 +83,8 @@ def refine_to_size(vertices: np.ndarray, faces: np.ndarray, size: float, max_rou
         mid[split] = len(V) + np.arange(int(split.sum()))
         V = np.vstack([V, 0.5 * (V[uniq[split, 0]] + V[uniq[split, 1]])])
         m = mid[inv.reshape(3, -1).T]  # (F, 3): midpoint of edge k (v_k, v_k+1) or -1
-        F = _delaunay_flips(V, _split_faces(F, m), flat=COPLANAR if flat is None else flat)
+        F = _delaunay_flips(V, _split_faces(F, m), flat=flat)
     return V, F
-
-
-#: two triangles are coplanar (an edge flip keeps the surface) when their normals agree to this
-COPLANAR = 1e-9
 
 
 def _delaunay_flips(V: np.ndarray, F: np.ndarray, max_passes: int = 100, flat: float = COPLANAR) -> np.ndarray:
@@ -85,7 +94,7 @@ def _delaunay_flips(V: np.ndarray, F: np.ndarray, max_passes: int = 100, flat: f
     Each pass flips a set of edges that share no triangle."""
     F = F.copy()
     for _ in range(max_passes):
-        e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+        e = _face_edges(F)
         nF = len(F)
         key = np.sort(e, axis=1)
         order = np.lexsort((key[:, 1], key[:, 0]))
@@ -231,7 +240,7 @@ def hollow(mesh: trimesh.Trimesh, wall: float) -> trimesh.Trimesh:
     faces = [F, F[:, ::-1] + nv]
     if not closed:
         # rim: each boundary edge (a, b), as it runs in its face, joins its outer and inner copies
-        e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+        e = _face_edges(F)
         key = np.sort(e, axis=1)
         _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
         rim = e[cnt[inv.ravel()] == 1]
