@@ -161,7 +161,8 @@ class AudioSimulator(SimulatorReports):
         self._sound["obj"] = -1
         moving = {}
         prm = np.zeros(1, DRIVE_PARAMS)
-        if scene.sounding or needs_pulses(model, self._contact_sites, clicks):
+        makes_pulses = needs_pulses(model, self._contact_sites, clicks)  # (clicks or contact microphones)
+        if scene.sounding or makes_pulses:
             from ..synth.synthesizer import Synthesizer
 
             p = prm[0]
@@ -190,7 +191,7 @@ class AudioSimulator(SimulatorReports):
         prm[0]["regain"] = max(1, int(round(self.sustained_block_s * self.sample_rate)))
         prm[0]["sustained"] = int(self.sustained)
         self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air, self._contact_sites,
-                                    self.sample_rate, clicks=clicks, active=needs_pulses(model, self._contact_sites, clicks))
+                                    self.sample_rate, clicks=clicks, active=makes_pulses)
         prm[0]["pulses"] = int(self.pulses.active)
         self._follow = None
         self._mic_sites = np.asarray(list(scene.mic_site_ids) + self._contact_sites, np.int64)  # (contact: unused)
