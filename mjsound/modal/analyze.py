@@ -9,8 +9,8 @@ estimate the frequency error from a coarser solve.
 Method, element size and budget
 -------------------------------
 :func:`.plan.plan_analysis` decides from the mesh alone, before anything is built:
-the method (``method="auto"``: quadratic tets through thin curved walls, voxel
-hexahedra otherwise), the element size (from the shortest wavelength at ``f_max``,
+the method (``method="auto"``: shell triangles on the mid-surface of thin walls, or
+quadratic tets through them where a shell would not do, voxel hexahedra otherwise), the element size (from the shortest wavelength at ``f_max``,
 with a floor per side that bounds the lowest modes' error), and the estimated modes,
 dofs and peak memory, kept under ``max_memory_gb`` (default 8 GB, or
 ``$MJSOUND_MAX_MEMORY_GB``) by coarsening or a refusal that names the numbers.
@@ -196,10 +196,11 @@ def analyze(
     material : str | Material | dict
         Named (``"aluminium"``) or inline (``"E=70e9,nu=0.33,rho=2700"``,
         ``"aluminium,wall=0.12mm"``).
-    method : {'auto', 'hex', 'tet', 'shell'}
+    method : {'auto', 'hex', 'tet', 'facet', 'shell'}
         ``auto`` (default) picks per object (:mod:`.plan`; the reason is in
-        ``info["method_choice"]``): quadratic tets with one element through thin curved
-        walls (bowls, cans, tubes, hollow objects; needs TetGen), voxel-embedded
+        ``info["method_choice"]``): shell triangles on the mid-surface of thin walls
+        (``facet``: bowls, cans, tubes, hollow objects), quadratic tets with one element
+        through a thin wall a shell would not fit (sharp creases; needs TetGen), voxel-embedded
         hexahedra otherwise (any mesh: open, non-manifold, self-intersecting). ``hex``,
         ``tet`` (watertight meshes, volume refined; ``order`` 1 or 2) and ``shell``
         (Raghuvanshi's spring-mass surface: cheap, approximate) force one.
@@ -328,8 +329,9 @@ def analyze(
     except ValueError as exc:
         if method != "auto" or plan.method == "hex":
             raise
-        # the robust path: any mesh TetGen refuses (self-intersecting, badly shaped) is voxelized
-        reason = f"hex: quadratic tets through the thin wall failed ({exc}); voxel hexahedra instead"
+        # the robust path: any mesh TetGen or the mid-surface refuses (self-intersecting, badly shaped) is voxelized
+        tried = "quadratic tets through the thin wall" if plan.method == "tet-wall" else f"the {plan.method} method"
+        reason = f"hex: {tried} failed ({exc}); voxel hexahedra instead"
         plan = plan_for(plan.f_max, method="hex")
         plan.reason = reason
         model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
