@@ -146,6 +146,22 @@ def test_ellipsoid_added_mass_against_lamb():
     assert an.equivalent_radius([0.3, 0.1, 0.1]) == pytest.approx((0.3 * 0.01) ** (1 / 3))
 
 
+def test_carlson_rd_against_scipy_and_closed_forms():
+    from scipy.special import elliprd
+
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        x, y, z = 10 ** rng.uniform(-6, 3, 3)
+        assert an.carlson_rd(x, y, z) == pytest.approx(elliprd(x, y, z), rel=1e-13)
+    assert an.carlson_rd(0.0, 2.0, 1.0) == pytest.approx(elliprd(0.0, 2.0, 1.0), rel=1e-13)
+    # R_D(x, x, x) = x^(-3/2); sphere: every alpha is 2/3
+    assert an.carlson_rd(4.0, 4.0, 4.0) == pytest.approx(0.125, rel=1e-15)
+    assert an.ellipsoid_alphas([0.1, 0.1, 0.1]) == pytest.approx([2 / 3] * 3, rel=1e-14)
+    for bad in [(-1.0, 1.0, 1.0), (0.0, 0.0, 1.0), (1.0, 1.0, 0.0), (np.nan, 1.0, 1.0)]:
+        with pytest.raises(ValueError, match="R_D"):
+            an.carlson_rd(*bad)
+
+
 def test_equivalent_ellipsoid_from_inertia():
     mass, axes = 2.0, np.array([0.3, 0.1, 0.05])
     inertia = mass / 5 * np.array([axes[1] ** 2 + axes[2] ** 2, axes[0] ** 2 + axes[2] ** 2, axes[0] ** 2 + axes[1] ** 2])

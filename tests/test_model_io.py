@@ -43,6 +43,20 @@ def test_gains_follow_direction_and_truncation(model):
     assert t.n_modes == 3 and np.array_equal(t.frequencies_hz, model.frequencies_hz[:3])
 
 
+def test_nearest_points_direct_and_tree_agree(model, monkeypatch):
+    import mjsound.modal.model as mm
+
+    rng = np.random.default_rng(1)
+    lo, hi = model.points.min(axis=0), model.points.max(axis=0)
+    q = rng.uniform(lo - 0.01, hi + 0.01, size=(200, 3))
+    direct = model.nearest_points(q)
+    d2 = ((q[:, None] - model.points[None]) ** 2).sum(-1)
+    np.testing.assert_array_equal(d2[np.arange(len(q)), direct], d2.min(axis=1))
+    monkeypatch.setattr(mm, "BRUTE_FORCE_PAIRS", 0)
+    np.testing.assert_array_equal(model.nearest_points(q), direct)
+    assert model.nearest_points(model.points[7]).tolist() == [7]
+
+
 def test_cache_hit_skips_the_analysis_and_corrupt_entry_is_recomputed(monkeypatch):
     a = analyze("box:0.1,0.02,0.01", "steel", f_max=5000, error_estimate=False)
     calls = []

@@ -47,6 +47,8 @@ import trimesh
 
 from ..geometry import load_mesh, mesh_digest
 from ..materials import Material, parse_material, parse_length
+from .band import F_MIN_HZ, MIN_Q, default_f_max, ringing_below  # noqa: F401 (re-exported)
+from .cache import cache_dir
 from .discretization import Discretization
 from .eigen import solve_band
 from .model import ModalModel
@@ -55,46 +57,10 @@ from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cel
 
 __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "default_f_max", "AnalysisBudgetError"]
 
-F_MIN_HZ = 20.0
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
 MODEL_VERSION = 12  # bump when discretization or model contents change (invalidates cache)
 METHODS = ("auto", "hex", "tet", "facet", "shell")
-
-
-def default_f_max(sample_rate: float | None = None) -> float:
-    """min(20 kHz, 0.45 fs) [Hz]."""
-    return 20000.0 if sample_rate is None else min(20000.0, 0.45 * float(sample_rate))
-
-
-#: Modes whose quality factor omega / (2 d) falls below this ring for less than a cycle:
-#: the analysis stops at the frequency where Rayleigh damping reaches it.
-MIN_Q = 2.0
-
-
-def ringing_below(material: Material, q_min: float = MIN_Q) -> float:
-    """Frequency [Hz] above which Rayleigh damping leaves every mode a quality factor < q_min.
-
-    ``d = (alpha + beta w^2) / 2 = w / (2 Q)`` at ``w = (1/Q + sqrt(1/Q^2 - 4 alpha beta)) / (2 beta)``;
-    inf without stiffness damping, 0 when no frequency reaches ``q_min``.
-    """
-    a, b = material.alpha, material.beta
-    if b <= 0:
-        return float("inf")
-    disc = 1.0 / q_min**2 - 4 * a * b
-    if disc < 0:
-        return 0.0
-    return float((1.0 / q_min + np.sqrt(disc)) / (2 * b) / (2 * np.pi))
-
-
-def cache_dir() -> str:
-    """``$MJSOUND_CACHE_DIR`` or the platform user cache dir (``~/.cache/mjsound``)."""
-    env = os.environ.get("MJSOUND_CACHE_DIR")
-    if env:
-        return env
-    import platformdirs
-
-    return platformdirs.user_cache_dir("mjsound")
 
 
 def surface_samples(mesh: trimesh.Trimesh, n_points: int = 1024):

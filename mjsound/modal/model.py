@@ -37,6 +37,10 @@ __all__ = ["ModalModel", "FORMAT_VERSION"]
 FORMAT_VERSION = 1
 
 
+#: Up to this many (query, sample) pairs the nearest sample is found by comparing them all.
+BRUTE_FORCE_PAIRS = 1 << 20
+
+
 @dataclass
 class ModalModel:
     """Modal parameters of one sounding object (see the module docstring for units)."""
@@ -98,12 +102,19 @@ class ModalModel:
 
     # ------------------------------------------------------------------ sound map
     def nearest_points(self, points: np.ndarray) -> np.ndarray:
-        """Indices of the surface samples nearest to ``points`` (k, 3) in the object frame."""
+        """Indices of the surface samples nearest to ``points`` (k, 3) in the object frame.
+
+        A few query points (a contact, a microphone) are compared with every sample directly:
+        building a k-d tree would first import scipy.spatial (0.1-0.2 s at start-up)."""
+        q = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if len(q) * len(self.points) <= BRUTE_FORCE_PAIRS:
+            d2 = ((q[:, None, :] - self.points[None, :, :]) ** 2).sum(axis=2)
+            return np.argmin(d2, axis=1).astype(np.int64)
         from scipy.spatial import cKDTree
 
         if self._tree is None:
             self._tree = cKDTree(self.points)
-        _, idx = self._tree.query(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        _, idx = self._tree.query(q)
         return np.asarray(idx, dtype=np.int64)
 
     def gains(self, points: np.ndarray, directions: np.ndarray) -> np.ndarray:

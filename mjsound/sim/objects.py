@@ -27,11 +27,13 @@ anchor's frame.
 from __future__ import annotations
 
 import difflib
+import hashlib
 import os
+from functools import partial
 
 import numpy as np
 
-__all__ = ["group_objects", "object_surface", "geom_pose_in_body", "close_names", "solid_mode_count", "geom_name",
+__all__ = ["group_objects", "object_surface", "object_recipe", "object_mesh", "geom_pose_in_body", "close_names", "solid_mode_count", "geom_name",
            "geom_mesh_spec", "plan_object", "checked_mapping", "checked_names", "custom_texts"]
 
 
@@ -311,9 +313,52 @@ def plan_object(model, members, sound_meshes, material, source, alone: bool = Fa
             break
     if override is not None and body == 0:
         raise ValueError(f"sound mesh for {name!r}: the world body's geoms are separate objects; name the geom")
-    mesh, label = object_surface(model, members, override)
+    if override is None and len(members) > 1:
+        # (a union is built only when it is analysed: building it loads trimesh, a cached model does not need it)
+        mesh, label = None, f"union of {len(members)} geoms"
+    else:
+        mesh, label = object_surface(model, members, override)
     return {"name": name, "members": list(members), "material": material, "source": source, "mesh": mesh,
-            "label": label, "sound_mesh": override, "body": bname, "sound_key": key_used}
+            "label": label, "sound_mesh": override, "body": bname, "sound_key": key_used,
+            "recipe": object_recipe(model, members, mesh if override is not None else None),
+            "build": partial(object_surface, model, members, override)}
+
+
+def object_mesh(plan: dict):
+    """The surface to analyse of a :func:`plan_object` plan (built now if it was deferred; its
+    label then gets the vertex count)."""
+    if plan["mesh"] is None:
+        plan["mesh"], plan["label"] = plan["build"]()
+    return plan["mesh"]
+
+
+def object_recipe(model, members: list[int], surface=None) -> str:
+    """A digest of everything an object's surface is made from, without building it.
+
+    ``surface`` (a named sound mesh, already built): its spec or vertex and face bytes. Otherwise
+    every member's type, size and mesh data, and for a union (several members) each member's
+    pose in the body, which places it in the anchor's frame. One geom's pose does not change its
+    surface (given in its own frame), so identical geoms (four legs) share a recipe.
+    """
+    h = hashlib.sha256()
+    if surface is not None:
+        parts = [surface] if isinstance(surface, str) else list(surface)
+        for x in parts:
+            h.update(x.encode() if isinstance(x, str) else np.ascontiguousarray(x, np.float64).tobytes())
+        return h.hexdigest()[:32]
+    for g in members:
+        h.update(np.array([model.geom_type[g]], np.int64).tobytes())
+        h.update(np.asarray(model.geom_size[g], np.float64).tobytes())
+        if len(members) > 1:
+            h.update(np.asarray(model.geom_pos[g], np.float64).tobytes())
+            h.update(np.asarray(model.geom_quat[g], np.float64).tobytes())
+        mid = int(model.geom_dataid[g])
+        if int(model.geom_type[g]) == _mujoco().mjtGeom.mjGEOM_MESH and mid >= 0:
+            va, vn = int(model.mesh_vertadr[mid]), int(model.mesh_vertnum[mid])
+            fa, fn = int(model.mesh_faceadr[mid]), int(model.mesh_facenum[mid])
+            h.update(np.ascontiguousarray(model.mesh_vert[va:va + vn], np.float64).tobytes())
+            h.update(np.ascontiguousarray(model.mesh_face[fa:fa + fn], np.int64).tobytes())
+    return h.hexdigest()[:32]
 
 
 def unique_names(plans) -> None:

@@ -47,11 +47,32 @@ import numpy as np
 
 from ..materials import Material, get_material, parse_material
 from ..modal.model import ModalModel
-from .objects import (checked_mapping, checked_names, close_names, custom_materials, custom_texts,  # noqa: F401
-                      geom_mesh_spec, geom_name, group_objects, plan_object, unique_names)  # (geom_mesh_spec re-exported)
-from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, _analyze_with_fallback,  # noqa: F401 (re-exported)
-                             _finite_or_none, _mode_cap, _sphere_inaudible, _surface_notes, check_masses, warn_unheard)
-
+from .objects import (  # noqa: F401
+    checked_mapping,
+    checked_names,
+    close_names,
+    custom_materials,
+    custom_texts,
+    geom_mesh_spec,  # (geom_mesh_spec re-exported)
+    geom_name,
+    group_objects,
+    plan_object,
+    unique_names,
+)
+from .scene_analysis import (  # noqa: F401 (re-exported)
+    AUTO_MAX_MODES,
+    MASS_TOLERANCE,
+    AnalysisOptions,
+    _analyze_with_fallback,
+    _finite_or_none,
+    _mode_cap,
+    _sphere_inaudible,
+    _surface_notes,
+    check_masses,
+    object_cached,
+    object_model,
+    warn_unheard,
+)
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
 
@@ -321,19 +342,14 @@ class SoundScene:
 
         t0 = _time.perf_counter()
         analysed = []
-        from ..modal.analyze import default_f_max
+        from ..modal.band import default_f_max
 
         f_max = default_f_max(sample_rate)
         bar = None
-        if progress and any(p["name"] not in models for p in plans):
-            try:
-                from tqdm.auto import tqdm
-
-                bar = tqdm(total=len(plans), desc="mjsound: modal analysis", unit="object", delay=1.0)
-            except ImportError:  # pragma: no cover
-                pass
+        options = AnalysisOptions(method, quality, int(sample_rate), f_max, max_modes_per_object, bool(error_estimate),
+                                  bool(cache))
         try:
-            for plan in plans:
+            for done, plan in enumerate(plans):
                 name, members, mat = plan["name"], plan["members"], plan["material"]
                 if bar is not None:
                     bar.set_postfix_str(name, refresh=False)
@@ -343,11 +359,9 @@ class SoundScene:
                 if mm is None and inaudible:
                     scene.silent[name] = inaudible
                 elif mm is None:
-                    max_modes, f_band, cap_note = _mode_cap(plan["mesh"], mat, f_max, max_modes_per_object)
-                    if cap_note:
-                        notes.append(cap_note)
-                    mm = _analyze_with_fallback(name, plan["mesh"], mat, method, quality, sample_rate, cache, f_max=f_band,
-                                                max_modes=max_modes, error_estimate=error_estimate)
+                    if progress and bar is None and not object_cached(plan, options):
+                        bar = _progress_bar(len(plans), done, name)  # (the first object to analyse)
+                    mm, notes = object_model(plan, options)
                     if mm is None:
                         scene.silent[name] = "analysis failed (see warning)"
                 if bar is not None:
@@ -584,3 +598,14 @@ def _mode_loudness(mm: ModalModel) -> np.ndarray:
         rad = mm.omega**2  # plain modal acceleration
     return rms * rad / mm.omega
 
+
+
+def _progress_bar(total: int, done: int, name: str):
+    """A tqdm bar over the scene's objects (``done`` already loaded; shown after 1 s), or None."""
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # pragma: no cover
+        return None
+    bar = tqdm(total=total, initial=done, desc="mjsound: modal analysis", unit="object", delay=1.0)
+    bar.set_postfix_str(name, refresh=False)
+    return bar

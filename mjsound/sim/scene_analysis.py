@@ -4,13 +4,19 @@ masses that disagree with MuJoCo's). Used by :meth:`mjsound.sim.SoundScene.from_
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import hashlib
+import os
+import sys
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
+from ..limits import max_memory_gb
 from ..modal.model import ModalModel
-from .objects import solid_mode_count
+from .objects import object_mesh, solid_mode_count
 
 #: A body's sounding mass and MuJoCo's may differ by this fraction before the scene warns.
 MASS_TOLERANCE = 0.05
@@ -77,6 +83,125 @@ def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, c
     return None
 
 
+# ---------------------------------------------------------------------- object cache
+#: Files whose code decides how an object's geoms become a modal model (with trimesh's version,
+#: part of every object-cache key: an edit there is never answered from an older entry).
+_ANALYSIS_SOURCES = ("modal", "geometry.py", "materials.py", "sim/objects.py", "sim/scene_analysis.py")
+
+
+@functools.lru_cache(maxsize=1)
+def analysis_source_digest() -> str:
+    """sha256 of the analysis code (``_ANALYSIS_SOURCES``) and the installed trimesh version."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    h = hashlib.sha256()
+    for rel in _ANALYSIS_SOURCES:
+        path = os.path.join(root, rel)
+        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith(".py")) \
+            if os.path.isdir(path) else [path]
+        for f in files:
+            h.update(os.path.relpath(f, root).encode())
+            with open(f, "rb") as fh:
+                h.update(fh.read())
+    try:
+        h.update(version("trimesh").encode())
+    except PackageNotFoundError:  # pragma: no cover
+        pass
+    return h.hexdigest()
+
+
+class AnalysisOptions(NamedTuple):
+    """How a scene analyses its objects (:meth:`mjsound.sim.SoundScene.from_model`'s arguments)."""
+
+    method: str
+    quality: str
+    sample_rate: int
+    f_max: float  #: [Hz] the scene's band (modes above it are not heard)
+    max_modes_per_object: object
+    error_estimate: bool
+    cache: bool
+
+
+def object_model(plan: dict, options: AnalysisOptions):
+    """``(model, notes)`` of one scene object: from the object cache, else analysed (mode cap
+    for large solids, ``method`` then ``hex``) and kept there; ``(None, [])`` when the analysis
+    failed (a warning says why)."""
+    key = object_cache_key(plan, options)
+    hit = load_object_model(key)
+    if hit is not None:
+        mm, plan["label"], notes = hit
+        return mm, notes
+    o, notes = options, []
+    mesh = object_mesh(plan)
+    max_modes, f_band, cap_note = _mode_cap(mesh, plan["material"], o.f_max, o.max_modes_per_object)
+    if cap_note:
+        notes.append(cap_note)
+    mm = _analyze_with_fallback(plan["name"], mesh, plan["material"], o.method, o.quality, o.sample_rate, o.cache,
+                                f_max=f_band, max_modes=max_modes, error_estimate=o.error_estimate)
+    if mm is None:
+        return None, []
+    save_object_model(key, mm, plan["label"], notes)
+    return mm, notes
+
+
+def object_cached(plan: dict, options: AnalysisOptions) -> bool:
+    """Whether :func:`object_model` will find this object in the object cache."""
+    key = object_cache_key(plan, options)
+    return key is not None and os.path.exists(_object_path(key))
+
+
+def object_cache_key(plan: dict, options: AnalysisOptions) -> str | None:
+    """The object cache's key of one scene object: its recipe (:func:`.objects.object_recipe`),
+    material, the analysis ``options``, the memory cap (it can coarsen a mesh), the analysis
+    function in use and :func:`analysis_source_digest`. None without ``options.cache``, or when
+    the analysis function was replaced by one that is not mjsound's (a test's fake never shares
+    entries with the real one)."""
+    if not options.cache:
+        return None
+    an = sys.modules.get("mjsound.modal.analyze")
+    fn = getattr(an, "analyze", None) if an is not None else None
+    if fn is not None and getattr(fn, "__module__", None) != "mjsound.modal.analyze":
+        return None
+    text = repr((plan["recipe"], plan["material"].key(), tuple(options), max_memory_gb(), analysis_source_digest()))
+    return hashlib.sha256(text.encode()).hexdigest()[:40]
+
+
+def _object_path(key: str) -> str:
+    from ..modal.cache import cache_dir
+
+    return os.path.join(cache_dir(), "objects", f"{key}.npz")
+
+
+def load_object_model(key: str | None):
+    """``(model, label, notes)`` of a cached scene object, or None (no entry, or a corrupt one).
+
+    This is the start-up fast path: an object found here is never meshed or planned, so a
+    process whose objects are all cached loads neither trimesh nor the analysis code."""
+    if key is None:
+        return None
+    path = _object_path(key)
+    if not os.path.exists(path):
+        return None
+    try:
+        mm = ModalModel.load(path)
+        entry = mm.info.pop("object_cache")
+        return mm, str(entry["label"]), [str(n) for n in entry["notes"]]
+    except (ValueError, KeyError, TypeError):  # (corrupt or foreign: analyse again, the entry is rewritten)
+        return None
+
+
+def save_object_model(key: str | None, mm: ModalModel, label: str, notes: list) -> None:
+    """Keep ``mm`` (and the object's label and notes) under ``key`` (atomic; a failure only warns)."""
+    if key is None:
+        return
+    entry = dataclasses.replace(mm, info={**mm.info, "object_cache": {"label": label, "notes": list(notes)}})
+    try:
+        entry.save(_object_path(key))
+    except OSError as exc:
+        warnings.warn(f"could not write the object cache entry {_object_path(key)}: {exc}", stacklevel=3)
+
+
 # ---------------------------------------------------------------------- construction helpers
 def _finite_or_none(x):
     x = float(x)
@@ -101,7 +226,7 @@ def _mode_cap(mesh, material, f_max, max_modes_per_object):
             raise ValueError(f"max_modes_per_object={max_modes_per_object!r}: give 'auto', None or a count >= 1")
         return n, None, f"mode budget: lowest {n} modes (max_modes_per_object={n})"
     from ..geometry import load_mesh
-    from ..modal.analyze import ringing_below
+    from ..modal.band import ringing_below
 
     tm = load_mesh(mesh, check_size=False)
     if not tm.is_watertight or getattr(material, "wall", None) is not None:
