@@ -33,8 +33,8 @@ import math
 
 import gymnasium as gym
 import numpy as np
-from numba import njit
 
+from .jit import njit
 from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE, check_contact_full_scale
 
 __all__ = ["AudioObservation", "AudioWindow", "EnvAudio", "scene_materials", "stft_log1p"]

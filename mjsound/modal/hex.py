@@ -45,6 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 import trimesh
 
+from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 from ..materials import Material
 from .discretization import Discretization
 from .surface import cavities, face_components

@@ -22,6 +22,7 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 from .quadratic_forms import row_combination
 
 __all__ = ["node_mass", "mass_rows"]

@@ -17,6 +17,8 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
+
 __all__ = ["quadratic_forms"]
 
 

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
+
 __all__ = ["winding_fill", "winding_occupancy", "surface_voxels", "block_mean"]
 
 

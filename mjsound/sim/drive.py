@@ -17,8 +17,8 @@ reader's pair slot to that stream (-1: none yet, :data:`.step.STREAMS`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from ..synth.constants import MAX_AMPLITUDE
 from ..synth.kernels import commit_queued, impacts_to_queue
 from ..synth.pulse import contact_time

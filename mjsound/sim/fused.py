@@ -40,9 +40,10 @@ import os
 
 import numpy as np
 from llvmlite import ir
-from numba import carray, njit, types
+from numba import carray, types
 from numba.extending import intrinsic
 
+from ..jit import njit
 from .records import MJ
 
 __all__ = ["mj_function_address", "mjdata_layout", "mj_link", "struct_layout", "gather_contacts", "data_ncon",

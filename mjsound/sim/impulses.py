@@ -13,7 +13,8 @@ at ``max_impulse``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ..jit import njit
 
 __all__ = ["normal_jacobians", "restitution_of", "impulse_kernel", "event_impulses", "write_records"]
 

@@ -10,8 +10,8 @@ pair, found through an open-addressing table) and the reader's counters
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from ..synth.sorting import stable_argsort
 
 __all__ = ["contact_quantities", "group_pairs", "slot_of", "rehash", "update_pairs", "read_pairs"]

@@ -30,8 +30,7 @@ a pending signal into ``SystemError``.
 
 from __future__ import annotations
 
-from numba import njit
-
+from ..jit import njit
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
 from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
 from .impulses import event_impulses, normal_jacobians, write_records

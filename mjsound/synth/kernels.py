@@ -26,11 +26,11 @@ and dropped from the work arrays until an event re-excites them.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
-
 from typing import NamedTuple
 
+import numpy as np
+
+from ..jit import njit
 from .pulse import half_sine
 from .records import AIR, EventRows, SourceRows
 from .streams import any_due, mic_distance, nearest_one, streams_bank_rows, streams_gains

@@ -26,7 +26,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ..jit import njit
 
 __all__ = ["hertz_contact_time", "hertz_coefficient", "contact_time", "half_sine_spectrum", "half_sine", "effective",
            "TAU_MIN_S", "TAU_MAX_S"]

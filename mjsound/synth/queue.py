@@ -12,8 +12,8 @@ Amplitudes live in one pool; row ``i`` owns ``pool[off[i] : off[i] + width[i]]``
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .dispatch import EntryPoint
 from .records import EVENT, QUEUE, EventRows, QueueState
 from .sorting import stable_argsort

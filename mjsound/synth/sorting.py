@@ -4,7 +4,8 @@ compilation per process with a cold cache; any stable sort gives the same permut
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ..jit import njit
 
 __all__ = ["stable_argsort"]
 

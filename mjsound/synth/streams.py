@@ -15,8 +15,8 @@ low-passed by a one-pole filter ``y += alpha (x - y)`` with ``alpha = 1 - e^{-2 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ..jit import njit
 from .records import AIR
 
 __all__ = ["stream_seed", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",

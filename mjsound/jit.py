@@ -1,0 +1,94 @@
+"""numba's ``njit`` for mjsound's kernels, with a disk cache that notices an edit to any kernel source.
+
+numba stamps each cached kernel with the content of the one file that defines it. A kernel
+compiled together with kernels of other modules (the step kernel in ``sim/step.py`` takes in
+the contact reader's, the drive's and the synthesizer's) would then load stale machine code
+after an edit to, or a ``git pull`` of, only those other modules: the old sound, without a word.
+Here each kernel is stamped with the digest of every source of its group
+(:data:`KERNEL_GROUPS`), so an edit anywhere in a group recompiles that group once.
+
+Importing this module registers the group-stamped cache locators with numba (in front of
+numba's own, for mjsound's files only); kernel modules take ``njit`` from here so that the
+registration always precedes their decorators.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+
+import numba
+from numba.core import caching
+
+__all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest"]
+
+_ROOT = os.path.dirname(os.path.abspath(__file__))
+
+#: Sources whose kernels can call each other or read each other's constants: a member is a
+#: folder (its ``.py`` files) or a file, relative to the package. A kernel outside ``modal/``
+#: belongs to ``"sim"``.
+KERNEL_GROUPS = {
+    "modal": ("modal",),
+    "sim": ("sim", "synth", "report", "wrappers.py", "limits.py", "materials.py", "jit.py"),
+}
+
+njit = numba.njit
+
+
+def kernel_group(py_file: str, root: str = _ROOT) -> str | None:
+    """The group of the kernel source ``py_file``, or None for a file outside ``root``."""
+    rel = os.path.relpath(os.path.abspath(py_file), root)
+    if rel.startswith(".."):
+        return None
+    return "modal" if rel.split(os.sep)[0] == "modal" else "sim"
+
+
+@functools.lru_cache(maxsize=None)
+def sources_digest(group: str, root: str = _ROOT) -> bytes:
+    """sha256 over the names and contents of the group's sources (sorted), as numba's stamp."""
+    h = hashlib.sha256()
+    for member in KERNEL_GROUPS[group]:
+        path = os.path.join(root, member)
+        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith(".py")) \
+            if os.path.isdir(path) else [path]
+        for f in files:
+            h.update(os.path.relpath(f, root).encode() + b"\0")
+            with open(f, "rb") as fh:
+                h.update(fh.read())
+    return h.digest()
+
+
+class _GroupStamped:
+    """Stamp with the group's digest; locate only mjsound's own files."""
+
+    def get_source_stamp(self):
+        return sources_digest(kernel_group(self._py_file))
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if kernel_group(py_file) is None:
+            return None
+        return super().from_function(py_func, py_file)
+
+
+class GroupUserProvidedCacheLocator(_GroupStamped, caching.UserProvidedCacheLocator):
+    """``$NUMBA_CACHE_DIR``, group-stamped."""
+
+
+class GroupInTreeCacheLocator(_GroupStamped, caching.InTreeCacheLocator):
+    """``__pycache__`` next to the source, group-stamped."""
+
+
+class GroupUserWideCacheLocator(_GroupStamped, caching.UserWideCacheLocator):
+    """The user-wide numba cache (a read-only install), group-stamped."""
+
+
+def _register() -> None:
+    ours = [GroupUserProvidedCacheLocator, GroupInTreeCacheLocator, GroupUserWideCacheLocator]
+    classes = caching.CacheImpl._locator_classes  # (numba's list of locators, tried in order)
+    if ours[0] not in classes:
+        classes[:0] = ours
+
+
+_register()
