@@ -210,7 +210,7 @@ def test_20_node_cells_agree_with_27_node_ones_on_a_curved_shell():
 
 
 def test_hex_error_estimate_order_follows_the_voxels_fit():
-    """Richardson order 4 where the voxels follow the surface exactly (a box), 2 on a curved
+    """Richardson order 4 where the voxels follow the surface exactly (a box), 1.5 on a curved
     solid; the beam's estimate at default quality is within a factor of two of its measured
     error against the 3D bending references (order 2 overstated it 3.9x)."""
     from mjsound.geometry import load_mesh
@@ -218,7 +218,7 @@ def test_hex_error_estimate_order_follows_the_voxels_fit():
     from mjsound.report.accuracy_modal import BEAM_BENDING_3D
 
     assert hex_error_order(load_mesh("box:0.5,0.01,0.01"), 2) == 4.0
-    assert hex_error_order(load_mesh("sphere:0.1"), 2) < 2.1 and hex_error_order(load_mesh("box:0.5,0.01,0.01"), 1) == 2
+    assert hex_error_order(load_mesh("sphere:0.1"), 2) < 1.6 and hex_error_order(load_mesh("box:0.5,0.01,0.01"), 1) == 2
     m = analyze("box:0.5,0.01,0.01", "aluminium", f_max=2500, cache=False)
     f = m.frequencies_hz[:8]
     c = 1200 * np.log2(f / np.repeat(BEAM_BENDING_3D, 2))

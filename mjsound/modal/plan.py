@@ -54,11 +54,14 @@ from ..materials import Material
 from .surface import face_components
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
-           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine"]
+           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine",
+           "mode_count_inputs", "frequency_of_mode", "solid_modes", "axis_aligned_fraction"]
 
 MEMORY_PER_DOF = 20e3  # bytes per dof at 1e5 dofs (factor, matrices, assembly)
 QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
 MAX_REFINE = 16  # fine cells per coarse cell per axis, at most (r^3 children: memory)
+#: ``curved_refine`` is lowered so that the fine voxel grid stays under this many cells
+MAX_FINE_VOXELS = 2e7
 #: a wall thinner than this fraction of the smallest bounding-box side is a thin curved wall
 THIN_WALL_RATIO = 0.25
 #: the facet shell applies when at least this fraction of the surface is wall (both sheets
@@ -68,22 +71,37 @@ FACET_MIN_COVERAGE = 0.9
 #: a 1 mm can of radius 40 mm, 43 c; thicker walls folded at sharp edges go to the tets)
 FACET_MAX_CREASE_CENTS = 50.0
 
-#: Quality presets. hex: elements per wavelength, least elements along the longest side,
-#: fine cells per coarse cell, least cells across a bar. wall (thin walls, quadratic
-#: tets): elements per bending wavelength at the band top and least elements along the
-#: longest side, which bounds the error of the lowest modes whatever f_max is.
+#: Quality presets. hex: elements per wavelength at the band top, least elements along the
+#: longest side, fine cells per coarse cell, least cells across a bar; elements per
+#: wavelength at the :data:`LOW_MODES`-th mode (``low_per_wavelength``: the lowest modes'
+#: error does not grow as f_max falls; the beam's first four bending pairs are within 3
+#: cents at default quality from f_max 2 to 20 kHz), and fine cells per coarse cell where
+#: the surface is curved (``curved_refine``: the voxel staircase of a curved surface is
+#: what limits a solid sphere, 6.5 cents at refine 3, 1.5 at 6, 0.6 at 10, same dofs).
+#: wall (thin walls, quadratic tets): elements per bending wavelength at the band top and
+#: least elements along the longest side, which bounds the error of the lowest modes
+#: whatever f_max is.
 QUALITY = {
     "draft": {"per_wavelength": 3.0, "min_per_side": 4, "refine": 2, "min_across": 2,
+              "low_per_wavelength": 6.0, "curved_refine": 4,
               "wall_per_wavelength": 3.0, "wall_min_per_side": 12,
               "facet_per_wavelength": 4.0, "facet_min_per_side": 16},
     "default": {"per_wavelength": 6.0, "min_per_side": 8, "refine": 3, "min_across": 4,
+                "low_per_wavelength": 13.0, "curved_refine": 8,
                 "wall_per_wavelength": 5.0, "wall_min_per_side": 24,
                 "facet_per_wavelength": 6.0, "facet_min_per_side": 33},
     "high": {"per_wavelength": 10.0, "min_per_side": 16, "refine": 4, "min_across": 6,
+             "low_per_wavelength": 20.0, "curved_refine": 10,
              "wall_per_wavelength": 8.0, "wall_min_per_side": 48,
              "facet_per_wavelength": 10.0, "facet_min_per_side": 50},
 }
 QUALITY_ORDER = ("high", "default", "draft")
+#: the mode (counted from the lowest, :func:`estimate_modes`) whose wavelength the
+#: ``low_per_wavelength`` rule resolves
+LOW_MODES = 10
+#: a surface with less than this fraction of its area facing along an axis is curved
+#: (the voxels approximate it by a staircase: ``curved_refine``)
+ALIGNED_CURVED = 0.9
 
 
 class AnalysisBudgetError(ValueError):
@@ -100,15 +118,53 @@ def thin_wall(mesh: trimesh.Trimesh, thickness: float | None = None) -> float:
     return float(2.0 * abs(mesh.volume) / mesh.area)
 
 
+def mode_count_inputs(mesh: trimesh.Trimesh, thickness: float | None = None) -> tuple:
+    """``(volume [m^3], area [m^2], wall [m], longest side [m])`` of a mesh for
+    :func:`estimate_modes` (an open surface of ``thickness`` has volume ``A t``)."""
+    V = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
+    A = float(mesh.area)
+    if not mesh.is_watertight and thickness is not None:
+        V = A * thickness
+    return V, A, thin_wall(mesh, thickness), float(np.max(mesh.extents))
+
+
+def frequency_of_mode(material: Material, volume: float, area: float, wall: float, length: float,
+                      n: float, f_hi: float = 1e6) -> float:
+    """Frequency [Hz] below which :func:`estimate_modes` expects ``n`` modes (bisection in
+    log f between 1 Hz and ``f_hi``; ``f_hi`` when fewer are expected there)."""
+    if estimate_modes(material, volume, area, wall, length, f_hi) < n:
+        return float(f_hi)
+    lo, hi = 1.0, float(f_hi)
+    for _ in range(60):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if estimate_modes(material, volume, area, wall, length, mid) < n else (lo, mid)
+    return hi
+
+
+def axis_aligned_fraction(mesh: trimesh.Trimesh) -> float:
+    """Fraction of the surface area whose normal points along a coordinate axis (boxes:
+    1; a sphere: 0): where the voxel embedding follows the surface exactly."""
+    n = np.abs(np.asarray(mesh.face_normals))
+    area = np.asarray(mesh.area_faces)
+    if len(area) == 0:
+        return 1.0
+    return float(area[n.max(axis=1) > 0.999].sum() / max(area.sum(), 1e-300))
+
+
+def solid_modes(material: Material, volume: float, f: float) -> float:
+    """Weyl's count of a solid's modes below ``f`` [Hz] (module docstring, ``N_3D``)."""
+    lam, mu = material.lame
+    c_l, c_s = math.sqrt((lam + 2 * mu) / material.rho), math.sqrt(mu / material.rho)
+    return 4 * math.pi / 3 * volume * f**3 * (1 / c_l**3 + 2 / c_s**3)
+
+
 def estimate_modes(material: Material, volume: float, area: float, wall: float, length: float,
                    f: float) -> float:
     """Modes below ``f`` [Hz] (module docstring): the largest of the solid, thin-wall and
     bar estimates. ``volume`` [m^3], ``area`` [m^2] of the surface, ``wall`` [m] (nan:
     no wall estimate), ``length`` [m] the longest side."""
     E, nu, rho = material.E, material.nu, material.rho
-    lam, mu = material.lame
-    c_l, c_s = math.sqrt((lam + 2 * mu) / rho), math.sqrt(mu / rho)
-    n3 = 4 * math.pi / 3 * volume * f**3 * (1 / c_l**3 + 2 / c_s**3)
+    n3 = solid_modes(material, volume, f)
     n_wall = n_bar = 0.0
     if np.isfinite(wall) and wall > 0:
         D = E * wall**3 / (12 * (1 - nu**2))
@@ -166,6 +222,14 @@ def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, qualit
 
     .. math:: \lambda_b = 2\pi \left(\frac{E t^2}{12 \rho (1-\nu^2)}\right)^{1/4}
               \Big/ \sqrt{2\pi f_{max}}
+
+    and at most the bending wavelength at ``f_low`` over ``low_per_wavelength``, with
+    ``f_low`` the :data:`LOW_MODES`-th mode's frequency (:func:`frequency_of_mode`) or
+    ``f_max`` if lower, where the lowest modes are bending modes (Weyl's solid count,
+    :func:`solid_modes`, is under half of them there: bars, plates): the lowest bending
+    modes, which quadratic cells resolve worst, are resolved alike whatever ``f_max`` is (a bar's fourth bending pair, 47 cents sharp with
+    the band-top rule alone at f_max = 2 kHz, is within 3 cents). Shear and longitudinal
+    modes are within about a cent at the band-top rule (beam, sphere).
     """
     size = float(np.max(mesh.extents))
     if resolution is not None:
@@ -173,11 +237,16 @@ def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, qualit
             raise ValueError(f"resolution must be >= 1 element along the longest side, got {resolution}")
         return size / int(resolution)
     q = quality_preset(quality)
-    lam_s = np.sqrt(material.shear_modulus / material.rho) / f_max
     t = thin_wall(mesh, thickness)
     if not np.isfinite(t) or t <= 0:
         t = size
-    h = min(lam_s, _bending_wavelength(material, t, f_max)) / q["per_wavelength"] * (QUADRATIC_SIZE if order == 2 else 1.0)
+    quad = QUADRATIC_SIZE if order == 2 else 1.0
+    lam_s = np.sqrt(material.shear_modulus / material.rho) / f_max
+    h = min(lam_s, _bending_wavelength(material, t, f_max)) / q["per_wavelength"] * quad
+    V, A, _, L = mode_count_inputs(mesh, thickness)
+    f_low = min(f_max, frequency_of_mode(material, V, A, t, L, LOW_MODES))
+    if solid_modes(material, V, f_low) < 0.5 * LOW_MODES:  # the lowest modes bend (a bar, a plate)
+        h = min(h, _bending_wavelength(material, t, f_low) / q["low_per_wavelength"] * quad)
     return float(min(h, size / q["min_per_side"]))
 
 
@@ -324,11 +393,20 @@ def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality
     fine voxel is at most a quarter of a closed mesh's wall (:func:`thin_wall`), at most
     :data:`MAX_REFINE`. A wall smeared over partly filled voxels is too thick in bending (a
     20 cm bowl with 4 mm walls rang 12 % sharp with 2.4 mm voxels and 4 % with 1 mm ones);
-    an open surface is a slab of ``thickness`` and keeps the quality's value."""
-    r = quality_preset(quality)["refine"]
+    an open surface is a slab of ``thickness`` and keeps the quality's value.
+
+    A curved closed surface (less than :data:`ALIGNED_CURVED` of its area facing along an
+    axis) gets at least ``curved_refine``: its staircase, not the element size, limits the
+    accuracy there (the 0.1 m sphere: 6.5 cents at refine 3, 1.5 at 6, 0.6 at 10, same
+    dofs), as long as the fine grid stays under :data:`MAX_FINE_VOXELS`."""
+    q = quality_preset(quality)
+    r = q["refine"]
     t = thin_wall(mesh, thickness)
     if np.isfinite(t) and t > 0 and mesh.is_watertight:
         r = int(np.clip(np.ceil(4 * h / t), r, MAX_REFINE))
+        if axis_aligned_fraction(mesh) < ALIGNED_CURVED:
+            cells = float(np.prod(np.maximum(1.0, np.ceil(np.asarray(mesh.extents, float) / h))))
+            r = max(r, min(q["curved_refine"], int((MAX_FINE_VOXELS / cells) ** (1.0 / 3.0))))
     return r
 
 
@@ -369,19 +447,11 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
         raise ValueError(f"over_budget={over_budget!r}: choose 'coarsen' or 'refuse'")
     cap = max_memory_gb(max_memory)
     notes = []
-    V = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
-    A = float(mesh.area)
-    t = thin_wall(mesh, thickness)
-    L = float(np.max(mesh.extents))
-    if not mesh.is_watertight and thickness is not None:
-        V = A * thickness
+    V, A, t, L = mode_count_inputs(mesh, thickness)
     if max_modes is not None:
         want = 2 * int(max_modes) + 10
         if estimate_modes(material, V, A, t, L, f_max) > want:
-            lo, hi = 1.0, f_max
-            for _ in range(60):
-                mid = math.sqrt(lo * hi)
-                lo, hi = (mid, hi) if estimate_modes(material, V, A, t, L, mid) < want else (lo, mid)
+            hi = frequency_of_mode(material, V, A, t, L, want, f_max)
             notes.append(f"band narrowed from {f_max:.0f} Hz to {hi:.0f} Hz, where about {want} modes are "
                          f"expected (max_modes={max_modes})")
             f_max = max(hi, 40.0)
