@@ -57,7 +57,8 @@ import numpy as np
 
 from ..io import atomic_open, atomic_path
 from .accuracy_modal import (ALU, BEAM_BENDING_3D, BEAM_BENDING_EB, BOWL_REFERENCE, SHAPES, lamb_sphere,  # noqa: F401
-                             references, run_fmax, run_modal, sphere_references, ESTIMATE_NOT_COMPARABLE)
+                             fmax_markdown, references, run_fmax, run_modal, sphere_references,
+                             ESTIMATE_NOT_COMPARABLE)
 from .measure import cents, machine_info, measure  # noqa: F401
 
 
@@ -411,24 +412,7 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
         w("![modal error vs wall time](accuracy_modal.png)")
         w("")
     if fmax:
-        w("### What f_max costs in the analysis, and what the reference modes get (default quality)")
-        w("")
-        w("Every shape above at default quality over f_max (2 to 20 kHz, those with a reference mode below "
-          "it): the error of the reference modes below f_max (the bowl: its first eight), against the "
-          "closed forms or the converged reference; estimate: the model's own `error_estimate_cents` (wall "
-          "time here includes its coarser solve). auto = the per-object choice (`facet` shell for the bowl, "
-          "hex for the others); the bowl also with hex.")
-        w("")
-        w("| shape | method | f_max [Hz] | modes | dofs | wall [s] | peak mem [MB] | compared | missing | "
-          "RMS [c] | max [c] | estimate [c] | estimate / RMS |")
-        w("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-        for r in fmax:
-            w(f"| {r.get('shape', 'bowl')} | {r.get('method', 'hex')} | {r['f_max']:.0f} | {r['n_modes']} | {r['dofs']} | "
-              f"{_f(r['wall_s'], '{:.2f}')} | {_f(r['peak_mb'], '{:.0f}')} | {r.get('compared', '-')} | "
-              f"{r.get('missing', '-')} | {_f(r.get('rms_cents', float('nan')), '{:.2f}')} | "
-              f"{_f(r.get('max_cents', float('nan')), '{:.2f}')} | {_f(r.get('estimate_cents', float('nan')), '{:.2f}')} | "
-              f"{_f(r.get('estimate_ratio', float('nan')), '{:.2f}')} |")
-        w("")
+        L.extend(fmax_markdown(fmax, _f))
     # ---------------- synth
     if synth:
         w("## 2. Synthesis: error against the float64 exact reference, against cost")

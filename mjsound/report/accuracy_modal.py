@@ -393,3 +393,30 @@ def estimate_ratio(shape, estimate, rms):
     if shape in ESTIMATE_NOT_COMPARABLE or not (np.isfinite(estimate) and np.isfinite(rms) and rms > 0):
         return float("nan")
     return float(estimate / rms)
+
+
+def fmax_markdown(fmax, fmt) -> list:
+    """Markdown lines of the f_max sweep's table (:func:`run_fmax` rows); ``fmt(x, spec)``
+    formats a number ('-' for nan)."""
+    L = []
+    w = L.append
+    _f = fmt
+    w("### What f_max costs in the analysis, and what the reference modes get (default quality)")
+    w("")
+    w("Every shape above at default quality over f_max (2 to 20 kHz, those with a reference mode below "
+      "it): the error of the reference modes below f_max (the bowl: its first eight), against the "
+      "closed forms or the converged reference; estimate: the model's own `error_estimate_cents` (wall "
+      "time here includes its coarser solve). auto = the per-object choice (`facet` shell for the bowl, "
+      "hex for the others); the bowl also with hex.")
+    w("")
+    w("| shape | method | f_max [Hz] | modes | dofs | wall [s] | peak mem [MB] | compared | missing | "
+      "RMS [c] | max [c] | estimate [c] | estimate / RMS |")
+    w("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in fmax:
+        w(f"| {r.get('shape', 'bowl')} | {r.get('method', 'hex')} | {r['f_max']:.0f} | {r['n_modes']} | {r['dofs']} | "
+          f"{_f(r['wall_s'], '{:.2f}')} | {_f(r['peak_mb'], '{:.0f}')} | {r.get('compared', '-')} | "
+          f"{r.get('missing', '-')} | {_f(r.get('rms_cents', float('nan')), '{:.2f}')} | "
+          f"{_f(r.get('max_cents', float('nan')), '{:.2f}')} | {_f(r.get('estimate_cents', float('nan')), '{:.2f}')} | "
+          f"{_f(r.get('estimate_ratio', float('nan')), '{:.2f}')} |")
+    w("")
+    return L
