@@ -260,29 +260,19 @@ class _SymmetricSum:
     """``w @ A.reshape(len(A), -1)`` for a stack of symmetric matrices ``A`` (c, m, m):
     the product runs over the upper triangle only (half the flops of the assembly's
     largest matrix product) and is mirrored after. ``columns`` (optional) reorders the
-    m^2 output columns (the mirroring gather applies it at no extra cost). Rows of ``w``
-    that are all ones (cells inside the object, every child full) share one precomputed
-    sum: with fine voxels of a curved surface (``refine`` 8: 512 children) the product
-    over the interior cells was most of the assembly."""
+    m^2 output columns (the mirroring gather applies it at no extra cost)."""
 
     def __init__(self, A: np.ndarray, columns: np.ndarray | None = None):
         m = A.shape[1]
         iu, ju = np.triu_indices(m)
         self.Au = np.ascontiguousarray(A[:, iu, ju])
-        self.full = self.Au.sum(axis=0)
         pos = np.empty((m, m), np.int64)
         pos[iu, ju] = np.arange(len(iu))
         pos[ju, iu] = np.arange(len(iu))
         self.pos = pos.ravel() if columns is None else pos.ravel()[columns]
 
     def __call__(self, w: np.ndarray) -> np.ndarray:
-        full = np.all(w == 1.0, axis=1)
-        out = np.empty((len(w), self.Au.shape[1]))
-        out[full] = self.full
-        part = np.flatnonzero(~full)
-        if len(part):
-            out[part] = w[part] @ self.Au
-        return out[:, self.pos]
+        return (w @ self.Au)[:, self.pos]
 
 
 def _node_block_order(m3: int) -> np.ndarray:

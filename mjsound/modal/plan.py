@@ -244,9 +244,9 @@ def element_size(mesh: trimesh.Trimesh, material: Material, f_max: float, qualit
     lam_s = np.sqrt(material.shear_modulus / material.rho) / f_max
     h = min(lam_s, _bending_wavelength(material, t, f_max)) / q["per_wavelength"] * quad
     V, A, _, L = mode_count_inputs(mesh, thickness)
-    f_low = min(f_max, frequency_of_mode(material, V, A, t, L, LOW_MODES))
+    f_low = frequency_of_mode(material, V, A, t, L, LOW_MODES)
     if solid_modes(material, V, f_low) < 0.5 * LOW_MODES:  # the lowest modes bend (a bar, a plate)
-        h = min(h, _bending_wavelength(material, t, f_low) / q["low_per_wavelength"] * quad)
+        h = min(h, _bending_wavelength(material, t, min(f_low, f_max)) / q["low_per_wavelength"] * quad)
     return float(min(h, size / q["min_per_side"]))
 
 
