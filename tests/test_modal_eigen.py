@@ -51,12 +51,20 @@ def test_block_band_matches_dense(cube, backend):
     V = sol.vectors
     assert np.allclose(V.T @ (d.M @ V), np.eye(V.shape[1]), atol=1e-9)
     # eigenpairs: K v = lambda M v, to the Ritz tolerance (the eigenvalues, Rayleigh
-    # quotients, are exact to its square: 1e-9 above)
+    # quotients, are exact to its square: 1e-9 above), in the norm the shift-invert
+    # criterion bounds: ||(K - sigma M)^-1 r||_M = (lambda - sigma) ||T v - mu v||_M <= tol
+    # for a shift sigma below the band (the residual r itself is dominated by traces of
+    # the cells' stiff internal modes, which move no eigenvalue)
+    import scipy.sparse.linalg as spla
+
     R = d.K @ V - (d.M @ V) * sol.eigenvalues
-    assert np.max(np.abs(R)) < 2 * E.BLOCK_TOL * np.max(np.abs(d.K @ V))
+    Z = spla.splu((d.K + 1e-3 * hi * d.M).tocsc()).solve(R)
+    assert np.max(np.sqrt(np.einsum("ij,ij->j", Z, d.M @ Z))) < 2 * E.BLOCK_TOL
 
 
 def test_slicing_fallback_gives_the_same_band(cube, monkeypatch):
+    """ARPACK slices find the block solve's band, exact triples included (one copy of a
+    triple was left out until the slices were searched again, deflated, on a short count)."""
     d, w = cube
     lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 40)
     block = E.solve_band(d.K, d.M, lo, hi, dense_max=10)

@@ -208,6 +208,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     n_slices = 0
     k = int(min(slice_modes if n_target is None or n_target + 4 > k_max else n_target + 4, n - 2))
     total = 0
+    slices = []
     while lo <= lam_max:
         n_slices += 1
         if n_slices == 1 and solve0 is not None and sigma == sigma0:
@@ -233,6 +234,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
         if k >= n - 2:  # asked for (almost) everything: the slice is the whole spectrum
             complete = w >= lo
             hi = np.inf
+        slices.append((sigma, lo, hi, w[complete], V[:, complete]))
         n_below += int(np.sum(complete & (w < lam_min)))
         take = complete & (w >= lam_min) & (w <= lam_max)
         vals.append(w[take])
@@ -253,6 +255,13 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             if left <= 0:
                 break
             k = int(min(max(slice_modes, 2 * left + 4) if 2 * left + 4 <= k_max else slice_modes, n - 2))
+    if n_target is not None and max_modes is None and n_below + total < n_target:
+        for w_add, V_add in _missing_copies(K, M, slices, n_target - n_below - total, backend):
+            n_below += int(np.sum(w_add < lam_min))
+            take = (w_add >= lam_min) & (w_add <= lam_max)
+            vals.append(w_add[take])
+            vecs.append(V_add[:, take])
+            total += int(take.sum())
     if n_target is not None and max_modes is None and n_below + total != n_target:
         warnings.warn(
             f"eigensolver found {n_below + total} eigenvalues below the band top but the inertia "
@@ -275,6 +284,45 @@ SPLIT_MIN_DOFS = 10000
 
 #: most eigenvalues :func:`_block_band` is asked for in one go (else: ARPACK slices)
 BLOCK_MAX_MODES = 400
+
+
+def _missing_copies(K, M, slices, missing: int, backend):
+    """Eigenpairs a slice's ARPACK run left out, ``[(w, V)]`` per slice.
+
+    Single-vector Lanczos finds an exactly repeated eigenvalue (a symmetric object's
+    pairs and triples) only through rounding and may return two copies of a triple (the
+    cube of exact quadratic cells did). When the slices found fewer eigenvalues than the
+    Sylvester count, each slice is searched again with its shift-invert operator deflated
+    by the pairs it found (``x -> (I - V V^T M) (K - sigma M)^{-1} x``, whose found
+    directions have eigenvalue 0), keeping what falls inside the slice, until the count
+    is met.
+    """
+    n = K.shape[0]
+    out = []
+    for sigma, lo, hi, w_s, V_s in slices:
+        if missing <= 0:
+            break
+        solve = factorize(K - sigma * M, backend, definite=sigma < 0)
+        MV = M @ V_s
+
+        def op(x, solve=solve, V_s=V_s, MV=MV):
+            y = solve(x)
+            return y - V_s @ (MV.T @ y)
+
+        k = int(min(missing + 2, n - len(w_s) - 2))
+        if k < 1:
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            v0 = np.random.default_rng(len(w_s)).standard_normal(n)
+            w, V = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", tol=1e-10, v0=v0,
+                              OPinv=spla.LinearOperator((n, n), matvec=op, dtype=np.float64),
+                              ncv=min(n - 1, 2 * k + 1 + len(w_s)))
+        new = (w >= lo) & (w < hi)
+        if new.any():
+            out.append((w[new], V[:, new]))
+            missing -= int(new.sum())
+    return out
 
 
 def _mass_normalise(V: np.ndarray, M: sp.spmatrix) -> np.ndarray:

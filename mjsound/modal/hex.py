@@ -45,9 +45,9 @@ import numpy as np
 import scipy.sparse as sp
 import trimesh
 
-from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 from ..materials import Material
 from .discretization import Discretization
+from .hex_cell import CellSum, quadratic_cell_matrices
 from .surface import cavities, face_components
 from .voxelize import surface_voxels, winding_occupancy
 
@@ -256,25 +256,6 @@ def _congruence(L: np.ndarray, A: np.ndarray) -> np.ndarray:
     return np.swapaxes(L, 1, 2) @ (A @ L)
 
 
-class _SymmetricSum:
-    """``w @ A.reshape(len(A), -1)`` for a stack of symmetric matrices ``A`` (c, m, m):
-    the product runs over the upper triangle only (half the flops of the assembly's
-    largest matrix product) and is mirrored after. ``columns`` (optional) reorders the
-    m^2 output columns (the mirroring gather applies it at no extra cost)."""
-
-    def __init__(self, A: np.ndarray, columns: np.ndarray | None = None):
-        m = A.shape[1]
-        iu, ju = np.triu_indices(m)
-        self.Au = np.ascontiguousarray(A[:, iu, ju])
-        pos = np.empty((m, m), np.int64)
-        pos[iu, ju] = np.arange(len(iu))
-        pos[ju, iu] = np.arange(len(iu))
-        self.pos = pos.ravel() if columns is None else pos.ravel()[columns]
-
-    def __call__(self, w: np.ndarray) -> np.ndarray:
-        return (w @ self.Au)[:, self.pos]
-
-
 def _node_block_order(m3: int) -> np.ndarray:
     """Columns that reorder a flattened (3 m3, 3 m3) element matrix, dofs ``3 node + axis``,
     into its m3 x m3 node blocks of 3 x 3: entry ``((a m3 + b) 3 + i) 3 + j`` is
@@ -384,10 +365,18 @@ def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bo
         # nodes are not all pinned by the corners of a few filled children, so the empty
         # children get a "stiff void": stiffness VOID_K and mass VOID_M of a full cell, which
         # removes the null space and puts the void's own modes far above any audible band.
-        Lu = _child_interpolations_lagrange(r, order + 1)
-        if embed is not None:
-            Lu = Lu @ np.kron(embed, np.eye(3))
-        AK = _SymmetricSum(_congruence(Lu, Kf), columns=_node_block_order(Lu.shape[2] // 3))
+        # Full cells get the exact quadratic cell (.hex_cell); the children's table is
+        # built only if a partly filled cell needs it.
+        m = 27 if embed is None else embed.shape[1]
+        Kx, Mx = quadratic_cell_matrices(hf * r, material, order + 1, embed)
+
+        @functools.lru_cache(maxsize=1)
+        def children():
+            Lu = _child_interpolations_lagrange(r, order + 1)
+            return Lu if embed is None else Lu @ np.kron(embed, np.eye(3))
+
+        AK = CellSum(lambda: _congruence(children(), Kf), 3 * m, full=Kx, columns=_node_block_order(m))
+        AM = CellSum(lambda: _congruence(children()[:, 0::3, 0::3], Mf[0::3, 0::3]), m, full=Mx)
 
         def cell_K(ch):
             return AK(ch + VOID_K * (1.0 - ch))
@@ -400,7 +389,8 @@ def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bo
     # so L_c^T M_f L_c = (W_c^T m_f W_c) (x) I3 and only the scalar part is summed (9x
     # fewer entries), and M = kron(M_node, I3) holds exactly (the eigensolver's fast mass
     # product relies on it).
-    AM = _SymmetricSum(_congruence(Lu[:, 0::3, 0::3], Mf[0::3, 0::3]))
+    if order == 1:
+        AM = CellSum(lambda: _congruence(Lu[:, 0::3, 0::3], Mf[0::3, 0::3]), 8)
 
     def cell_M(ch):
         return AM(mass_weight(ch))
