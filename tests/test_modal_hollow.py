@@ -43,6 +43,27 @@ def test_too_thick_wall_and_bad_input_named():
         analyze("box:0.1,0.1,0.1", "steel", wall="thin", cache=False)
 
 
+def test_a_narrow_feature_thins_the_wall_under_it_only(monkeypatch):
+    import mjsound.modal.surface as surface
+
+    # a 5 cm can with a rolled rim 0.3 mm wide: a 0.4 mm wall would turn the inner surface
+    # inside out under the rim; there (0.5 % of the area) the wall gets thinner
+    profile = np.array([[0, 0], [25, 0], [25, 79.5], [25.3, 79.5], [25.3, 80], [0, 80]]) * 1e-3
+    can = trimesh.creation.revolve(profile, sections=48)
+    slab = hollow(can, 0.4e-3)
+    assert slab.is_watertight and slab.is_winding_consistent and slab.volume > 0
+    assert 0 < slab.metadata["thinned_area"] < surface.MAX_THINNED_AREA
+    inner = np.asarray(slab.vertices)[len(can.vertices):]
+    gap = np.linalg.norm(np.asarray(can.vertices) - inner, axis=1)
+    r = np.hypot(*np.asarray(can.vertices)[:, :2].T)
+    assert np.all(gap[(r < 24e-3) & (np.asarray(can.vertices)[:, 2] < 79e-3)] > 0.399e-3)  # the body keeps its wall
+    assert 0 < gap.min() < 0.4e-3
+    assert hollow(can, 0.1e-3).metadata["thinned_area"] == 0.0
+    monkeypatch.setattr(surface, "MAX_THINNED_AREA", 1e-3)
+    with pytest.raises(ValueError, match=r"too thick .* 0\.5 % of the surface"):
+        hollow(can, 0.4e-3)
+
+
 def test_offsets_smooth_surface_along_normals():
     s = trimesh.creation.icosphere(subdivisions=3, radius=0.1)
     d = vertex_offsets(s, 0.001)
