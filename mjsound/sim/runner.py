@@ -35,8 +35,8 @@ def silent_synth_state(dtype="float32") -> SynthState:
     """A :class:`mjsound.synth.records.SynthState` without objects or microphones (the same
     types as a synthesizer's, so the kernel compiled for one serves both)."""
     z = np.zeros
-    objects = ObjectTable(z((0, 3)), z(1, np.int64), z(0), z(1, np.int64), z(1, np.int64), z(0), z(0),
-                          z(0, np.complex128), z(0, np.complex128))
+    objects = ObjectTable(z((0, 3)), z(1, np.int64), z(0, np.int64), z(1, np.int64), z(0), z(1, np.int64),
+                          z(1, np.int64), z(0), z(0), z(0, np.complex128), z(0, np.complex128))
     return SynthState(objects, z((0, 3)), z((0, 3, 3)), z((0, 3)), z(1, SYNTH_CONSTS), EventQueue(1).state,
                       StreamTable(0, dtype).empty, z(0, CHANNEL), z(0, np.complex128))
 

@@ -32,8 +32,9 @@ import numpy as np
 
 from ..jit import njit
 from .pulse import half_sine
+from .queue import take_due
 from .records import AIR, EventRows, SourceRows
-from .streams import any_due, mic_distance, nearest_one, streams_bank_rows, streams_gains
+from .streams import any_due, mic_distance, nearest_one, nearest_sorted, streams_bank_rows, streams_gains
 
 __all__ = ["bank_free", "bank_forced", "render_voice", "render_all", "render_streams", "impacts_to_queue",
            "commit_queued", "nearest", "one_pole", "place_rows", "Voice"]
@@ -419,7 +420,7 @@ def impacts_to_queue(synth, obj, P, J, t, tau):
             for b in range(3):
                 pl[b] += (P[i, a] - pos[a]) * R[a, b]
                 jl[b] += J[i, a] * R[a, b]
-        bi = nearest_one(ob.pts[p0:p1], pl[0], pl[1], pl[2])
+        bi = nearest_sorted(ob.pts[p0:p1], ob.pts_index[p0:p1], ob.pts_axis[o], pl[0], pl[1], pl[2])
         sb = s0 + 3 * bi * n
         cm = np.empty(n, np.complex128)
         for m in range(n):
@@ -497,17 +498,18 @@ RENDERED, REGAIN_FIRST, RENDERED_NONFINITE = 0, -1, -2
 
 
 @njit(cache=True)
-def render_streams(synth, bank, layout, ev, start, n, may_regain, out, zero):
-    """One block with persistent streams and no forcing sources, in one call: the due
-    streams' gains (:func:`.streams.streams_gains`), their rows
-    (:func:`.streams.streams_bank_rows`) and :func:`render_all`, as ``Synthesizer.render``
-    does them one call each.
+def render_streams(synth, bank, layout, start, n, may_regain, out, zero):
+    """One block ``[start, start + n)`` without forcing sources, in one call: the due
+    streams' gains (:func:`.streams.streams_gains`), the queue's events due in the block
+    (:func:`.queue.take_due`), the streams' rows (:func:`.streams.streams_bank_rows`; none
+    without streams) and :func:`render_all`, as ``Synthesizer.render`` does them one call each.
 
     ``may_regain``: the poses and microphones are current (else, when gains are due, nothing
     is done and :data:`REGAIN_FIRST` is returned: call ``on_regain`` and again). Returns
     :data:`RENDERED`, :data:`RENDERED_NONFINITE` (``out`` holds a NaN or infinity),
     :data:`REGAIN_FIRST`, or the ring length needed (> 0; the gains are computed, nothing
-    rendered: grow the ring and call again)."""
+    rendered: grow the ring and call again). The events are taken only once nothing is
+    handed back, so a repeated call renders the same block."""
     st = synth.streams
     if any_due(st):
         if not may_regain:
@@ -516,7 +518,10 @@ def render_streams(synth, bank, layout, ev, start, n, may_regain, out, zero):
         need = dmax + n + 1
         if need > st.ring.shape[1]:
             return need
-    src = SourceRows(*streams_bank_rows(st, layout, start, start + n, zero))
+    end = start + n
+    ev = EventRows(*take_due(synth.queue, end, layout.vbase, layout.v_rel, layout.v_len, synth.consts[0].n_mics,
+                             layout.width))
+    src = SourceRows(*streams_bank_rows(st, layout, start, end, zero))
     render_all(bank, synth.consts, ev, src, start, n, out, zero)
     for c in range(out.shape[0]):
         for k in range(out.shape[1]):

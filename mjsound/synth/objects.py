@@ -248,8 +248,16 @@ def build_layout(obs, M, next_index, dtype) -> Layout:
         parts = [f(by_index[i]) for i in range(nidx) if i in by_index]
         return np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(shape))
 
+    # surface points sorted along each object's longest coordinate axis (nearest_sorted)
+    axis = np.zeros(nidx, np.int64)
+    order = {}
+    for i, ob in by_index.items():
+        p = ob.pts.reshape(-1, 3)
+        axis[i] = int(np.argmax(np.ptp(p, axis=0))) if len(p) else 0
+        order[i] = np.argsort(p[:, axis[i]], kind="stable")
     table = ObjectTable(
-        pts=cat(lambda ob: ob.pts.reshape(-1, 3), (0, 3)), pts_off=offs["pts_off"],
+        pts=cat(lambda ob: ob.pts.reshape(-1, 3)[order[ob.index]], (0, 3)), pts_off=offs["pts_off"],
+        pts_index=cat(lambda ob: order[ob.index].astype(np.int64), (0,)).astype(np.int64), pts_axis=axis,
         shk=cat(lambda ob: ob.shk.ravel(), (0,)), shk_off=offs["shk_off"], mode_off=offs["mode_off"],
         wd=cat(lambda ob: ob.wd, (0,)), w=cat(lambda ob: np.asarray(ob.weights, np.float64), (0,)),
         lam=cat(lambda ob: ob.lam, (0,)).astype(np.complex128),

@@ -18,7 +18,7 @@ from .dispatch import EntryPoint
 from .records import EVENT, QUEUE, EventRows, QueueState
 from .sorting import stable_argsort
 
-__all__ = ["EventQueue"]
+__all__ = ["EventQueue", "take_due"]
 
 NONE = 2**62  # "no pending event" sample
 
@@ -130,7 +130,7 @@ class EventQueue:
         # (a plain tuple crosses back from numba: boxing a NamedTuple runs Python code, where a
         # pending Ctrl-C made numba crash)
         if self._take is None:
-            self._take = EntryPoint(_take)  # (no per-call typing of the structured arrays)
+            self._take = EntryPoint(take_due)  # (no per-call typing of the structured arrays)
         return EventRows(*self._take((self.state,), int(end), vbase, v_rel, v_len, int(n_mics), int(width)))
 
 
@@ -167,7 +167,10 @@ def _compact(q, keep):
 
 
 @njit(cache=True)
-def _take(q, end, vbase, v_rel, v_len, n_mics, width):
+def take_due(q, end, vbase, v_rel, v_len, n_mics, width):
+    """:meth:`EventQueue.take` in numba: removes the events of queue ``q``
+    (:class:`.records.QueueState`) before sample ``end`` and returns the fields of
+    :class:`.records.EventRows` as a plain tuple."""
     ev, re, im = q.events, q.re, q.im
     count = q.counts[0].count
     due = np.zeros(count, np.bool_)

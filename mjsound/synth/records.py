@@ -55,13 +55,17 @@ AIR, DEAF = -1, -2
 
 class ObjectTable(NamedTuple):
     """Every object's modal data in flat arrays indexed by object index ``o``: surface points
-    ``pts[pts_off[o]:pts_off[o+1]]`` (object frame) [m], shapes ``shk[shk_off[o]:...]`` as
-    (points, 3, modes), per-mode values ``[mode_off[o]:mode_off[o+1]]`` of ``wd`` (damped
-    angular frequency [rad/s]), ``w`` (radiation weight [Pa m]), ``lam`` (complex pole
-    [1/s]) and ``leps`` (log of the pole-rounding ratio)."""
+    ``pts[pts_off[o]:pts_off[o+1]]`` (object frame) [m] sorted along the object's coordinate
+    axis ``pts_axis[o]`` (for :func:`.streams.nearest_sorted`), ``pts_index`` the sample index
+    of each of those rows in the model (the row of its shapes), shapes ``shk[shk_off[o]:...]``
+    as (points, 3, modes) in sample order, per-mode values ``[mode_off[o]:mode_off[o+1]]`` of
+    ``wd`` (damped angular frequency [rad/s]), ``w`` (radiation weight [Pa m]), ``lam``
+    (complex pole [1/s]) and ``leps`` (log of the pole-rounding ratio)."""
 
     pts: np.ndarray
     pts_off: np.ndarray
+    pts_index: np.ndarray
+    pts_axis: np.ndarray
     shk: np.ndarray
     shk_off: np.ndarray
     mode_off: np.ndarray

@@ -145,9 +145,10 @@ class StreamMethods:
         #: says the driver has just done so
         self.on_regain = getattr(self, "on_regain", None)
         self.poses_current = False
-        #: render blocks with streams and no forcing sources in one numba call (same sound to
-        #: float32 rounding: 1.5e-6 of the peak on Ant-v5; False: one call per stage)
+        #: render blocks without forcing sources in one numba call (same sound to float32
+        #: rounding: 1.5e-6 of the peak on Ant-v5; False: one call per stage)
         self.fused_streams = True
+        self._zero = self.dtype.type(0)  # (the bank dtype's 0: fixes the kernels' accumulator type)
 
     def _streams_regain(self, n) -> None:
         """Gains of the streams marked due (from their last point and normal, the objects'
@@ -162,15 +163,16 @@ class StreamMethods:
             if need > st.ring.shape[1]:
                 self._streams.grow_ring(need)
 
-    def _render_streams(self, ev, start, n, out) -> bool:
-        """Render a block with streams and no forcing sources in one numba call
-        (:func:`.kernels.render_streams`: due gains, stream rows, :func:`.kernels.render_all`);
-        the same samples as :meth:`_streams_bank_rows` then ``render_all``. Returns whether
-        every sample is finite."""
+    def _render_streams(self, start, n, out) -> bool:
+        """Render a block without forcing sources in one numba call
+        (:func:`.kernels.render_streams`: due gains, due events, stream rows,
+        :func:`.kernels.render_all`); the same samples as taking the events, then
+        :meth:`_streams_bank_rows`, then ``render_all``. Returns whether every sample is finite."""
         may_regain = self.on_regain is None or self.poses_current
+        zero = self._zero
         while True:
-            code = self._render_streams_call((self.kernel_state(), self._bank, self._layout), ev, start, n, may_regain,
-                                          out, self.dtype.type(0))
+            code = self._render_streams_call((self.kernel_state(), self._bank, self._layout), start, n, may_regain,
+                                             out, zero)
             if code == kernels.RENDERED or code == kernels.RENDERED_NONFINITE:
                 return code == kernels.RENDERED
             if code == kernels.REGAIN_FIRST:

@@ -19,7 +19,7 @@ import numpy as np
 from ..jit import njit
 from .records import AIR
 
-__all__ = ["stream_seed", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
+__all__ = ["stream_seed", "nearest_sorted", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
            "any_due"]
 
 _U1 = np.uint64(0x9E3779B97F4A7C15)
@@ -83,6 +83,61 @@ def nearest_one(points, x, y, z):
 
 
 @njit(cache=True)
+def nearest_sorted(pts, index, axis, x, y, z):
+    """:func:`nearest_one` for rows ``pts`` (p, 3) sorted ascending along column ``axis``:
+    the sample index (``index`` of the row) of the row nearest to ``(x, y, z)``, the lowest
+    sample index among equally near rows, 0 for a non-finite point or no rows: exactly what
+    :func:`nearest_one` gives over the rows in sample order.
+
+    From the row where the axis coordinate reaches the query's, rows are visited outwards,
+    always on the side with the smaller axis gap ``a``; a side stops once ``a^2`` exceeds the
+    best squared distance (every farther row there is at least that far), so a surface of
+    ~1000 samples costs tens of rows, not all of them. Distances are summed as
+    :func:`nearest_one` sums them, so ties and rounding are the same."""
+    n = pts.shape[0]
+    if n == 0 or not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+        return 0
+    q = x if axis == 0 else (y if axis == 1 else z)
+    lo = 0
+    hi = n
+    while lo < hi:  # first row whose axis coordinate is >= q
+        mid = (lo + hi) >> 1
+        if pts[mid, axis] < q:
+            lo = mid + 1
+        else:
+            hi = mid
+    up = lo
+    dn = lo - 1
+    best = np.inf
+    bi = -1
+    while up < n or dn >= 0:
+        if up < n and (dn < 0 or pts[up, axis] - q <= q - pts[dn, axis]):
+            i = up
+        else:
+            i = dn
+        a = pts[i, axis] - q
+        if a * a > best:  # this side is done: its next rows are farther along the axis
+            if i == up:
+                up = n
+            else:
+                dn = -1
+            continue
+        if i == up:
+            up += 1
+        else:
+            dn -= 1
+        dx = pts[i, 0] - x
+        dy = pts[i, 1] - y
+        dz = pts[i, 2] - z
+        d = dx * dx + dy * dy + dz * dz
+        j = index[i]
+        if d < best or (d == best and j < bi):
+            best = d
+            bi = j
+    return bi if bi >= 0 else 0
+
+
+@njit(cache=True)
 def stream_gains(synth, j, o):
     """Per-microphone complex gain ``gr + j gi`` and integer delay ``D`` of stream ``j`` on
     object ``o``: a force along the stream's world direction ``n`` at its world point ``p``,
@@ -112,7 +167,7 @@ def stream_gains(synth, j, o):
         d0 += nrm[i] * R[i, 0]
         d1 += nrm[i] * R[i, 1]
         d2 += nrm[i] * R[i, 2]
-    bi = nearest_one(ob.pts[p0:p1], pl0, pl1, pl2)
+    bi = nearest_sorted(ob.pts[p0:p1], ob.pts_index[p0:p1], ob.pts_axis[o], pl0, pl1, pl2)
     sb = ob.shk_off[o] + 3 * bi * n  # shapes of o: flat (points, 3, modes)
     shk = ob.shk
     mics = synth.mics

@@ -422,20 +422,27 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         for times ``time .. time + (n_samples - 1) / fs`` (never NaN: non-finite samples, from
         an exploding simulation, are set to 0).
         """
-        try:
-            n = int(n_samples)
-        except (TypeError, ValueError):
-            raise ValueError(f"n_samples={n_samples!r} must be a non-negative integer") from None
-        if n < 0 or n != n_samples:
-            raise ValueError(f"n_samples={n_samples!r} must be a non-negative integer")
-        dt = self.dtype
-        out = np.zeros((self.n_channels, n), dtype=dt)
-        if n == 0:
-            return out.astype(np.float32)
+        n = n_samples
+        if type(n) is not int or n < 0:  # (the per-step call passes a plain int: checked once)
+            try:
+                n = int(n_samples)
+            except (TypeError, ValueError):
+                raise ValueError(f"n_samples={n_samples!r} must be a non-negative integer") from None
+            if n < 0 or n != n_samples:
+                raise ValueError(f"n_samples={n_samples!r} must be a non-negative integer")
         if self._dirty:
             self._rebuild()
-        start = self.samples_rendered
+        dt = self.dtype
+        out = np.zeros((len(self._mics), n), dtype=dt)
+        if n == 0:
+            return out.astype(np.float32)
+        start = int(self._rendered[0])
         end = start + n
+        if not self._src and self.fused_streams:
+            # (the common case: no forcing sources) due events, streams and banks in one numba call
+            finite = self._render_streams(start, n, out)
+            self._rendered[0] = end
+            return _finite(out.astype(np.float32, copy=False), finite)
         streams = self._streams.n > 0
         if self._ev.count or self._src or streams or self._bank.live.any():
             # ---- events due in this block: rows placed in the microphone banks, sorted by
@@ -448,10 +455,6 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
             # ---- forcing sources overlapping the block, as rows placed in the microphone banks
             # and grouped by microphone (src.ptr)
             srcs = [s for s in self._src if s[2] < end and s[3] > start] if self._src else ()
-            if streams and not srcs and self.fused_streams:  # (the common case while something slides or rolls)
-                finite = self._render_streams(ev, start, n, out)
-                self.samples_rendered = end
-                return _finite(out.astype(np.float32, copy=False), finite)
             if srcs:
                 src = self._source_rows(srcs, start, end)
                 self._src = [s for s in self._src if s[3] > end]
