@@ -157,6 +157,8 @@ class ImpactPulses:
     def mix(self, block: np.ndarray) -> np.ndarray:
         """Add the pending pulses of the next ``block.shape[1]`` samples into ``block``
         (channels, n) in place (nothing to do when none is pending); returns it."""
+        if not self.active:
+            return block  # (a stand-in: nothing is ever pending)
         extra = self.track.take(block.shape[1])
         if extra is not None:
             block += np.nan_to_num(extra, nan=0.0, posinf=0.0, neginf=0.0).astype(block.dtype)

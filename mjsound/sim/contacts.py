@@ -265,7 +265,8 @@ class ContactReader:
         if getattr(self, "_state", None) is None or getattr(self, "buffers", None) is None:
             self.counts = np.zeros(1, READER_COUNTS)
             # plain int64 views of the fields Python reads after every kernel call
-            self._n_records, self._n_bad, self._n_huge = (self.counts[k] for k in ("n_records", "n_bad", "n_huge"))
+            self._n_records, self._n_bad, self._n_huge, self._nslots = (
+                self.counts[k] for k in ("n_records", "n_bad", "n_huge", "nslots"))
             self._pairs = np.zeros(0, PAIR)
             self._hkeys = np.full(0, -1, np.int64)
             self._hvals = np.zeros(0, np.int64)
@@ -285,6 +286,11 @@ class ContactReader:
         self._records = deque(maxlen=self.keep_records)  # (the oldest drop out in O(1))
         self.n_impacts = 0
         self.n_clamped = 0
+
+    @property
+    def n_slots(self) -> int:
+        """Pair slots in use (geom pairs seen since the last reset)."""
+        return int(self._nslots[0])
 
     @property
     def step_count(self) -> int:
@@ -367,6 +373,8 @@ class ContactReader:
     def take_records(self) -> None:
         """Turn the record rows the kernel wrote into :class:`ImpactRecord` (each closes its
         slot's previous record) and report clamped forces (once)."""
+        if not (self._n_records[0] or self._n_bad[0] or self._n_huge[0]):
+            return  # (the common case, after every kernel call)
         n = int(self._n_records[0])
         if n:
             self.add_records(self.buffers.records[:n])

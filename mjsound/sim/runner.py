@@ -70,6 +70,7 @@ class StepKernel:
         self.run = np.zeros(1, RUN)
         #: the fields of :attr:`run` as one-element arrays (fast to use in Python)
         self.f = {name: self.run[name] for name in RUN.names}
+        self.f["from_struct"][0] = self.from_struct
         if clock is None:  # (calls with explicit times only; fs 1 keeps the event time finite)
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
@@ -103,26 +104,27 @@ class StepKernel:
         f = self.f  # (plain one-element views of the record's fields: fast to set in Python)
         f["nstep"][0], f["done"][0], f["call_step"][0] = nstep, 0, call_step
         f["stage"][0] = STAGE_STEP if call_step else STAGE_READ
-        f["from_struct"][0] = self.from_struct
         f["log_limit"][0], f["n_log"][0], f["n_impacts"][0], f["solved"][0], f["poses_current"][0] = log_limit, 0, 0, 0, 0
         if explicit is not None:
             f["explicit"][0] = 1
             f["t0"][0], f["t1"][0], f["n0"][0], f["n1"][0] = explicit
         else:
             f["explicit"][0] = 0
-        run = self.run[0]
         if not self.from_struct:
             if call_step or nstep != 1:
                 raise ValueError("StepKernel.call: stepping needs MuJoCo's C functions and struct layout")
             self._copy_contacts()
         reader = self.reader
+        reason_f = f["reason"]
         while True:
             d = drive() if callable(drive) else drive
             self._advance((self.mj, self.views, reader.state(), reader.buffers, self.clock, d, synth_state(),
                            self.run))
-            reason = int(f["reason"][0])
+            reason = reason_f[0]
             if reason == DONE:
                 return
+            reason = int(reason)
+            run = self.run[0]
             if reason == ROOM:
                 n = int(run["need"])
                 reader.grow(n, int(run["nefc"]))

@@ -311,7 +311,7 @@ class AudioSimulator(SimulatorReports):
         if synth is not None and self._sidx_epoch != synth.streams_epoch:  # the synthesizer forgot its streams
             self._sidx[:] = -1  # (in place: the kernel's entry point stays valid)
             self._sidx_epoch = synth.streams_epoch
-        nslots = int(self.reader.counts[0]["nslots"])
+        nslots = self.reader.n_slots
         if nslots > len(self._sidx):
             grown = np.full((max(2 * len(self._sidx), nslots), 2), -1, np.int64)
             grown[: len(self._sidx)] = self._sidx
@@ -407,19 +407,20 @@ class AudioSimulator(SimulatorReports):
         for bit."""
         nstep = int(nstep)
         c = self.clock
-        if (not self._fused or self.synth is None or c.k + nstep > c.k_max_int64
-                or self._opt.timestep != c.timestep):
+        k0 = c.k
+        synth = self.synth
+        if not self._fused or synth is None or k0 + nstep > c.k_max_int64 or self._opt.timestep != c.timestep:
             for _ in range(nstep):
                 self._mj.mj_step(self.model, self.data)
                 self.step(render=False)
             return
-        self.synth.poses_current = False
-        self._seg = (c.k, c.n)
+        synth.poses_current = False
+        self._seg = (k0, c.sample_at(k0))
         tc = _time.perf_counter()
         self._call(nstep, call_step=True)
         self.seconds_fused += _time.perf_counter() - tc
         self._count_segment()
-        self.synth.poses_current = bool(self._kernel.f["poses_current"][0])
+        synth.poses_current = bool(self._kernel.f["poses_current"][0])
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
@@ -435,14 +436,17 @@ class AudioSimulator(SimulatorReports):
         """One call of the step kernel (and its hand-backs), then collect what it produced."""
         synth = self.synth
         self._kernel.call(self._drive_state, synth.kernel_state, nstep, call_step, explicit,
-                          log_limit=max(0, self.keep_events - self._n_logged), on_stop=self._on_stop, synth=synth)
+                          max(0, self.keep_events - self._n_logged), self._on_stop, synth)
         self._collect()
 
     def _collect(self) -> None:
         """Take the kernel's impact records, impact count and event log entries."""
         f = self._kernel.f
         self.reader.take_records()
-        n_imp, n_log = int(f["n_impacts"][0]), int(f["n_log"][0])
+        n_imp, n_log = f["n_impacts"][0], f["n_log"][0]
+        if not (n_imp or n_log):
+            return
+        n_imp, n_log = int(n_imp), int(n_log)
         if n_imp:
             self._n_impacts += n_imp
             f["n_impacts"][0] = 0
@@ -509,9 +513,9 @@ class AudioSimulator(SimulatorReports):
         self.samples += n1 - n0
 
     def _render_pending(self) -> np.ndarray:
-        n, n0 = self._pending, self._pending_n0
+        n = self._pending
+        n0 = self._pending_n0 if n else self.clock.n  # (_count sets _pending_n0 when samples start pending)
         self._pending = 0
-        self._pending_n0 = self.clock.n
         if self.synth is None:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:

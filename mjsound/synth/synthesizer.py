@@ -173,6 +173,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
             self._consts[0][k] = v
         self.samples_rendered = 0
         self._streams_clear()
+        self._kernel_state = None  # (kernel_state(): made on first use, kept while its arrays are)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -370,14 +371,17 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         if self._dirty:
             self._rebuild()
         st = self._streams.state
-        parts = (self._object_table, self._poses.pos, self._poses.R, self._mics, self._consts, self._ev.state,
-                 self._streams.empty if st is None else st, self._channels, self._chan_w)
+        if st is None:
+            st = self._streams.empty
         # the same tuple while its arrays are the same: the step kernel's runner calls the
         # compiled entry point directly only while its arguments are the objects it was looked
         # up for (a new tuple each call typed every argument in Python: 4x the step time)
-        ks = getattr(self, "_kernel_state", None)
-        if ks is None or any(a is not b for a, b in zip(ks, parts)):
-            ks = self._kernel_state = SynthState(*parts)
+        ks = self._kernel_state
+        if (ks is None or ks.queue is not self._ev.state or ks.streams is not st or ks.objects is not self._object_table
+                or ks.pos is not self._poses.pos or ks.R is not self._poses.R or ks.mics is not self._mics
+                or ks.channels is not self._channels or ks.chan_w is not self._chan_w):
+            ks = self._kernel_state = SynthState(self._object_table, self._poses.pos, self._poses.R, self._mics,
+                                                 self._consts, self._ev.state, st, self._channels, self._chan_w)
         return ks
 
     # ------------------------------------------------------------------ rendering
