@@ -519,8 +519,12 @@ def render_streams(synth, bank, layout, start, n, may_regain, out, zero):
         if need > st.ring.shape[1]:
             return need
     end = start + n
-    ev = EventRows(*take_due(synth.queue, end, layout.vbase, layout.v_rel, layout.v_len, synth.consts[0].n_mics,
-                             layout.width))
+    q = synth.queue
+    if q.counts[0].count and q.counts[0].next_sample < end:
+        ev = EventRows(*take_due(q, end, layout.vbase, layout.v_rel, layout.v_len, synth.consts[0].n_mics, layout.width))
+    else:  # (nothing due: the queue stays as it is)
+        ev = EventRows(np.zeros(synth.consts[0].n_mics + 1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int8),
+                       np.zeros((0, layout.width)), np.zeros((0, layout.width)))
     src = SourceRows(*streams_bank_rows(st, layout, start, end, zero))
     render_all(bank, synth.consts, ev, src, start, n, out, zero)
     for c in range(out.shape[0]):
