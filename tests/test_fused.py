@@ -83,6 +83,7 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     the impact records and the event queue (the kernel asks Python to grow them)."""
     from mjsound.sim import step as S
     from mjsound.sim.records import RECORD
+    from mjsound.synth.bandlimited import PULSE_DTYPE
     from mjsound.sim.runner import StepKernel
 
     keep_events = {"event_log": 100_000, "short_log": 40}.get(variant, 0)
@@ -104,6 +105,7 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
         if variant == "tiny_buffers":
             sim.reader.buffers = sim.reader.buffers._replace(records=np.zeros(1, RECORD))
             sim.synth._ev._alloc(1, 1)
+            sim.pulses.state = sim.pulses.state._replace(rows=np.zeros(0, PULSE_DTYPE), dv=np.zeros(0))
         audio = play(model, data, sim)
         recs = [(r.time, r.geom1, r.geom2, r.impulse_pred, r.impulse_sim, r.steps, r.duration, r.open)
                 for r in sim.impacts]
@@ -123,6 +125,7 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     assert reasons.get((False, S.SOLVE), 0) > 0 and not reasons.get((True, S.SOLVE))
     if variant == "tiny_buffers":  # (the event log's buffer also starts empty and grows once)
         assert reasons.get((True, S.ROOM), 0) > 1
+        assert reasons.get((True, S.PULSES), 0) > 0  # (no room for the impacts' pulses: Python grows it)
     if variant == "follow":
         assert not np.allclose(sim.synth.microphones, [[0.5, -0.4, 0.23]])  # moved with the box
 

@@ -34,9 +34,12 @@ import numpy as np
 
 from ..materials import get_material
 from ..synth import accel_noise
-from ..synth.bandlimited import PulseTrack
+from ..synth.bandlimited import PULSE_DTYPE, PulseTrack
 from ..synth.contact_mic import site_pulse
-from ..synth.pulse import contact_time, effective, hertz_coefficient
+from ..synth.dispatch import EntryPoint
+from ..synth.pulse import compliance, contact_time
+from .click_kernels import impact_pulses, pulse_rows_needed
+from .records import CLICK_BODY, CLICK_GEOM, CLICK_PARAMS, CLICK_SITE, IMPACT, PULSE_COUNTS, ClickModel, PulseState
 
 __all__ = ["ImpactPulses", "UNKNOWN_MATERIAL"]
 
@@ -63,6 +66,14 @@ def _load_kernels() -> None:
         track.add_trusted(site_pulse(0.001, 1e-4, 0), np.ones(1))
         track.take(64)
         contact_time(1e-4, 1.0)
+
+
+def silent_pulse_state() -> PulseState:
+    """A :class:`.records.PulseState` of a model without bodies (the same types as an
+    :class:`ImpactPulses`' state, for a drive in which nothing makes pulses)."""
+    z = np.zeros
+    return PulseState(ClickModel(z(1, CLICK_PARAMS), z(0, CLICK_BODY), z(0, CLICK_GEOM), z(0, CLICK_SITE)),
+                      z(0, PULSE_DTYPE), z(0), z(1, PULSE_COUNTS))
 
 
 class ImpactPulses:
@@ -127,9 +138,36 @@ class ImpactPulses:
         self._site_body = np.array([m.site_bodyid[s] for s in self.contact_sites], np.int64)
         # each contact microphone's site frame in its body's frame (its axis: the frame's z)
         self._site_frame = np.array([_quat_mat(m.site_quat[s]) for s in self.contact_sites]).reshape(-1, 3, 3)
+        # the same, as the records the impact kernel reads (click_kernels.impact_pulses)
+        bodies = np.zeros(nb, CLICK_BODY)
+        bodies["dynamic"] = self._dynamic
+        bodies["mass"] = self._mass
+        bodies["ipos"] = np.asarray(m.body_ipos, dtype=np.float64).reshape(-1, 3)
+        bodies["iframe"] = self._iframe
+        bodies["masses"] = self._masses
+        bodies["a_eq"] = self._a_eq
+        bodies["inertia"] = np.asarray(m.body_inertia, dtype=np.float64).reshape(-1, 3)
+        bodies["hertz_mass"] = self._hertz_mass
+        geoms = np.zeros(m.ngeom, CLICK_GEOM)
+        geoms["body"] = np.asarray(m.geom_bodyid, dtype=np.int64)
+        geoms["has_material"] = [mat is not None for mat in self._mat]
+        geoms["compliance"] = [compliance(mat) for mat in self._mat]
+        geoms["radius"] = self._radius
+        sites = np.zeros(len(self.contact_sites), CLICK_SITE)
+        sites["body"] = self._site_body
+        sites["pos"] = np.asarray(m.site_pos, dtype=np.float64).reshape(-1, 3)[self.contact_sites]
+        sites["axis"] = self._site_frame[:, :, 2]
+        prm = np.zeros(1, CLICK_PARAMS)
+        prm[0]["clicks"], prm[0]["n_air"], prm[0]["c"] = int(self.clicks), self.n_air, self.c
+        prm[0]["unknown_compliance"] = compliance(get_material(UNKNOWN_MATERIAL))
+        self._model = ClickModel(prm, bodies, geoms, sites)
+        #: the pulses the step kernel made (click_kernels.queue_pulses), waiting for the track
+        self.state = PulseState(self._model, np.zeros(0, PULSE_DTYPE), np.zeros(0), np.zeros(1, PULSE_COUNTS))
+        self._waiting = self.state.counts["n"]  # (a plain int64 view: read after every kernel call)
+        self.reserve(8)
+        self._impact_pulses = EntryPoint(impact_pulses)
         if self.active:
             _load_kernels()
-        self._coef = {}
 
     def audible_bodies(self) -> np.ndarray:
         """(nbody,) bool: bodies whose impacts this makes heard: each dynamic body (not welded
@@ -147,7 +185,33 @@ class ImpactPulses:
 
     def reset(self, start: int = 0) -> None:
         """Forget pending pulses; the next sample :meth:`take` returns is ``start``."""
+        self._waiting[0] = 0
         self.track.reset(start)
+
+    def reserve(self, k: int) -> None:
+        """Room in :attr:`state` for the pulses of ``k`` more impact rows (a new state when the
+        rows grow: ask for it again)."""
+        need = int(self._waiting[0]) + pulse_rows_needed(k, self.n_air, len(self.contact_sites))
+        st = self.state
+        if need > len(st.rows):
+            cap = max(need, 2 * len(st.rows))
+            rows, dv = np.zeros(cap, PULSE_DTYPE), np.zeros(cap)
+            n = int(self._waiting[0])
+            rows[:n], dv[:n] = st.rows[:n], st.dv[:n]
+            self.state = PulseState(st.model, rows, dv, st.counts)
+
+    @property
+    def waiting(self) -> int:
+        """Pulse rows the step kernel made that :meth:`flush` has not moved to the track yet."""
+        return int(self._waiting[0])
+
+    def flush(self) -> None:
+        """Render the waiting pulse rows of :attr:`state` into the track (in the order they were
+        made: the same sum as rendering each step's pulses as they come)."""
+        n = int(self._waiting[0])
+        if n:
+            self._waiting[0] = 0
+            self.track.add_trusted(self.state.rows[:n], self.state.dv[:n])
 
     def take(self, n: int) -> np.ndarray | None:
         """``(n_air + n_contact, n)`` samples to add to the next ``n`` rendered samples (Pa at
@@ -163,19 +227,6 @@ class ImpactPulses:
         if extra is not None:
             block += np.nan_to_num(extra, nan=0.0, posinf=0.0, neginf=0.0).astype(block.dtype)
         return block
-
-    def _tau(self, g1: int, g2: int, speed: float) -> float:
-        key = (g1, g2)
-        coef = self._coef.get(key)
-        if coef is None:
-            mat1, mat2 = self._mat[g1], self._mat[g2]
-            if mat1 is None and mat2 is None:
-                mat1 = mat2 = get_material(UNKNOWN_MATERIAL)
-            b1, b2 = self.model.geom_bodyid[g1], self.model.geom_bodyid[g2]
-            coef = hertz_coefficient(effective(self._hertz_mass[b1], self._hertz_mass[b2]),
-                                     effective(self._radius[g1], self._radius[g2]), mat1, mat2)
-            self._coef[key] = coef
-        return float(contact_time(coef, speed))
 
     def add(self, impacts: np.ndarray, time_s: float, data, mic_positions) -> None:
         """Pulses of a step's impacts.
@@ -196,77 +247,11 @@ class ImpactPulses:
         """
         if not (self.active and len(impacts)) or not (self.clicks and self.n_air or self.contact_sites):
             return
-        mics = np.asarray(mic_positions, dtype=np.float64).reshape(-1, 3)
-        model = self.model
-        g12 = np.stack([np.asarray(impacts["g1"], np.int64), np.asarray(impacts["g2"], np.int64)], axis=1)
-        imp = np.asarray(impacts["impulse"], np.float64)
-        nrm = np.asarray(impacts["normal"], np.float64).reshape(-1, 3)
-        pts = np.asarray(impacts["point"], np.float64).reshape(-1, 3)
-        spd = np.asarray(impacts["speed"], np.float64)
-        ok = np.isfinite(imp) & (imp > 0) & np.isfinite(spd) & np.all(np.isfinite(nrm), axis=1) \
-            & np.all(np.isfinite(pts), axis=1)
-        # one pulse per touching pair: its contact points' impulses summed (a box landing flat
-        # has four), applied at their impulse-weighted centre, fastest approach speed
-        recs, dvs = [], []  # every pulse of the step, rendered in one call
-        groups = {}
-        for i in np.flatnonzero(ok).tolist():
-            groups.setdefault((int(g12[i, 0]), int(g12[i, 1])), []).append(i)
-        for (g1, g2), sel in groups.items():
-            w = imp[sel]
-            J2 = (w[:, None] * nrm[sel]).sum(axis=0)
-            point = (w[:, None] * pts[sel]).sum(axis=0) / w.sum()
-            speed = float(spd[sel].max())
-            tau = self._tau(g1, g2, speed)
-            for g, J in ((g2, J2), (g1, -J2)):
-                b = int(model.geom_bodyid[g])
-                if self._dynamic[b]:
-                    self._body(b, J, point, speed, tau, time_s, data, mics, recs, dvs)
-        if recs:
-            self.track.add_trusted(np.concatenate(recs), np.concatenate(dvs))
-
-    def add_step(self, impacts, run, origin: int, data, mic_positions) -> None:
-        """:meth:`add` for the step kernel's substep ``run`` (a ``RUN`` record: its first
-        ``n_imp`` rows of ``impacts``, its start ``t0`` [s] and first absolute sample ``n0``)
-        on an output clock whose sample 0 is the absolute ``origin``: the impacts are timed at
-        ``t0``, never before the step's first sample; ``mic_positions``: every channel's, the
-        air microphones first."""
-        fs = self.track.fs
-        t0, n0 = float(run["t0"]), int(run["n0"])
-        self.add(impacts[: int(run["n_imp"])], max(t0 - origin / fs, (n0 - origin) / fs), data,
-                 np.asarray(mic_positions)[: self.n_air])
-
-    def _body(self, b, J, point, speed, tau, time_s, data, mics, recs, dvs) -> None:
-        """Append body ``b``'s pulses (its click at every air microphone, its contact
-        microphones' rigid-body pulses) and their scales to ``recs``, ``dvs``."""
-        R = np.asarray(data.xmat[b]).reshape(3, 3)
-        com = np.asarray(data.xpos[b]) + R @ self.model.body_ipos[b]
-        Ri = R @ self._iframe[b]
-        cap = 2.0 * speed
-        dv = J / self._mass[b]
-        dv_norm = float(np.linalg.norm(dv))
-        if dv_norm > cap > 0:
-            dv *= cap / dv_norm
-            dv_norm = cap
-        if self.clicks and self.n_air and dv_norm > 0:
-            recs.append(accel_noise.dipole_pulses(com, Ri, self._masses[b], self._a_eq[b], dv / dv_norm, mics, time_s,
-                                                  tau, self.c))
-            dvs.append(np.full(len(mics), dv_norm))
-        sites = np.flatnonzero(self._site_body == b)
-        if not len(sites):
-            return
-        inertia = np.asarray(self.model.body_inertia[b], dtype=np.float64)
-        arm_p = point - com
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dw = Ri @ np.where(inertia > 0, (Ri.T @ np.cross(arm_p, J)) / inertia, 0.0)
-        for k in sites.tolist():
-            s = self.contact_sites[k]
-            site = np.asarray(data.xpos[b]) + R @ self.model.site_pos[s]
-            axis = R @ self._site_frame[k][:, 2]
-            spin = np.cross(dw, site - com)
-            spin_norm = float(np.linalg.norm(spin))
-            if spin_norm > cap > 0:
-                spin *= cap / spin_norm
-            dv_site = float((dv + spin) @ axis)
-            if dv_site != 0.0:
-                recs.append(site_pulse(time_s, tau, self.n_air + k))
-                dvs.append(np.array([dv_site]))
+        imp = np.ascontiguousarray(impacts, dtype=IMPACT)
+        mics = np.ascontiguousarray(mic_positions, dtype=np.float64).reshape(-1, 3)
+        self.flush()
+        self.reserve(len(imp))
+        st = self.state
+        self._waiting[0] = self._impact_pulses((self._model,), imp, len(imp), float(time_s), np.asarray(data.xpos),
+                                               np.asarray(data.xmat), mics, st.rows, st.dv, 0)
+        self.flush()  # (every pulse of the step, rendered in one call)

@@ -18,8 +18,9 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
-           "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "ReaderState", "StepBuffers",
-           "DataViews", "DriveState", "record"]
+           "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "CLICK_PARAMS", "CLICK_BODY",
+           "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState",
+           "ClickModel", "PulseState", "record"]
 
 i8, f8 = np.int64, np.float64
 
@@ -135,6 +136,33 @@ RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", 
                 ("poses_current", i8)])
 
 
+#: Impact pulses' constants (owner: :class:`mjsound.sim.clicks.ImpactPulses`): whether air
+#: microphones hear clicks, how many air microphones (channels ``0 .. n_air - 1``; contact
+#: microphones follow), speed of sound [m/s], the compliance both geoms of an impact count
+#: with when neither has a material [1/Pa].
+CLICK_PARAMS = np.dtype([("clicks", i8), ("n_air", i8), ("c", f8), ("unknown_compliance", f8)])
+
+#: Per body, what its impact pulses need (owner: ImpactPulses): whether it moves (not welded
+#: to the world, not mocap, with mass), mass [kg], centre of mass in the body frame [m],
+#: principal axes in the body frame (columns), displaced plus added air mass along each
+#: principal axis [kg], equivalent sphere radius [m], principal inertia [kg m^2], the mass
+#: it strikes with in the Hertz contact time (its subtree's; inf: welded to the world) [kg].
+CLICK_BODY = np.dtype([("dynamic", i8), ("mass", f8), ("ipos", f8, (3,)), ("iframe", f8, (3, 3)),
+                       ("masses", f8, (3,)), ("a_eq", f8), ("inertia", f8, (3,)), ("hertz_mass", f8)])
+
+#: Per geom, its impact pulses' Hertz contact (owner: ImpactPulses): its body, whether it has
+#: an acoustic material, the material's compliance ``(1 - nu^2) / E`` [1/Pa] (0: none, rigid)
+#: and its contact radius [m] (inf: flat).
+CLICK_GEOM = np.dtype([("body", i8), ("has_material", i8), ("compliance", f8), ("radius", f8)])
+
+#: Pulse rows waiting in :class:`PulseState` for Python's pulse track.
+PULSE_COUNTS = np.dtype([("n", i8)])
+
+#: A contact microphone (owner: ImpactPulses): its body, site position and sensing axis in the
+#: body frame.
+CLICK_SITE = np.dtype([("body", i8), ("pos", f8, (3,)), ("axis", f8, (3,))])
+
+
 def record(dtype: np.dtype, **values) -> np.ndarray:
     """A one-element array of ``dtype`` (a scalar record numba updates in place), zeroed and
     then set from ``values``."""
@@ -188,6 +216,7 @@ class DataViews(NamedTuple):
     cdof: np.ndarray  # (nv, 6)
     xpos: np.ndarray  # (nbody, 3)
     site_xpos: np.ndarray  # (nsite, 3)
+    xmat: np.ndarray  # (nbody, 9) body orientations
 
 
 class DriveState(NamedTuple):
@@ -201,3 +230,25 @@ class DriveState(NamedTuple):
     mic_offsets: np.ndarray  # (mics, 3) [m]
     dyn_geoms: np.ndarray  # (moving objects,) int64: geom of each moving sounding object
     dyn_obj: np.ndarray  # (moving objects,) int64: its synthesizer object index
+    pulses: PulseState  # impacts' clicks and contact-microphone pulses (ImpactPulses)
+
+
+class ClickModel(NamedTuple):
+    """What :func:`mjsound.sim.click_kernels.impact_pulses` reads of the model (owner:
+    ImpactPulses; made once)."""
+
+    prm: np.ndarray  # (1,) CLICK_PARAMS
+    bodies: np.ndarray  # (nbody,) CLICK_BODY
+    geoms: np.ndarray  # (ngeom,) CLICK_GEOM
+    sites: np.ndarray  # (contact microphones,) CLICK_SITE
+
+
+class PulseState(NamedTuple):
+    """Impact pulses made in the step kernel, waiting for Python's pulse track (owner:
+    ImpactPulses, which grows ``rows`` and ``dv`` when the kernel asks and empties them after
+    every kernel call)."""
+
+    model: ClickModel
+    rows: np.ndarray  # (cap,) PULSE_DTYPE
+    dv: np.ndarray  # (cap,) velocity change each row is scaled by [m/s]
+    counts: np.ndarray  # (1,) PULSE_COUNTS

@@ -15,6 +15,7 @@ from ..synth.dispatch import EntryPoint
 from ..synth.records import CHANNEL, SYNTH_CONSTS, ObjectTable, SynthState
 from ..synth.queue import EventQueue
 from ..synth.stream_table import StreamTable
+from .clicks import silent_pulse_state
 from .fused import mj_link
 from .records import DRIVE_PARAMS, RUN, SOUND, DataViews, DriveState
 from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance
@@ -28,7 +29,8 @@ def silent_drive(ngeom: int) -> DriveState:
     sound["obj"] = -1
     sound["coef_row"] = -1
     return DriveState(np.zeros(1, DRIVE_PARAMS), sound, np.zeros((0, ngeom)), np.full((0, 2), -1, np.int64),
-                      np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64))
+                      np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                      silent_pulse_state())
 
 
 def silent_synth_state(dtype="float32") -> SynthState:
@@ -66,7 +68,7 @@ class StepKernel:
         self.mj = mj_link(model, data, use_c)
         self.from_struct = bool(self.mj[0]["layout_ok"])
         self.views = DataViews(data.cvel, data.subtree_com, data.geom_xpos, data.geom_xmat, data.cdof, data.xpos,
-                               data.site_xpos)
+                               data.site_xpos, data.xmat)
         self.run = np.zeros(1, RUN)
         #: the fields of :attr:`run` as one-element arrays (fast to use in Python)
         self.f = {name: self.run[name] for name in RUN.names}

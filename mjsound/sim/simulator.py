@@ -317,11 +317,11 @@ class AudioSimulator(SimulatorReports):
             grown[: len(self._sidx)] = self._sidx
             self._sidx = grown
             self._drive = None
-        if self._drive is None:
+        if self._drive is None or self._drive.pulses is not self.pulses.state:
             mode, source, rows, offsets = self._mic_config()
             self._drive_prm[0]["mic_mode"], self._drive_prm[0]["mic_source"] = mode, source
             self._drive = DriveState(self._drive_prm, self._sound, self._coef, self._sidx, rows, offsets,
-                                     self._dyn_geoms, self._dyn_obj)
+                                     self._dyn_geoms, self._dyn_obj, self.pulses.state)
         return self._drive
 
     def _update_mics(self) -> None:
@@ -443,6 +443,8 @@ class AudioSimulator(SimulatorReports):
         """Take the kernel's impact records, impact count and event log entries."""
         f = self._kernel.f
         self.reader.take_records()
+        if self.pulses.waiting:
+            self.pulses.flush()
         n_imp, n_log = f["n_impacts"][0], f["n_log"][0]
         if not (n_imp or n_log):
             return
@@ -472,8 +474,9 @@ class AudioSimulator(SimulatorReports):
             self._count_segment()
             self._clock_jump()
             self._seg = (self.clock.k, self.clock.n)
-        elif reason == PULSES:
-            self.pulses.add_step(buf.impacts, run, self._origin, self.data, self.synth.kernel_state().mics)
+        elif reason == PULSES:  # the pulse rows are full: to the track, and room for this substep's
+            self.pulses.flush()
+            self.pulses.reserve(int(run["n_imp"]))
         elif reason == AMPLITUDE:
             self._collect()
             imp = buf.impacts[: int(run["need"])]

@@ -31,6 +31,7 @@ a pending signal into ``SystemError``.
 from __future__ import annotations
 
 from ..jit import njit
+from .click_kernels import pulse_room, queue_pulses
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
 from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
 from .impulses import event_impulses, normal_jacobians, write_records
@@ -168,6 +169,10 @@ def advance(mj, views, reader, buf, clock, drive, synth, run):
             rn.n_imp = n_imp
             rn.stage = STAGE_QUEUE
         if rn.stage == STAGE_QUEUE:
+            pulses = rn.n_imp > 0 and drive.prm[0].pulses != 0
+            if pulses and not pulse_room(drive.pulses, rn.n_imp):
+                rn.reason = PULSES  # Python moves the waiting pulses to its track (and grows the rows)
+                return
             sync_poses(drive, views, synth)
             t_ev = max(rn.t0 - ck.origin / ck.fs, (rn.n0 - ck.origin) / ck.fs)
             r = queue_impacts(drive, synth, buf, rn.n_imp, t_ev)
@@ -180,10 +185,9 @@ def advance(mj, views, reader, buf, clock, drive, synth, run):
                 rn.need = rn.n_imp
                 return
             rn.n_impacts += rn.n_imp
+            if pulses:  # their clicks and contact-microphone pulses, rendered by Python after the call
+                queue_pulses(drive.pulses, buf.impacts, rn.n_imp, t_ev, views, synth.mics)
             rn.stage = STAGE_LOG
-            if rn.n_imp and drive.prm[0].pulses:  # Python renders their clicks, then resumes
-                rn.reason = PULSES
-                return
         if rn.stage == STAGE_LOG:
             for i in range(rn.n_imp):
                 im = buf.impacts[i]

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..jit import njit
 
-__all__ = ["hertz_contact_time", "hertz_coefficient", "contact_time", "half_sine_spectrum", "half_sine", "effective",
+__all__ = ["hertz_contact_time", "hertz_coefficient", "compliance", "contact_time", "half_sine_spectrum", "half_sine", "effective",
            "TAU_MIN_S", "TAU_MAX_S"]
 
 #: Contact times are clamped to [TAU_MIN_S, TAU_MAX_S] seconds. The lower bound is far below
@@ -53,7 +53,7 @@ def effective(a: float, b: float) -> float:
     return 1.0 / (1.0 / a + 1.0 / b)
 
 
-def _compliance(mat) -> float:
+def compliance(mat) -> float:
     """(1 - nu^2) / E [1/Pa]; 0 for a rigid body (``mat is None``)."""
     if mat is None:
         return 0.0
@@ -101,7 +101,7 @@ def hertz_coefficient(m, R, mat1, mat2) -> float:
     """``coef`` [s (m/s)^(1/5)] of ``tau = coef v^(-1/5)`` for effective mass ``m`` [kg] and
     radius ``R`` [m] (``inf``: immovable / flat) between ``mat1`` and ``mat2`` (``None``:
     rigid); 0 when the contact is infinitely hard (see :func:`contact_time`)."""
-    c = _compliance(mat1) + _compliance(mat2)  # 1/E*
+    c = compliance(mat1) + compliance(mat2)  # 1/E*
     if math.isinf(m) or math.isinf(R) or c == 0.0:
         return 0.0
     E = 1.0 / c
