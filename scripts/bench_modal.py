@@ -12,6 +12,7 @@ baseline: ``scipy.sparse.linalg.eigsh(K, k, M, sigma)`` with its default SuperLU
     python scripts/bench_modal.py --json     # {"objects": [{name, dofs, n_modes, seconds, ...}]}
     python scripts/bench_modal.py --no-baseline --objects bowl
     python scripts/bench_modal.py --no-baseline --objects bowl --methods auto hex --f-max 3500
+    python scripts/bench_modal.py --vs-skfem 3  # the beam: mjsound hex vs scikit-fem P2 tets, same run
 
 Each object runs in its own process so that peak memory is its own.
 """
@@ -90,6 +91,39 @@ def _one(name, quality, baseline, queue, method="auto", f_max=None):
     queue.put(row)
 
 
+def vs_skfem(rounds: int, resolutions, skfem_h) -> list:
+    """The beam (report's references) with mjsound's default analysis (hex; ``resolutions``:
+    elements along the beam, None = the quality's own) against scikit-fem P2 tets at
+    ``skfem_h`` [m], alternated over ``rounds`` rounds, each point in a forked child (after
+    a warm-up in the parent: imports and JIT are not timed): ``[{label, dofs, rms_cents,
+    max_cents, seconds: [...]}]``."""
+    import numpy as np
+
+    from mjsound.modal.analyze import analyze
+    from mjsound.report.accuracy_modal import _modal_point, _peer_point, references
+    from mjsound.report.measure import cents, measure
+
+    analyze("box:0.05,0.01,0.01", "aluminium", quality="draft", cache=False, error_estimate=False)
+    _peer_point("beam", 0.05)  # warm-up: scikit-fem's imports and TetGen's child
+    refs = np.array([f for _, f in references("beam")])
+    points = [(f"mjsound hex default{'' if r is None else f' res={r}'}", _modal_point,
+               ("beam", "hex", {"quality": "default"} if r is None else {"quality": "default", "resolution": r}))
+              for r in resolutions]
+    points += [(f"skfem P2 h={h * 1e3:g}mm", _peer_point, ("beam", h)) for h in skfem_h]
+    rows = {label: {"label": label, "seconds": []} for label, _, _ in points}
+    for _ in range(rounds):
+        for label, fn, args in points:
+            res = measure(fn, tuple(dict(a) if isinstance(a, dict) else a for a in args), timeout=300)
+            out = res["out"]
+            if out is None:
+                raise RuntimeError(f"{label}: {res['error']}")
+            c = cents(np.array(out["matched"]), refs)
+            rows[label].update(dofs=out["dofs"], rms_cents=float(np.sqrt(np.nanmean(c**2))),
+                               max_cents=float(np.nanmax(np.abs(c))))
+            rows[label]["seconds"].append(out["wall_s"])
+    return list(rows.values())
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true")
@@ -98,7 +132,19 @@ def main(argv=None):
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--methods", nargs="*", default=["auto", "hex"], choices=["auto", "hex", "tet", "facet"])
     ap.add_argument("--f-max", type=float, default=None, help="band top [Hz] (default 20 kHz)")
+    ap.add_argument("--vs-skfem", type=int, default=0, metavar="ROUNDS",
+                    help="only the beam against scikit-fem P2 tets at equal error, ROUNDS alternated rounds")
     args = ap.parse_args(argv)
+    if args.vs_skfem:
+        rows = vs_skfem(args.vs_skfem, [None, 35], [0.01, 0.02])
+        peer = next(r for r in rows if r["label"] == "skfem P2 h=10mm")
+        t_peer = float(sorted(peer["seconds"])[len(peer["seconds"]) // 2])
+        for r in rows:
+            t = float(sorted(r["seconds"])[len(r["seconds"]) // 2])
+            print(f"{r['label']:26s} dofs {r['dofs']:6d}  RMS {r['rms_cents']:5.2f} c  max {r['max_cents']:5.2f} c  "
+                  f"median {t:6.3f} s of {', '.join(f'{x:.3f}' for x in r['seconds'])}  "
+                  f"skfem P2 h=10mm / this: {t_peer / t:5.2f}x", flush=True)
+        return 0
     ctx = mp.get_context("spawn")
     rows = []
     for name, method in ((n, m) for n in args.objects for m in args.methods):
