@@ -13,6 +13,7 @@ baseline: ``scipy.sparse.linalg.eigsh(K, k, M, sigma)`` with its default SuperLU
     python scripts/bench_modal.py --no-baseline --objects bowl
     python scripts/bench_modal.py --no-baseline --objects bowl --methods auto hex --f-max 3500
     python scripts/bench_modal.py --vs-skfem 3  # the beam: mjsound hex vs scikit-fem P2 tets, same run
+    python scripts/bench_modal.py --vs-skfem 5 --in-process  # the same, all in one process
 
 Each object runs in its own process so that peak memory is its own.
 """
@@ -91,11 +92,13 @@ def _one(name, quality, baseline, queue, method="auto", f_max=None):
     queue.put(row)
 
 
-def vs_skfem(rounds: int, resolutions, skfem_h) -> list:
+def vs_skfem(rounds: int, resolutions, skfem_h, fork: bool = True) -> list:
     """The beam (report's references) with mjsound's default analysis (hex; ``resolutions``:
     elements along the beam, None = the quality's own) against scikit-fem P2 tets at
     ``skfem_h`` [m], alternated over ``rounds`` rounds, each point in a forked child (after
-    a warm-up in the parent: imports and JIT are not timed): ``[{label, dofs, rms_cents,
+    one run of each side in the parent: imports, JIT and one-time library set-up are not
+    timed); ``fork=False``: every point in this process, one after the other (no fresh
+    process's first-call costs: OpenMP's threads, first touches of memory): ``[{label, dofs, rms_cents,
     max_cents, seconds: [...]}]``."""
     import numpy as np
 
@@ -103,8 +106,10 @@ def vs_skfem(rounds: int, resolutions, skfem_h) -> list:
     from mjsound.report.accuracy_modal import _modal_point, _peer_point, references
     from mjsound.report.measure import cents, measure
 
-    analyze("box:0.05,0.01,0.01", "aluminium", quality="draft", cache=False, error_estimate=False)
-    _peer_point("beam", 0.05)  # warm-up: scikit-fem's imports and TetGen's child
+    # warm-up in the parent, inherited by every forked child: each side runs its own measured
+    # call once (imports, JIT, PARDISO's and OpenMP's one-time set-up; scikit-fem's basis code)
+    analyze("box:0.5,0.01,0.01", "aluminium", f_max=6000, cache=False, error_estimate=False)
+    _peer_point("beam", 0.01)
     refs = np.array([f for _, f in references("beam")])
     points = [(f"mjsound hex default{'' if r is None else f' res={r}'}", _modal_point,
                ("beam", "hex", {"quality": "default"} if r is None else {"quality": "default", "resolution": r}))
@@ -113,7 +118,8 @@ def vs_skfem(rounds: int, resolutions, skfem_h) -> list:
     rows = {label: {"label": label, "seconds": []} for label, _, _ in points}
     for _ in range(rounds):
         for label, fn, args in points:
-            res = measure(fn, tuple(dict(a) if isinstance(a, dict) else a for a in args), timeout=300)
+            call = tuple(dict(a) if isinstance(a, dict) else a for a in args)
+            res = measure(fn, call, timeout=300) if fork else {"out": fn(*call), "error": None}
             out = res["out"]
             if out is None:
                 raise RuntimeError(f"{label}: {res['error']}")
@@ -134,9 +140,10 @@ def main(argv=None):
     ap.add_argument("--f-max", type=float, default=None, help="band top [Hz] (default 20 kHz)")
     ap.add_argument("--vs-skfem", type=int, default=0, metavar="ROUNDS",
                     help="only the beam against scikit-fem P2 tets at equal error, ROUNDS alternated rounds")
+    ap.add_argument("--in-process", action="store_true", help="--vs-skfem points in this process, not forked")
     args = ap.parse_args(argv)
     if args.vs_skfem:
-        rows = vs_skfem(args.vs_skfem, [None, 35], [0.01, 0.02])
+        rows = vs_skfem(args.vs_skfem, [None, 35], [0.01, 0.02], fork=not args.in_process)
         peer = next(r for r in rows if r["label"] == "skfem P2 h=10mm")
         t_peer = float(sorted(peer["seconds"])[len(peer["seconds"]) // 2])
         for r in rows:
