@@ -443,8 +443,11 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         start = int(self._rendered[0])
         end = start + n
         if not self._src and self.fused_streams:
-            # (the common case: no forcing sources) due events, streams and banks in one numba call
-            finite = self._render_streams(start, n, out)
+            # (the common case: no forcing sources) due events, streams and banks in one numba
+            # call; nothing queued, streamed or ringing: silence without one
+            finite = True
+            if self._ev.count or self._streams.n or self._bank.live.any():
+                finite = self._render_streams(start, n, out)
             self._rendered[0] = end
             return _finite(out.astype(np.float32, copy=False), finite)
         streams = self._streams.n > 0
