@@ -57,8 +57,8 @@ import numpy as np
 
 from ..io import atomic_open, atomic_path
 from .accuracy_modal import (ALU, BEAM_BENDING_3D, BEAM_BENDING_EB, BOWL_REFERENCE, SHAPES, lamb_sphere,  # noqa: F401
-                             fmax_markdown, references, run_fmax, run_modal, sphere_references,
-                             ESTIMATE_NOT_COMPARABLE)
+                             fmax_markdown, references, rod_bending_references, run_fmax, run_modal,
+                             sphere_references, ESTIMATE_NOT_COMPARABLE)
 from .measure import cents, machine_info, measure  # noqa: F401
 
 
@@ -349,7 +349,10 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
       + " cents off because they ignore shear and rotary inertia), and the longitudinal mode 5091.6 Hz "
       "(Rayleigh-Love). 9 modes.")
     w("* **rod** r = 10 mm, L = 0.5 m (`cylinder:0.01,0.5`, 62-gon), f_max 10 kHz: torsion "
-      "f_n = n c_s / 2L = 3122.0, 6243.9, 9365.9 Hz (exact in 3D). 3 modes.")
+      "f_n = n c_s / 2L = 3122.0, 6243.9, 9365.9 Hz (exact in 3D), and the first four bending pairs "
+      "from Timoshenko's beam with the 62-gon's own section (`mjsound.report.timoshenko`, within 0.5 "
+      "cent of the square beam's converged 3D values): " + ", ".join(f"{x:.2f}" for x in rod_bending_references())
+      + " Hz. 11 modes.")
     sr = sphere_references(__import__("mjsound.materials", fromlist=["x"]).get_material(ALU))
     w(f"* **sphere** radius 0.1 m (icosphere with 642 vertices scaled to the sphere's volume), f_max 14.5 kHz: "
       f"Lamb's (1882) free-sphere modes, x = omega a / c_s from the exact frequency equations "
@@ -380,6 +383,9 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
         if shape == "beam":
             hdr = ["bend1", "bend2", "bend3", "bend4", "long"]
             idx = [[0, 1], [2, 3], [4, 5], [6, 7], [8]]
+        elif shape == "rod":
+            hdr = ["bend1", "bend2", "bend3", "bend4", "tors1", "tors2", "tors3"]
+            idx = [[0, 1], [2, 3], [4, 5], [6, 7], [8], [9], [10]]
         elif shape == "sphere":
             hdr = ["0T2", "0S2"]
             idx = [[0, 1, 2, 3, 4], [5, 6, 7, 8, 9]]
