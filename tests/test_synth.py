@@ -87,6 +87,29 @@ def test_linearity_and_superposition():
     assert np.abs(y3 - 3 * y1).max() < 1e-6 * np.abs(y3).max()
 
 
+def test_impact_energy_bound_scales_to_the_budget_and_leaves_the_rest():
+    """A given approach speed bounds the vibration energy by |J| v / 2: an impact whose modes
+    would take more is scaled to exactly that energy, one within it is rendered unchanged."""
+    model = many_modes(30)
+    p, J, tau = model.points[5], np.array([0.02, -0.01, 0.03]), 4e-5
+
+    def render(speed):
+        syn = Synthesizer(FS, dtype="float64", cull_db=None)
+        syn.add_object("o", model)
+        syn.impact("o", p, J, 0.01, pulse_s=tau, speed=speed)
+        return syn.render(FS // 8)[0]
+
+    # the unbounded energy sum_m |phi_m(x).J S(w_m tau)|^2 / 2 of the kept modes
+    wd = np.sqrt((2 * np.pi * model.frequencies_hz) ** 2 - model.decay_per_s**2)
+    v = model.shapes[5].T @ J * half_sine_spectrum(wd, tau)
+    energy = 0.5 * float(np.sum(np.abs(v) ** 2))
+    free = render(None)
+    speed = 0.1 * energy / (0.5 * np.linalg.norm(J))  # a budget of a tenth of it
+    capped = render(speed)
+    assert np.abs(capped - np.sqrt(0.1) * free).max() < 1e-6 * np.abs(free).max()  # (float32 output)
+    np.testing.assert_array_equal(render(1.01 * energy / (0.5 * np.linalg.norm(J))), free)
+
+
 def test_nodal_direction_excites_nothing():
     syn = Synthesizer(FS)
     syn.add_object("o", one_mode(shape=(0.0, 0.0, 1.0)))

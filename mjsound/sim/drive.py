@@ -82,15 +82,18 @@ def sync_poses(drive, views, synth):
 
 @njit(cache=True)
 def impact_sides(drive, impacts, k, missing):
-    """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, n, n_missing)``,
-    per side the synthesizer object index, world point [m], impulse on that side [N s] and
-    Hertz pulse length [s]; the (struck, other) geom pairs without a coefficient yet go to
-    ``missing`` (their sides are left out)."""
+    """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, budget, n,
+    n_missing)``, per side the synthesizer object index, world point [m], impulse on that side
+    [N s], Hertz pulse length [s] and the most vibration energy the impact can give it,
+    ``|J| v / 2`` [J] (``v`` the approach speed; ``inf`` without one; see
+    :func:`mjsound.synth.kernels.impacts_to_queue`); the (struck, other) geom pairs without a
+    coefficient yet go to ``missing`` (their sides are left out)."""
     sound, coef = drive.sound, drive.coef
     obj = np.empty(2 * k, np.int64)
     P = np.empty((2 * k, 3))
     J = np.empty((2 * k, 3))
     tau = np.empty(2 * k)
+    budget = np.empty(2 * k)
     n = 0
     nm = 0
     for r in range(k):
@@ -113,8 +116,9 @@ def impact_sides(drive, impacts, k, missing):
                 P[n, q] = im.point[q]
                 J[n, q] = a * im.normal[q]
             tau[n] = contact_time(c, im.speed)
+            budget[n] = 0.5 * abs(im.impulse * im.speed) if im.speed > 0 else np.inf
             n += 1
-    return obj[:n], P[:n], J[:n], tau[:n], n, nm
+    return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n, nm
 
 
 @njit(cache=True)
@@ -123,11 +127,11 @@ def queue_impacts(drive, synth, buf, k, t_ev):
     ``t_ev`` [s] (:func:`mjsound.synth.kernels.impacts_to_queue`). Returns 0, ``-m`` when
     ``m`` Hertz coefficients are missing (in ``buf.missing``; nothing queued) or 1 when an
     amplitude is out of range (nothing queued)."""
-    obj, P, J, tau, n, nm = impact_sides(drive, buf.impacts, k, buf.missing)
+    obj, P, J, tau, budget, n, nm = impact_sides(drive, buf.impacts, k, buf.missing)
     if nm:
         return -nm
     t = np.full(n, t_ev)
-    count, used, nxt, amax = impacts_to_queue(synth, obj, P, J, t, tau)
+    count, used, nxt, amax = impacts_to_queue(synth, obj, P, J, t, tau, budget)
     if not amax <= MAX_AMPLITUDE:  # (also NaN)
         return 1
     commit_queued(synth.queue, count, used, nxt)

@@ -47,7 +47,9 @@ class ImpactMethods:
             Other body's mass [kg] and radius of curvature at the contact [m] (inf: immovable / flat).
         speed : float, optional
             Normal approach speed [m/s]; default ``|J| / (m* (1 + e))`` with m* the effective
-            mass and e the restitution (the smaller of the two materials').
+            mass and e the restitution (the smaller of the two materials'). Given, it also bounds
+            the vibration energy the impact gives the object by ``|J| speed / 2`` (the energy
+            bound of :func:`.kernels.impacts_to_queue`, which the per-step driver always applies).
         radius_m : float, optional
             This object's radius of curvature at the contact [m]; default half its size.
 
@@ -82,6 +84,7 @@ class ImpactMethods:
             raise ValueError(f"times must have one value per impact ({k}), got {np.size(times)}")
         t = finite_array(times, "time", "give simulation time in seconds").reshape(-1)
         t = self._check_time(np.broadcast_to(t, (k,)), "time")
+        v = self._speeds(speed, k)
         # ---- pulse length
         if pulse_s is not None:
             tau = finite_array(pulse_s, "pulse_s", "give the contact time in seconds (>= 0)")
@@ -97,14 +100,19 @@ class ImpactMethods:
                 R1 = float(radius_m)
                 if math.isnan(R1) or R1 <= 0:
                     raise ValueError(f"radius_m={radius_m!r} must be a positive radius in metres")
-            v = None
-            if speed is not None:
-                v = np.abs(finite_array(speed, "speed", "give the normal approach speed in m/s"))
-                v = np.broadcast_to(v, (k,)).astype(np.float64)
             tau = self._hertz_tau(ob, J, other_material, m2, R2, v, radius_m)
+        budget = np.full(k, np.inf) if v is None else 0.5 * np.sqrt(np.einsum("kc,kc->k", J, J)) * v
         if len(ob.keep) == 0 or k == 0:
             return
-        self._impact_rows(np.full(k, ob.index, np.int64), P, J, t, tau)
+        self._impact_rows(np.full(k, ob.index, np.int64), P, J, t, tau, budget)
+
+    @staticmethod
+    def _speeds(speed, k):
+        """``speed`` as (k,) approach speeds [m/s], or None."""
+        if speed is None:
+            return None
+        v = np.abs(finite_array(speed, "speed", "give the normal approach speed in m/s"))
+        return np.broadcast_to(v, (k,)).astype(np.float64)
 
     def _hertz_coef(self, ob, other_material, m2, R2, radius_m):
         """``(coef, e)``: :func:`.pulse.hertz_coefficient` of ``ob`` against the other body
@@ -126,17 +134,19 @@ class ImpactMethods:
             v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e)) if not math.isinf(mstar) else np.zeros(len(J))
         return np.array([contact_time(coef, vi) for vi in np.asarray(v, np.float64).reshape(-1).tolist()])
 
-    def _impact_rows(self, obj, P, J, t, tau) -> None:
+    def _impact_rows(self, obj, P, J, t, tau, budget=None) -> None:
         """Impacts in one numba call (:func:`.kernels.impacts_to_queue`; the per-step driver
         queues its own in numba: :func:`mjsound.sim.drive.queue_impacts`): impact ``i``
         strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at synth
-        time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s] (rows with non-finite
-        values are skipped). State is unchanged on error."""
+        time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s], at most the vibration
+        energy ``budget[i]`` [J] (None: unbounded; rows with non-finite values are skipped).
+        State is unchanged on error."""
         self.reserve_impacts(len(obj))
         f64 = np.float64
         count, used, nxt, amax = kernels.impacts_to_queue(
             self.kernel_state(), obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64),
-            np.ascontiguousarray(t, f64), np.ascontiguousarray(tau, f64))
+            np.ascontiguousarray(t, f64), np.ascontiguousarray(tau, f64),
+            np.full(len(obj), np.inf) if budget is None else np.ascontiguousarray(budget, f64))
         if not (amax <= MAX_AMPLITUDE):  # also catches NaN
             raise self.amplitude_error(obj)
         kernels.commit_queued(self._ev.state, count, used, nxt)
