@@ -47,32 +47,11 @@ import numpy as np
 
 from ..materials import Material, get_material, parse_material
 from ..modal.model import ModalModel
-from .objects import (  # noqa: F401
-    checked_mapping,
-    checked_names,
-    close_names,
-    custom_materials,
-    custom_texts,
-    geom_mesh_spec,  # (geom_mesh_spec re-exported)
-    geom_name,
-    group_objects,
-    plan_object,
-    unique_names,
-)
-from .scene_analysis import (  # noqa: F401 (re-exported)
-    AUTO_MAX_MODES,
-    MASS_TOLERANCE,
-    AnalysisOptions,
-    _analyze_with_fallback,
-    _finite_or_none,
-    _mode_cap,
-    _sphere_inaudible,
-    _surface_notes,
-    check_masses,
-    object_cached,
-    object_model,
-    warn_unheard,
-)
+from .objects import (checked_mapping, checked_names, close_names, custom_materials, custom_texts,  # noqa: F401
+                      geom_mesh_spec, geom_name, group_objects, plan_object, unique_names)  # (geom_mesh_spec re-exported)
+from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, AnalysisOptions, _analyze_with_fallback,  # noqa: F401
+                             _finite_or_none, _mode_cap, _sphere_inaudible, _surface_notes, check_masses,
+                             object_cached, object_model, warn_unheard)  # (re-exported)
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
 
