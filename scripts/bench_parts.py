@@ -6,7 +6,7 @@ per call) and prints microseconds per physics step (demo scene) or per env step 
 
 * ``step_kernel``: the numba step kernel calls (``mj_step`` included when it steps itself);
 * ``substeps`` / ``step_calls``: the simulator's calls around it (Python: hand-backs, records);
-* ``render``: ``Synthesizer.render`` (``render_streams``: its fused numba kernel with streams);
+* ``render``: ``Synthesizer.render`` (``render_streams``: its one-call render kernel: due gains, due events, streams, banks);
 * ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper);
 * ``physics``: ``mj_step`` alone on a copy of the same model (demo: the same number of steps;
   env: ``frame_skip`` steps per env step).
