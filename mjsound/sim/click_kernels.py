@@ -82,9 +82,12 @@ def _capped(x, y, z, cap):
 
 
 @njit(cache=True)
-def _body_pulses(cm, b, J, point, speed, tau, time_s, xpos, xmat, mics, rows, dv, n):
-    """Append body ``b``'s pulses (its clicks, its contact microphones') from row ``n`` on;
-    returns the next free row."""
+def _body_pulses(cm, b, J, point, speed, tau, time_s, pose, mics, rows, dv, n):
+    """Append body ``b``'s pulses (its clicks, its contact microphones') from row ``n`` on, for
+    the impulse ``J`` (3,) [N s] on it at ``point`` (3,) [m], approach ``speed`` [m/s], pulse
+    length ``tau`` [s] at ``time_s`` [s]; ``pose`` is ``(xpos, xmat)``, the bodies' poses (see
+    :func:`impact_pulses`). Returns the next free row."""
+    xpos, xmat = pose
     bd = cm.bodies[b]
     prm = cm.prm[0]
     R = np.empty((3, 3))
@@ -237,10 +240,10 @@ def impact_pulses(cm, impacts, k, time_s, xpos, xmat, mics, rows, dv, n):
         tau = contact_time(hertz_coefficient(cm, g1, g2), speed)
         b = cm.geoms[g2].body
         if cm.bodies[b].dynamic:
-            n = _body_pulses(cm, b, J, point, speed, tau, time_s, xpos, xmat, mics, rows, dv, n)
+            n = _body_pulses(cm, b, J, point, speed, tau, time_s, (xpos, xmat), mics, rows, dv, n)
         b = cm.geoms[g1].body
         if cm.bodies[b].dynamic:
-            n = _body_pulses(cm, b, Jm, point, speed, tau, time_s, xpos, xmat, mics, rows, dv, n)
+            n = _body_pulses(cm, b, Jm, point, speed, tau, time_s, (xpos, xmat), mics, rows, dv, n)
     return n
 
 
