@@ -1,5 +1,6 @@
 """Small file helpers shared by every writer: atomic replacement with normal permissions,
-temporary files that never outlive their run, and output-path checks.
+temporary files that never outlive their run, and output-path checks; and the content digest
+of a set of source files (cache keys that follow the code).
 
 Temporary files are named ``.mjsound-tmp-<host>-<pid>-<random><suffix>`` in the directory of
 the final file. A run that is killed (SIGKILL, OOM) cannot remove its own; the next run that
@@ -10,12 +11,13 @@ writes into the same directory removes every such file of this host whose proces
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import socket
 import tempfile
 
 __all__ = ["temp_beside", "commit_temp", "discard_temp", "remove_stale_temps", "check_output_file", "atomic_path",
-           "atomic_open", "TEMP_PREFIX"]
+           "atomic_open", "TEMP_PREFIX", "sources_digest"]
 
 #: Prefix of every temporary file mjsound writes.
 TEMP_PREFIX = ".mjsound-tmp-"
@@ -143,3 +145,18 @@ def atomic_open(path, mode: str = "w", **kwargs):
     with atomic_path(path, os.path.splitext(os.fspath(path))[1]) as tmp:
         with open(tmp, mode, **kwargs) as fh:
             yield fh
+
+
+def sources_digest(root: str, members) -> bytes:
+    """sha256 over the names (relative to ``root``) and contents of the ``.py`` files of
+    ``members``, each a folder (its ``.py`` files, sorted) or a file relative to ``root``."""
+    h = hashlib.sha256()
+    for member in members:
+        path = os.path.join(root, member)
+        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith(".py")) \
+            if os.path.isdir(path) else [path]
+        for f in files:
+            h.update(os.path.relpath(f, root).encode() + b"\0")
+            with open(f, "rb") as fh:
+                h.update(fh.read())
+    return h.digest()

@@ -15,11 +15,12 @@ registration always precedes their decorators.
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 
 import numba
 from numba.core import caching
+
+from .io import sources_digest as files_digest
 
 __all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest"]
 
@@ -46,17 +47,8 @@ def kernel_group(py_file: str, root: str = _ROOT) -> str | None:
 
 @functools.lru_cache(maxsize=None)
 def sources_digest(group: str, root: str = _ROOT) -> bytes:
-    """sha256 over the names and contents of the group's sources (sorted), as numba's stamp."""
-    h = hashlib.sha256()
-    for member in KERNEL_GROUPS[group]:
-        path = os.path.join(root, member)
-        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith(".py")) \
-            if os.path.isdir(path) else [path]
-        for f in files:
-            h.update(os.path.relpath(f, root).encode() + b"\0")
-            with open(f, "rb") as fh:
-                h.update(fh.read())
-    return h.digest()
+    """The digest of the group's sources (:func:`mjsound.io.sources_digest`), numba's stamp."""
+    return files_digest(root, KERNEL_GROUPS[group])
 
 
 class _GroupStamped:

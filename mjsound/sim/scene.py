@@ -51,7 +51,7 @@ from .objects import (checked_mapping, checked_names, close_names, custom_materi
                       geom_mesh_spec, geom_name, group_objects, plan_object, unique_names)  # (geom_mesh_spec re-exported)
 from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, AnalysisOptions, _analyze_with_fallback,  # noqa: F401
                              _finite_or_none, _mode_cap, _sphere_inaudible, _surface_notes, check_masses,
-                             object_cached, object_model, warn_unheard)  # (re-exported)
+                             object_model, warn_unheard)  # (re-exported)
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
 
@@ -338,9 +338,12 @@ class SoundScene:
                 if mm is None and inaudible:
                     scene.silent[name] = inaudible
                 elif mm is None:
-                    if progress and bar is None and not object_cached(plan, options):
-                        bar = _progress_bar(len(plans), done, name)  # (the first object to analyse)
-                    mm, notes = object_model(plan, options)
+                    def start_bar():  # (at the first object to analyse)
+                        nonlocal bar
+                        if progress and bar is None:
+                            bar = _progress_bar(len(plans), done, name)
+
+                    mm, notes = object_model(plan, options, start_bar)
                     if mm is None:
                         scene.silent[name] = "analysis failed (see warning)"
                 if bar is not None:

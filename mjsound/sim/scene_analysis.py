@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..io import sources_digest
 from ..limits import max_memory_gb
 from ..modal.model import ModalModel
 from .objects import object_mesh, solid_mode_count
@@ -95,15 +96,7 @@ def analysis_source_digest() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    h = hashlib.sha256()
-    for rel in _ANALYSIS_SOURCES:
-        path = os.path.join(root, rel)
-        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith(".py")) \
-            if os.path.isdir(path) else [path]
-        for f in files:
-            h.update(os.path.relpath(f, root).encode())
-            with open(f, "rb") as fh:
-                h.update(fh.read())
+    h = hashlib.sha256(sources_digest(root, _ANALYSIS_SOURCES))
     try:
         h.update(version("trimesh").encode())
     except PackageNotFoundError:  # pragma: no cover
@@ -123,15 +116,17 @@ class AnalysisOptions(NamedTuple):
     cache: bool
 
 
-def object_model(plan: dict, options: AnalysisOptions):
+def object_model(plan: dict, options: AnalysisOptions, on_analyse=None):
     """``(model, notes)`` of one scene object: from the object cache, else analysed (mode cap
-    for large solids, ``method`` then ``hex``) and kept there; ``(None, [])`` when the analysis
-    failed (a warning says why)."""
+    for large solids, ``method`` then ``hex``; ``on_analyse()`` is called first) and kept
+    there; ``(None, [])`` when the analysis failed (a warning says why)."""
     key = object_cache_key(plan, options)
     hit = load_object_model(key)
     if hit is not None:
         mm, plan["label"], notes = hit
         return mm, notes
+    if on_analyse is not None:
+        on_analyse()
     o, notes = options, []
     mesh = object_mesh(plan)
     max_modes, f_band, cap_note = _mode_cap(mesh, plan["material"], o.f_max, o.max_modes_per_object)
@@ -143,12 +138,6 @@ def object_model(plan: dict, options: AnalysisOptions):
         return None, []
     save_object_model(key, mm, plan["label"], notes)
     return mm, notes
-
-
-def object_cached(plan: dict, options: AnalysisOptions) -> bool:
-    """Whether :func:`object_model` will find this object in the object cache."""
-    key = object_cache_key(plan, options)
-    return key is not None and os.path.exists(_object_path(key))
 
 
 def object_cache_key(plan: dict, options: AnalysisOptions) -> str | None:

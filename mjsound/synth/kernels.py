@@ -34,10 +34,10 @@ from ..jit import njit
 from .pulse import half_sine
 from .queue import take_due
 from .records import AIR, EventRows, SourceRows
-from .streams import any_due, mic_distance, nearest_one, nearest_sorted, streams_bank_rows, streams_gains
+from .streams import any_due, mic_distance, nearest_sorted, streams_bank_rows, streams_gains
 
 __all__ = ["bank_free", "bank_forced", "render_voice", "render_all", "render_streams", "impacts_to_queue",
-           "commit_queued", "nearest", "one_pole", "place_rows", "Voice"]
+           "commit_queued", "one_pole", "place_rows", "Voice"]
 
 
 class Voice(NamedTuple):
@@ -346,16 +346,6 @@ def render_all(bank, consts, ev, src, start, n, out, zero):
                 live = True
                 break
         bank.live[v] = live
-
-
-@njit(cache=True)
-def nearest(points, q):
-    """Index of the nearest row of ``points`` (p, 3) for each row of ``q`` (k, 3)."""
-    k = q.shape[0]
-    out = np.empty(k, np.int64)
-    for j in range(k):
-        out[j] = nearest_one(points, q[j, 0], q[j, 1], q[j, 2])
-    return out
 
 
 @njit(cache=True)

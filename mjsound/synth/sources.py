@@ -34,11 +34,6 @@ class ForcingSources:
         return np.maximum(r, R_MIN_M)
 
 
-    @staticmethod
-    def _nearest(ob, pl):
-        if len(pl) * len(ob.pts) > 4_000_000:
-            return ob.model.nearest_points(pl)
-        return kernels.nearest(ob.pts, np.ascontiguousarray(pl, dtype=np.float64))
 
     def slide(self, name, point, normal, normal_force, speed, t0, t1, *, roughness=SLIDE_ROUGHNESS) -> None:
         """Sliding contact on ``[t0, t1)`` [s]: surface-roughness noise drives the modes.
@@ -118,7 +113,7 @@ class ForcingSources:
         fs = self.sample_rate
         pl = (p - ob.pos) @ ob.R
         dl = dirw @ ob.R
-        idx = int(self._nearest(ob, pl[None])[0])
+        idx = int(ob.model.nearest_points(pl)[0])
         G = dl @ ob.shk[idx]  # (n,)
         base = G / (fs * ob.wd)
         r = self._distances(ob)
