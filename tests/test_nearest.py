@@ -1,12 +1,31 @@
 """The nearest surface sample of the per-step kernels (``streams.nearest_sorted``, over rows
-sorted along one axis) against the brute-force scan it replaces (``streams.nearest_one``)."""
+sorted along one axis) against the brute-force scan it replaces (``nearest_one`` below)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from mjsound.synth.streams import nearest_one, nearest_sorted
+from numba import njit
+
+from mjsound.synth.streams import nearest_sorted
+
+
+@njit(cache=True)
+def nearest_one(points, x, y, z):
+    """Index of the row of ``points`` (p, 3) nearest to ``(x, y, z)``, the first of equally
+    near rows (the brute-force scan the kernels used before ``nearest_sorted``)."""
+    best = np.inf
+    bi = 0
+    for i in range(points.shape[0]):
+        dx = points[i, 0] - x
+        dy = points[i, 1] - y
+        dz = points[i, 2] - z
+        d = dx * dx + dy * dy + dz * dz
+        if d < best:
+            best = d
+            bi = i
+    return bi
 
 
 def _sorted(points):

@@ -65,35 +65,18 @@ def mic_distance(mics, m, pos, rmin):
     return r if r >= rmin else rmin
 
 
-@njit(cache=True, inline="always")
-def nearest_one(points, x, y, z):
-    """Index of the row of ``points`` (p, 3) nearest to ``(x, y, z)`` (brute force; models
-    carry ~1000 surface samples, so this is a few microseconds and needs no tree)."""
-    best = np.inf
-    bi = 0
-    for i in range(points.shape[0]):
-        dx = points[i, 0] - x
-        dy = points[i, 1] - y
-        dz = points[i, 2] - z
-        d = dx * dx + dy * dy + dz * dz
-        if d < best:
-            best = d
-            bi = i
-    return bi
-
-
 @njit(cache=True)
 def nearest_sorted(pts, index, axis, x, y, z):
-    """:func:`nearest_one` for rows ``pts`` (p, 3) sorted ascending along column ``axis``:
-    the sample index (``index`` of the row) of the row nearest to ``(x, y, z)``, the lowest
-    sample index among equally near rows, 0 for a non-finite point or no rows: exactly what
-    :func:`nearest_one` gives over the rows in sample order.
+    """The nearest surface sample for rows ``pts`` (p, 3) sorted ascending along column
+    ``axis``: the sample index (``index`` of the row) of the row nearest to ``(x, y, z)``, the
+    lowest sample index among equally near rows, 0 for a non-finite point or no rows: exactly
+    what a brute-force scan of the samples in their own order gives (``tests/test_nearest.py``).
 
     From the row where the axis coordinate reaches the query's, rows are visited outwards,
     always on the side with the smaller axis gap ``a``; a side stops once ``a^2`` exceeds the
     best squared distance (every farther row there is at least that far), so a surface of
     ~1000 samples costs tens of rows, not all of them. Distances are summed as
-    :func:`nearest_one` sums them, so ties and rounding are the same."""
+    ``dx*dx + dy*dy + dz*dz`` in that order, as the scan does, so ties and rounding are the same."""
     n = pts.shape[0]
     if n == 0 or not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
         return 0
