@@ -325,7 +325,7 @@ class SoundScene:
 
         f_max = default_f_max(sample_rate)
         bar = None
-        options = AnalysisOptions(method, quality, int(sample_rate), f_max, max_modes_per_object, bool(error_estimate),
+        options = AnalysisOptions(method, quality, int(sample_rate), max_modes_per_object, bool(error_estimate),
                                   bool(cache))
         try:
             for done, plan in enumerate(plans):

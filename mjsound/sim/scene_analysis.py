@@ -16,6 +16,7 @@ import numpy as np
 
 from ..io import sources_digest
 from ..limits import max_memory_gb
+from ..modal.band import default_f_max, ringing_below
 from ..modal.model import ModalModel
 from .objects import object_mesh, solid_mode_count
 
@@ -110,7 +111,6 @@ class AnalysisOptions(NamedTuple):
     method: str
     quality: str
     sample_rate: int
-    f_max: float  #: [Hz] the scene's band (modes above it are not heard)
     max_modes_per_object: object
     error_estimate: bool
     cache: bool
@@ -129,7 +129,8 @@ def object_model(plan: dict, options: AnalysisOptions, on_analyse=None):
         on_analyse()
     o, notes = options, []
     mesh = object_mesh(plan)
-    max_modes, f_band, cap_note = _mode_cap(mesh, plan["material"], o.f_max, o.max_modes_per_object)
+    max_modes, f_band, cap_note = _mode_cap(mesh, plan["material"], default_f_max(o.sample_rate),
+                                            o.max_modes_per_object)
     if cap_note:
         notes.append(cap_note)
     mm = _analyze_with_fallback(plan["name"], mesh, plan["material"], o.method, o.quality, o.sample_rate, o.cache,
@@ -215,7 +216,6 @@ def _mode_cap(mesh, material, f_max, max_modes_per_object):
             raise ValueError(f"max_modes_per_object={max_modes_per_object!r}: give 'auto', None or a count >= 1")
         return n, None, f"mode budget: lowest {n} modes (max_modes_per_object={n})"
     from ..geometry import load_mesh
-    from ..modal.band import ringing_below
 
     tm = load_mesh(mesh, check_size=False)
     if not tm.is_watertight or getattr(material, "wall", None) is not None:
