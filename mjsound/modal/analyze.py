@@ -77,7 +77,7 @@ def surface_samples(mesh: trimesh.Trimesh, n_points: int = 1024):
 
 
 def _discretize(method, mesh, material, h, points, quality, thickness, order, refine,
-                through_wall=True) -> Discretization:
+                through_wall=True, mid=None) -> Discretization:
     if method == "hex":
         from .hex import discretize_hex
 
@@ -94,7 +94,8 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
         from .facet_shell import discretize_facet
         from .midsurface import mid_surface
 
-        mid = mid_surface(mesh)
+        if mid is None:  # the plan's, when auto chose the method
+            mid = mid_surface(mesh)
         if len(mid.faces) == 0:
             raise ValueError("facet: no part of this surface is a thin wall (two sheets facing each other); "
                              "use method='auto', 'hex' or 'tet'")
@@ -331,7 +332,7 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     method, order, h, f_max, quality = plan.method, plan.order, plan.h, plan.f_max, plan.quality
     points, normals = surface_samples(tm, n_points)
     build = partial(_discretize, method, tm, material, points=points, quality=quality, thickness=thickness,
-                    order=order, refine=refine, through_wall=plan.through_wall)
+                    order=order, refine=refine, through_wall=plan.through_wall, mid=plan.mid_surface)
     disc = build(h=h)
     # The error estimate's coarser discretization does not depend on the solve: it is built
     # on the second core meanwhile (the Lanczos iteration runs on one).

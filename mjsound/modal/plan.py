@@ -193,6 +193,8 @@ class Plan:
     refine: int | None = None
     max_modes: int | None = None
     notes: list = field(default_factory=list)
+    #: the mid-surface ``auto`` found when choosing the method (:func:`choose_method`), or None
+    mid_surface: object = field(default=None, repr=False, compare=False)
 
     def info(self) -> dict:
         return {"method_choice": self.reason, "quality_used": self.quality,
@@ -301,17 +303,25 @@ def overlapping_parts(mesh: trimesh.Trimesh) -> int:
 
 def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tuple[str, str]:
     """``("facet" | "tet-wall" | "hex", reason)`` for ``method="auto"`` (module docstring)."""
+    return _choose_method(mesh, thickness)[:2]
+
+
+def _choose_method(mesh: trimesh.Trimesh, thickness: float | None):
+    """:func:`choose_method`'s ``(kind, reason)`` and the :class:`.midsurface.MidSurface`
+    it found on the way (None where it did not look for one), passed on to the
+    discretization so that it is computed once per analysis."""
+    mid = None
     if not mesh.is_watertight:
-        return "hex", "hex: the mesh is open or non-manifold (voxel embedding handles any surface)"
+        return "hex", "hex: the mesh is open or non-manifold (voxel embedding handles any surface)", mid
     k = overlapping_parts(mesh)
     if k:
         return "hex", (f"hex: a union of closed parts, {k} of which overlap another (several geoms of one "
-                       "body); the voxel embedding fills unions exactly")
+                       "body); the voxel embedding fills unions exactly"), mid
     t = thin_wall(mesh, thickness)
     smallest = float(np.min(mesh.extents))
     if not (t < THIN_WALL_RATIO * smallest):
         return "hex", (f"hex: a solid, bar or plate (wall 2V/A = {t * 1e3:.3g} mm against its smallest side "
-                       f"{smallest * 1e3:.3g} mm), where voxel hexahedra are exact in bending and fast")
+                       f"{smallest * 1e3:.3g} mm), where voxel hexahedra are exact in bending and fast"), mid
     from .midsurface import crease_cents, mid_surface
 
     mid = mid_surface(mesh)
@@ -320,7 +330,7 @@ def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tupl
     if coverage >= FACET_MIN_COVERAGE and crease <= FACET_MAX_CREASE_CENTS:
         return "facet", (f"facet: thin curved wall ({t * 1e3:.3g} mm against a smallest side of "
                          f"{smallest * 1e3:.3g} mm), {100 * coverage:.0f} % of its surface pairs across the wall: "
-                         "shell triangles on its mid-surface")
+                         "shell triangles on its mid-surface"), mid
     if coverage < FACET_MIN_COVERAGE:
         why = f"only {100 * coverage:.0f} % of it pairs across the wall (a shell needs {100 * FACET_MIN_COVERAGE:.0f} %)"
     else:
@@ -328,9 +338,9 @@ def choose_method(mesh: trimesh.Trimesh, thickness: float | None = None) -> tupl
                f"{FACET_MAX_CREASE_CENTS:.0f})")
     if not _tet_available():
         return "hex", (f"hex: thin wall ({t * 1e3:.3g} mm), but {why} and TetGen is not installed "
-                       "(pip install 'mjsound[tet]'); expect the staircase error in error_estimate_cents")
+                       "(pip install 'mjsound[tet]'); expect the staircase error in error_estimate_cents"), mid
     return "tet-wall", (f"tet10 through the wall: thin wall ({t * 1e3:.3g} mm against a smallest side "
-                        f"of {smallest * 1e3:.3g} mm), but {why}; voxels would make a staircase")
+                        f"of {smallest * 1e3:.3g} mm), but {why}; voxels would make a staircase"), mid
 
 
 def _estimate_dofs(kind: str, mesh: trimesh.Trimesh, h: float, order: int, refine: int | None,
@@ -456,9 +466,9 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
                          f"expected (max_modes={max_modes})")
             f_max = max(hi, 40.0)
     if method == "auto":
-        kind, reason = choose_method(mesh, thickness)
+        kind, reason, mid = _choose_method(mesh, thickness)
     else:
-        kind, reason = method, f"{method}: asked for"
+        kind, reason, mid = method, f"{method}: asked for", None
     modes = estimate_modes(material, V, A, t, L, f_max)
     if max_modes is not None:
         modes = min(modes, 2 * max_modes + 10)
@@ -485,7 +495,7 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
             return Plan(method="tet" if kind == "tet-wall" else kind, order=order if kind not in ("shell", "facet") else 1, h=h,
                         f_max=f_max, quality=q, reason=reason, modes=modes, dofs=int(dofs), memory_gb=mem,
                         cap_gb=cap, through_wall=kind != "tet-wall", refine=r, max_modes=max_modes,
-                        notes=notes)
+                        notes=notes, mid_surface=mid)
         if over_budget == "refuse":
             break
     q, dofs, mem = tried[-1]
