@@ -344,6 +344,7 @@ def discretize_facet(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndar
         ``dofs_per_node = 6``, info with ``element`` ("dkt+cst"), ``n_elements``,
         ``n_nodes``, ``mean_edge`` [m], ``thickness`` (min, max) [m], ``seconds``.
     """
+    from .shell import surface_interpolation
     from .surface import refine_to_size
 
     t0 = time.perf_counter()
@@ -366,19 +367,8 @@ def discretize_facet(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndar
     Ke, Me = facet_matrices(V[F], te, material.E, material.nu, material.rho)
     Ke *= rigid_corner_factor(V, F, te)[:, None, None]
     K, M = _assemble(F, Ke, Me, n_nodes)
-    pts = np.asarray(points, float).reshape(-1, 3)
-    p = len(pts)
-    import trimesh
-
-    closest, dist, tri = _nearest_on_triangles(V, F, pts)
-    bary = trimesh.triangles.points_to_barycentric(V[F[tri]], closest)
-    bary = np.clip(np.nan_to_num(bary, nan=1.0 / 3.0), 0.0, None)
-    bary /= bary.sum(axis=1, keepdims=True)
-    c3 = np.arange(3)
-    rows = np.broadcast_to(3 * np.arange(p)[:, None, None] + c3, (p, 3, 3))
-    cols = 6 * F[tri][:, :, None] + c3
-    vals = np.broadcast_to(bary[:, :, None], (p, 3, 3))
-    P = sp.csr_matrix((vals.reshape(-1), (rows.reshape(-1), cols.reshape(-1))), shape=(3 * p, 6 * n_nodes))
+    # the closest of the 12 triangles with the nearest centroids
+    P, max_dist = surface_interpolation(V, F, points, dofs_per_node=6, k=12, around_vertices=False)
     edges = np.unique(np.sort(F[:, _EDGES].reshape(-1, 2), axis=1), axis=0)
     info = {
         "method": "facet",
@@ -388,7 +378,7 @@ def discretize_facet(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndar
         "h": None if h is None else float(h),
         "mean_edge": float(np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1).mean()),
         "thickness": [float(tv.min()), float(tv.max())],
-        "max_point_distance": float(dist.max()) if p else 0.0,
+        "max_point_distance": max_dist,
         "seconds": time.perf_counter() - t0,
     }
     return Discretization(K=K, M=M, interp=P, n_rigid=6, info=info, dofs_per_node=6)
@@ -406,22 +396,6 @@ def _midpoint_values(V: np.ndarray, n0: int, values: np.ndarray) -> np.ndarray:
     w = 1.0 / np.maximum(d, 1e-15)
     out[n0:] = (w * values[idx]).sum(axis=1) / w.sum(axis=1)
     return out
-
-
-def _nearest_on_triangles(V: np.ndarray, F: np.ndarray, pts: np.ndarray, k: int = 12):
-    """Closest point on the triangles whose centroids are the ``k`` nearest: (p, 3)
-    points, (p,) distances [m], (p,) triangle ids."""
-    import trimesh
-    from scipy.spatial import cKDTree
-
-    k = min(k, len(F))
-    _, cand = cKDTree(V[F].mean(axis=1)).query(pts, k=k)
-    cand = cand.reshape(len(pts), k)
-    q = trimesh.triangles.closest_point(V[F[cand.ravel()]], np.repeat(pts, k, axis=0)).reshape(len(pts), k, 3)
-    dist = np.linalg.norm(q - pts[:, None, :], axis=2)
-    best = np.argmin(dist, axis=1)
-    r = np.arange(len(pts))
-    return q[r, best], dist[r, best], cand[r, best]
 
 
 def rigid_corner_factor(V: np.ndarray, F: np.ndarray, thickness: np.ndarray,

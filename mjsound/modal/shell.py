@@ -66,18 +66,23 @@ def _clean(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return m
 
 
-def _closest_point(V, F, pts, k=8):
+def _closest_point(V, F, pts, k=8, around_vertices=True):
     """Closest point on the surface: (p, 3) points, (p,) distances, (p,) triangle ids.
 
-    Candidates are the triangles around the k nearest vertices and the k triangles with
-    the nearest centroids (no rtree needed); the closest of them wins.
+    Candidates are the k triangles with the nearest centroids and, with
+    ``around_vertices``, the triangles around the k nearest vertices (no rtree needed);
+    the closest of them wins.
     """
     from scipy.spatial import cKDTree
 
-    kv, kf = min(k, len(V)), min(k, len(F))
-    _, nv = cKDTree(V).query(pts, k=kv)
+    kf = min(k, len(F))
     _, nf = cKDTree(V[F].mean(axis=1)).query(pts, k=kf)
-    nv, nf = nv.reshape(len(pts), kv), nf.reshape(len(pts), kf)
+    nf = nf.reshape(len(pts), kf)
+    if not around_vertices:
+        return _closest_of(V, F, pts, nf)
+    kv = min(k, len(V))
+    _, nv = cKDTree(V).query(pts, k=kv)
+    nv = nv.reshape(len(pts), kv)
     # vertex -> incident faces, padded (CSR of the face list by vertex)
     vf = np.repeat(np.arange(len(F)), 3)
     order = np.argsort(F.reshape(-1), kind="stable")
@@ -88,6 +93,11 @@ def _closest_point(V, F, pts, k=8):
     pad = np.where(slot < start[1:, None], vf[order][np.minimum(slot, len(vf) - 1)], -1)
     cand = np.concatenate([pad[nv].reshape(len(pts), -1), nf], axis=1)  # (p, c)
     cand = np.where(cand < 0, nf[:, :1], cand)
+    return _closest_of(V, F, pts, cand)
+
+
+def _closest_of(V, F, pts, cand):
+    """The closest point to each of ``pts`` (p, 3) on its candidate triangles ``cand`` (p, c)."""
     c = cand.shape[1]
     q = trimesh.triangles.closest_point(V[F[cand.reshape(-1)]], np.repeat(pts, c, axis=0))
     dist = np.linalg.norm(q - np.repeat(pts, c, axis=0), axis=1).reshape(len(pts), c)
@@ -166,23 +176,7 @@ def discretize_shell(mesh: trimesh.Trimesh, material, points: np.ndarray,
     K = ((K + K.T) * 0.5).tocsr()  # exact symmetry (summation order differs by entry)
 
     # interp: barycentric on the closest triangle
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    p = len(pts)
-    if p:
-        closest, dist, tri = _closest_point(V, F, pts)
-        bary = trimesh.triangles.points_to_barycentric(V[F[tri]], closest)
-        bary = np.clip(np.nan_to_num(bary, nan=1.0 / 3.0), 0.0, None)
-        bary /= bary.sum(axis=1, keepdims=True)
-        vert = F[tri]  # (p, 3)
-        rows = np.broadcast_to((3 * np.arange(p)[:, None, None] + c3), (p, 3, 3))
-        cols = 3 * vert[:, :, None] + c3
-        vals = np.broadcast_to(bary[:, :, None], (p, 3, 3))
-        P = sp.csr_matrix((vals.reshape(-1), (rows.reshape(-1), cols.reshape(-1))),
-                          shape=(3 * p, 3 * nv))
-        max_dist = float(dist.max())
-    else:
-        P = sp.csr_matrix((0, 3 * nv))
-        max_dist = 0.0
+    P, max_dist = surface_interpolation(V, F, points)
 
     info = {
         "method": "shell",
@@ -197,3 +191,25 @@ def discretize_shell(mesh: trimesh.Trimesh, material, points: np.ndarray,
         "seconds": time.perf_counter() - t0,
     }
     return Discretization(K=K, M=M, interp=P, n_rigid=6, info=info)
+
+
+def surface_interpolation(V, F, points, dofs_per_node: int = 3, k: int = 8, around_vertices: bool = True):
+    """Displacement at ``points`` (p, 3) [m] from the nodes ``V`` (n, 3) of triangles ``F``:
+    barycentric on each point's closest triangle (:func:`_closest_point` with ``k`` and
+    ``around_vertices``), as ``(P (3p, dofs_per_node n) csr, largest point distance [m])``.
+    Node ``i``'s translations are its dofs ``dofs_per_node i + (0, 1, 2)``."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    p, nv = len(pts), len(V)
+    if not p:
+        return sp.csr_matrix((0, dofs_per_node * nv)), 0.0
+    closest, dist, tri = _closest_point(V, F, pts, k, around_vertices)
+    bary = trimesh.triangles.points_to_barycentric(V[F[tri]], closest)
+    bary = np.clip(np.nan_to_num(bary, nan=1.0 / 3.0), 0.0, None)
+    bary /= bary.sum(axis=1, keepdims=True)
+    c3 = np.arange(3)
+    rows = np.broadcast_to((3 * np.arange(p)[:, None, None] + c3), (p, 3, 3))
+    cols = dofs_per_node * F[tri][:, :, None] + c3
+    vals = np.broadcast_to(bary[:, :, None], (p, 3, 3))
+    P = sp.csr_matrix((vals.reshape(-1), (rows.reshape(-1), cols.reshape(-1))),
+                      shape=(3 * p, dofs_per_node * nv))
+    return P, float(dist.max())
