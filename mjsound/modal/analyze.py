@@ -372,12 +372,8 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     err = float("nan")
     # the shell model has no resolution to vary (it lives on the given surface mesh)
     if error_estimate and under.sum() > 0 and method != "shell":
-        convergence = (facet_error_order(float(np.max(tm.extents)) / h) if method == "facet"
-                       else ERROR_ORDER[plan.through_wall])
-        if method == "hex":
-            convergence = (HEX_STAIRCASE_ERROR_ORDER if _thin_curved_wall(tm, thickness)
-                           else hex_error_order(tm, order))
-        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=convergence)
+        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max,
+                              order=_convergence_order(plan, tm, thickness))
     if method == "facet" and disc.info.get("crease_edges", 0) > 0:
         from .midsurface import CREASE_RESIDUAL, crease_cents
 
@@ -495,6 +491,17 @@ def hex_error_order(tm, order: int) -> float:
     if order != 2:
         return 2.0
     return 1.5 + 2.5 * axis_aligned_fraction(tm)
+
+
+def _convergence_order(plan: Plan, tm, thickness) -> float:
+    """Convergence order of the planned method's frequencies in the element size, for the
+    Richardson estimate: :func:`facet_error_order`, :func:`hex_error_order` (or
+    :data:`HEX_STAIRCASE_ERROR_ORDER` on a thin curved wall), else :data:`ERROR_ORDER`."""
+    if plan.method == "facet":
+        return facet_error_order(float(np.max(tm.extents)) / plan.h)
+    if plan.method == "hex":
+        return HEX_STAIRCASE_ERROR_ORDER if _thin_curved_wall(tm, thickness) else hex_error_order(tm, plan.order)
+    return ERROR_ORDER[plan.through_wall]
 
 
 def _thin_curved_wall(tm, thickness) -> bool:
