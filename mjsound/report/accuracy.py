@@ -58,7 +58,7 @@ import numpy as np
 from ..io import atomic_open, atomic_path
 from .accuracy_modal import (ALU, BEAM_BENDING_3D, BEAM_BENDING_EB, BOWL_REFERENCE, SHAPES, lamb_sphere,  # noqa: F401
                              fmax_markdown, references, rod_bending_references, run_fmax, run_modal,
-                             sphere_references, ESTIMATE_NOT_COMPARABLE)
+                             sphere_references)
 from .measure import cents, machine_info, measure  # noqa: F401
 
 
@@ -410,10 +410,6 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
               f"{_f(r.get('error_estimate_cents'), '{:.2f}')} | {_f(r.get('estimate_ratio'), '{:.2f}')} | "
               + " | ".join(cols) + " |")
         w("")
-        if shape in ESTIMATE_NOT_COMPARABLE:
-            w("(estimate / RMS not comparable here: the estimate covers the first ten modes, bending modes "
-              "below 2 kHz, and the references are the torsion modes from 3.1 kHz.)")
-            w("")
     if "accuracy_modal.png" in plots:
         w("![modal error vs wall time](accuracy_modal.png)")
         w("")

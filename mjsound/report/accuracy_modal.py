@@ -368,7 +368,7 @@ def run_modal(quick, log):
             row["rms_cents"] = float(np.sqrt(np.mean(c[fin] ** 2))) if fin.any() else float("nan")
             row["max_cents"] = float(np.max(np.abs(c[fin]))) if fin.any() else float("nan")
             if kw.get("error_estimate"):
-                row["estimate_ratio"] = estimate_ratio(shape, out["error_estimate_cents"], row["rms_cents"])
+                row["estimate_ratio"] = estimate_ratio(out["error_estimate_cents"], row["rms_cents"])
             else:
                 row["error_estimate_cents"] = float("nan")
         log(f"  modal {shape:6s} {label:18s} " + (
@@ -386,9 +386,6 @@ def _fmax_point(f_max, method="hex", shape="bowl"):
 #: f_max of the sweep per shape: every one from 2 to 20 kHz that has a reference below it
 FMAX_SWEEP = {"beam": (2000.0, 5000.0, 10000.0, 20000.0), "rod": (5000.0, 10000.0, 20000.0),
               "sphere": (14500.0, 20000.0), "bowl": (2000.0, 3500.0, 5000.0, 10000.0, 20000.0)}
-#: shapes whose references are not among the first ten modes, which the error estimate covers
-#: (none since the rod's bending references joined its torsion ones)
-ESTIMATE_NOT_COMPARABLE = ()
 
 
 def run_fmax(quick, log):
@@ -413,16 +410,16 @@ def run_fmax(quick, log):
                      "dofs": out.get("dofs", 0), "peak_mb": res["peak_mb"], "compared": int(below.sum()),
                      "missing": int(below.sum() - ok.sum()), "rms_cents": rms,
                      "max_cents": float(np.max(np.abs(c))) if len(c) else float("nan"),
-                     "estimate_cents": est, "estimate_ratio": estimate_ratio(shape, est, rms),
+                     "estimate_cents": est, "estimate_ratio": estimate_ratio(est, rms),
                      "error": res["error"]})
         log(f"  {shape} {method} f_max {f_max:7.0f} Hz: {rows[-1]['n_modes']} modes, {rows[-1]['wall_s']:.2f} s, "
             f"{rows[-1]['rms_cents']:.1f} c RMS, estimate {est:.1f} c")
     return rows
 
 
-def estimate_ratio(shape, estimate, rms):
-    """The model's error estimate over the measured RMS error (nan where not comparable)."""
-    if shape in ESTIMATE_NOT_COMPARABLE or not (np.isfinite(estimate) and np.isfinite(rms) and rms > 0):
+def estimate_ratio(estimate, rms):
+    """The model's error estimate over the measured RMS error (nan where either is unknown)."""
+    if not (np.isfinite(estimate) and np.isfinite(rms) and rms > 0):
         return float("nan")
     return float(estimate / rms)
 
