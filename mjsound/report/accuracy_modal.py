@@ -145,7 +145,7 @@ def rod_bending_references() -> tuple:
     quadratic tets on the rod converge to it from above (8.3 mm: +0.2 .. +3.2 cents)."""
     from ..geometry import load_mesh
     from ..materials import get_material
-    from .timoshenko import KAPPA_CIRCLE, polygon_section, timoshenko_free_free
+    from .timoshenko import kappa_circle, polygon_section, timoshenko_free_free
 
     mat = get_material(ALU)
     tm = load_mesh(SHAPES["rod"]["mesh"])
@@ -154,7 +154,7 @@ def rod_bending_references() -> tuple:
     cap = cap[np.hypot(cap[:, 0], cap[:, 1]) > 1e-9 * np.ptp(V[:, 2])]  # the rim, not the centre
     cap = cap[np.argsort(np.arctan2(cap[:, 1], cap[:, 0]))]
     area, inertia = polygon_section(cap)
-    f = timoshenko_free_free(mat, area, inertia, KAPPA_CIRCLE(mat.nu), float(np.ptp(V[:, 2])), 4)
+    f = timoshenko_free_free(mat, area, inertia, kappa_circle(mat.nu), float(np.ptp(V[:, 2])), 4)
     return tuple(float(x) for x in f)
 
 

@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["timoshenko_free_free", "polygon_section", "KAPPA_CIRCLE", "kappa_square"]
+__all__ = ["timoshenko_free_free", "polygon_section", "kappa_circle", "kappa_square"]
 
 
-def KAPPA_CIRCLE(nu: float) -> float:  # noqa: N802 (a coefficient)
+def kappa_circle(nu: float) -> float:
     """Cowper's shear coefficient of a solid circular section."""
     return 6 * (1 + nu) / (7 + 6 * nu)
 
