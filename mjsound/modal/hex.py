@@ -347,6 +347,7 @@ def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bo
         Lu = L[:, :, :24]
         AK = _congruence(L if incompatible else Lu, Kf).reshape(r**3, -1)
         AS = (hex_strain_integral(hf) @ L).reshape(r**3, 6 * 33)
+        AM = CellSum(lambda: _congruence(Lu[:, 0::3, 0::3], Mf[0::3, 0::3]), 8)
         D = _elasticity_matrix(material)
         V_f = float(np.prod(hf))
 
@@ -388,9 +389,7 @@ def _cell_operators(hf, r: int, material: Material, order: int, incompatible: bo
     # an isotropic field is (scalar node mass) x I3: M_f = m_f (x) I3 and L_c = W_c (x) I3,
     # so L_c^T M_f L_c = (W_c^T m_f W_c) (x) I3 and only the scalar part is summed (9x
     # fewer entries), and M = kron(M_node, I3) holds exactly (the eigensolver's fast mass
-    # product relies on it).
-    if order == 1:
-        AM = CellSum(lambda: _congruence(Lu[:, 0::3, 0::3], Mf[0::3, 0::3]), 8)
+    # product relies on it): AM sums the scalar parts.
 
     def cell_M(ch):
         return AM(mass_weight(ch))
