@@ -69,3 +69,30 @@ def test_warmup_compiles_every_kernel_a_take_uses():
     res = json.loads(out.stdout.strip().splitlines()[-1])
     assert res["impacts"] > 0 and res["streams"] > 0 and res["peak"] > 0 and res["channels"] == 2
     assert res["new"] == []
+
+
+def test_kernels_cached_follows_the_sources(monkeypatch):
+    """``kernels_cached`` is true once the step kernel of these sources is in numba's cache,
+    and false when the cache's stamp is another one (after an edit or a ``git pull``): the
+    first-compile notice then says so instead of a silent half-minute."""
+    from mjsound.sim.step import advance
+    from mjsound.sim.warmup import kernel_cache_dir, kernels_cached, warmup
+
+    warmup(verbose=False, once=True)
+    assert kernels_cached()
+    assert os.path.isdir(kernel_cache_dir())
+    monkeypatch.setattr(advance._cache._cache_file, "_source_stamp", b"another version of the sources")
+    assert not kernels_cached()
+
+
+def test_cli_warmup_compiles_every_group(capsys):
+    """``mjsound warmup`` runs the per-step, wrapper and modal kernels and says where the cache is."""
+    from mjsound.cli import main
+    from mjsound.sim.warmup import warmup
+
+    warmup(verbose=False, once=True)  # (the cache is filled: the command says it loads)
+    assert main(["warmup"]) == 0
+    out, err = capsys.readouterr()
+    assert "numba cache" in err and "(filled: loading)" in err
+    parts = dict(p.split()[:2] for p in out.strip().removeprefix("mjsound warmup: ").split("; ")[0].split(", "))
+    assert set(parts) == {"sim", "wrapper", "modal"} and all(float(v) >= 0 for v in parts.values())

@@ -12,6 +12,7 @@ module                 subcommands
 :mod:`.events`         ``render-events``
 :mod:`.fit`            ``fit``
 :mod:`.report`         ``report accuracy``, ``report stability``
+:mod:`.warmup`         ``warmup``
 =====================  ==========================================================
 
 Errors a user can fix (bad input, a file that cannot be written, a full disk) end with one
@@ -29,12 +30,12 @@ import signal
 import sys
 import threading
 
-from . import analyze, events, fit, report, sonify
+from . import analyze, events, fit, report, sonify, warmup
 from ..synth.interrupt import interrupt_in_chain
 
 __all__ = ["main", "build_parser", "error_message"]
 
-_GROUPS = (analyze, sonify, events, fit, report)
+_GROUPS = (analyze, sonify, events, fit, report, warmup)
 
 
 def build_parser() -> argparse.ArgumentParser:

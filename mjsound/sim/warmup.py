@@ -14,7 +14,7 @@ import sys
 import time
 import warnings
 
-__all__ = ["warmup", "kernels_cached", "notice_first_compile"]
+__all__ = ["warmup", "kernels_cached", "kernel_cache_dir", "notice_first_compile"]
 
 _NOTICED = [False]
 _WARMED = [False]
@@ -28,14 +28,26 @@ _XML = """<mujoco><option timestep="0.002"/>
 
 
 def kernels_cached() -> bool:
-    """Whether numba's disk cache holds the step kernel already (then a process starts in
-    about a second)."""
+    """Whether numba's disk cache holds the step kernel of the current sources already (then
+    a process starts in about a second; after an edit or a ``git pull`` of a kernel module it
+    does not: the index is stamped with its group's sources, :mod:`mjsound.jit`)."""
     from .step import advance
 
     try:
-        return os.path.exists(advance._cache._cache_file._index_path)
-    except AttributeError:  # (numba internals moved: assume cold)
+        return bool(advance._cache._cache_file._load_index())
+    except Exception:  # (numba internals moved, a torn or foreign index: assume cold)
         return False
+
+
+def kernel_cache_dir() -> str:
+    """The folder of numba's on-disk cache that mjsound's kernels use (``$NUMBA_CACHE_DIR``
+    when set, else ``__pycache__`` next to the sources or the user-wide cache)."""
+    from .step import advance
+
+    try:
+        return os.path.dirname(advance._cache._cache_file._index_path)
+    except AttributeError:  # (numba internals moved)
+        return os.environ.get("NUMBA_CACHE_DIR", "numba's default cache")
 
 
 def notice_first_compile(stream=None) -> None:

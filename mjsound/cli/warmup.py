@@ -1,0 +1,76 @@
+"""``mjsound warmup``: compile every numba kernel once, into numba's on-disk cache.
+
+A process on a machine whose cache is empty compiles the kernels before its first audio
+(tens of seconds; see the README's "First start"); every later process loads them in about
+a second. Running this once where processes will start (a container image's build, a node
+before it launches vectorised environments) moves that compilation out of every run.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+__all__ = ["register", "warm_kernels"]
+
+
+def register(sub) -> None:
+    """Add ``warmup`` to an argparse ``subparsers``."""
+    p = sub.add_parser(
+        "warmup",
+        help="compile every numba kernel once into numba's on-disk cache (a new machine or image)",
+        description=(
+            "Compile (or load, when cached) every numba kernel mjsound runs: the per-step and "
+            "render kernels, the gymnasium wrapper's and the modal analysis's, so that later "
+            "processes on this machine start in about a second. The cache is numba's: "
+            "$NUMBA_CACHE_DIR when set, else __pycache__ next to the sources."
+        ),
+    )
+    p.set_defaults(func=run)
+
+
+def warm_kernels(progress=None) -> dict:
+    """Compile or load every kernel group; returns ``{part: seconds}`` for the per-step path
+    (``"sim"``), the gymnasium wrapper (``"wrapper"``) and the modal analysis (``"modal"``).
+    ``progress(part)`` is called before each part."""
+    import numpy as np
+
+    times = {}
+    t = time.perf_counter()
+    if progress:
+        progress("sim")
+    from ..sim.warmup import warmup
+
+    warmup(verbose=False, once=True)
+    times["sim"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    if progress:
+        progress("wrapper")
+    from ..wrappers import AudioWindow
+
+    AudioWindow(1, 64).push(np.zeros((1, 16), dtype=np.float32))
+    times["wrapper"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    if progress:
+        progress("modal")
+    from ..modal.analyze import analyze
+
+    # a solid (voxel hexahedra) and a thin wall (shell triangles): every modal kernel
+    analyze("box:0.1,0.06,0.02", "steel", quality="draft", f_max=8000.0, cache=False, progress=False)
+    analyze("sphere:0.1", "aluminium,wall=2mm", quality="draft", f_max=4000.0, cache=False, progress=False)
+    times["modal"] = time.perf_counter() - t
+    return times
+
+
+def run(args) -> int:
+    """Handler of ``mjsound warmup``."""
+    from ..sim.warmup import kernel_cache_dir, kernels_cached
+
+    cold = not kernels_cached()
+    print(f"mjsound warmup: numba cache {kernel_cache_dir()} ({'empty: compiling, about a minute' if cold else 'filled: loading'})",
+          file=sys.stderr, flush=True)
+    times = warm_kernels(progress=lambda part: print(f"  {part} kernels ...", file=sys.stderr, flush=True))
+    print("mjsound warmup: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()) + f"; total {sum(times.values()):.1f} s")
+    return 0
