@@ -52,7 +52,7 @@ from .cache import cache_dir
 from .discretization import Discretization
 from .eigen import solve_band
 from .model import ModalModel
-from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cells, hex_refine,
+from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cells, hex_moments, hex_refine,
                    plan_analysis, quality_preset, thin_wall)
 
 __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "default_f_max", "AnalysisBudgetError"]
@@ -77,15 +77,18 @@ def surface_samples(mesh: trimesh.Trimesh, n_points: int = 1024):
 
 
 def _discretize(method, mesh, material, h, points, quality, thickness, order, refine,
-                through_wall=True, mid=None) -> Discretization:
+                through_wall=True, mid=None, moments=None) -> Discretization:
     if method == "hex":
         from .hex import discretize_hex
 
+        # the error estimate's coarser solve takes the fine one's moments (the same method)
+        if moments is None:
+            moments = hex_moments(mesh, h, thickness, quality, order)
         min_cells = hex_min_cells(mesh, thickness, quality, order)
         if refine is None:
-            refine = hex_refine(mesh, h, thickness, quality)
+            refine = hex_refine(mesh, h, thickness, quality, order, moments)
         return discretize_hex(mesh, material, h, points, refine=refine, thickness=thickness, min_cells=min_cells,
-                              order=order)
+                              order=order, moments=moments)
     if method == "tet":
         from .tet import discretize_tet
 
@@ -331,8 +334,9 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     """The analysis itself, as planned: discretize, solve, sample, radiate, estimate."""
     method, order, h, f_max, quality = plan.method, plan.order, plan.h, plan.f_max, plan.quality
     points, normals = surface_samples(tm, n_points)
+    moments = hex_moments(tm, h, thickness, quality, order) if method == "hex" else None
     build = partial(_discretize, method, tm, material, points=points, quality=quality, thickness=thickness,
-                    order=order, refine=refine, through_wall=plan.through_wall, mid=plan.mid_surface)
+                    order=order, refine=refine, through_wall=plan.through_wall, mid=plan.mid_surface, moments=moments)
     disc = build(h=h)
     # The error estimate's coarser discretization does not depend on the solve: it is built
     # on the second core meanwhile (the Lanczos iteration runs on one).

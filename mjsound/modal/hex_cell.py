@@ -91,14 +91,19 @@ class CellSum:
 
     * ``full``: the flattened matrix of a full cell (rows of ``w`` all ones: every child
       filled) used for those rows instead of the sum (:func:`quadratic_cell_matrices`);
-    * ``build``: a function returning ``A``, called once and only when a row is not all
-      ones (a box's cells are all full: the ``r^3`` congruences are never computed);
+    * ``build``: a function returning ``A`` (or a sequence of blocks of it, stacked here
+      one at a time after taking their upper triangles: less memory at peak), called once
+      and only when a row is not all ones (a box's cells are all full: the ``r^3``
+      congruences are never computed);
     * the product over the upper triangle only (half the flops), mirrored after;
-      ``columns`` (optional) reorders the m^2 output columns at no extra cost.
+      ``columns`` (optional) reorders the m^2 output columns at no extra cost;
+    * ``n_occupancy``: the leading columns of ``w`` that are occupancies (a full cell has
+      them all one and the others, first-moment weights, all zero); None: all of them.
     """
 
-    def __init__(self, build, m: int, full: np.ndarray | None = None, columns: np.ndarray | None = None):
-        self._build, self._Au = build, None
+    def __init__(self, build, m: int, full: np.ndarray | None = None, columns: np.ndarray | None = None,
+                 n_occupancy: int | None = None):
+        self._build, self._Au, self._n_occ = build, None, n_occupancy
         iu, ju = np.triu_indices(m)
         self._iu, self._ju = iu, ju
         pos = np.empty((m, m), np.int64)
@@ -111,17 +116,25 @@ class CellSum:
     def Au(self) -> np.ndarray:
         if self._Au is None:
             A = self._build()
-            self._Au = np.ascontiguousarray(A[:, self._iu, self._ju])
+            blocks = [A] if isinstance(A, np.ndarray) else A
+            self._Au = np.concatenate([np.ascontiguousarray(b[:, self._iu, self._ju]) for b in blocks])
             if self.full is None:
-                self.full = self._Au.sum(axis=0)
+                self.full = self._Au[:self._n_occ].sum(axis=0)
         return self._Au
 
     def __call__(self, w: np.ndarray) -> np.ndarray:
-        full = np.all(w == 1.0, axis=1)
+        k = w.shape[1] if self._n_occ is None else self._n_occ
+        full = np.all(w[:, :k] == 1.0, axis=1) & np.all(w[:, k:] == 0.0, axis=1)
         out = np.empty((len(w), len(self._iu)))
         part = np.flatnonzero(~full)
         if len(part):
-            out[part] = w[part] @ self.Au
+            k = self._n_occ
+            if k is None or k == w.shape[1]:
+                out[part] = w[part] @ self.Au
+            else:  # first-moment weights: nonzero only in partly filled children (sparse)
+                import scipy.sparse as sp
+
+                out[part] = w[part, :k] @ self.Au[:k] + sp.csr_matrix(w[part, k:]) @ self.Au[k:]
         if full.any():
             if self.full is None:
                 self.Au  # noqa: B018 (builds the table and its full-cell sum)

@@ -54,7 +54,7 @@ from ..materials import Material
 from .surface import face_components
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
-           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine",
+           "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine", "hex_moments",
            "mode_count_inputs", "frequency_of_mode", "solid_modes", "axis_aligned_fraction"]
 
 MEMORY_PER_DOF = 20e3  # bytes per dof at 1e5 dofs (factor, matrices, assembly)
@@ -99,6 +99,9 @@ QUALITY_ORDER = ("high", "default", "draft")
 #: the mode (counted from the lowest, :func:`estimate_modes`) whose wavelength the
 #: ``low_per_wavelength`` rule resolves
 LOW_MODES = 10
+#: a curved solid with at most this many hex cells along its smallest side gets the voxel
+#: moments (:func:`hex_moments`)
+MOMENT_MAX_CELLS = 6
 #: a surface with less than this fraction of its area facing along an axis is curved
 #: (the voxels approximate it by a staircase: ``curved_refine``)
 ALIGNED_CURVED = 0.9
@@ -379,6 +382,8 @@ def _estimate_dofs(kind: str, mesh: trimesh.Trimesh, h: float, order: int, refin
     cells = float(np.prod(n))
     fill = min(1.0, (V + A * float(np.mean(hc))) / (cells * float(np.prod(hc))))
     extra = cells * r**3 * 4.0 + cells * fill * r**3 * 8.0 * 2.0  # fine grid, children
+    if hex_moments(mesh, h, thickness, quality, order):  # the moments, their 7 children tables
+        extra += cells * r**3 * 36.0 + 7.0 * r**3 * 1830 * 8.0
     return 3.0 * nodes * fill, extra
 
 
@@ -386,7 +391,13 @@ def hex_min_cells(mesh: trimesh.Trimesh, thickness: float | None, quality: str, 
     """Least hex cells per axis (3,): a bar or rod needs a few across its section even when
     the wavelength rule allows one (up to ``min_across``, but no cell thinner than half the
     wall); a plate's thickness axis (extent ~ t) keeps one cell: incompatible-mode cells
-    bend exactly through one layer, and a second layer would add a third of the dofs."""
+    bend exactly through one layer, and a second layer would add a third of the dofs.
+
+    Quadratic cells need half of ``min_across`` (rounded up) where the surface follows the
+    axes (a square bar bends exactly in two), one more where it is curved
+    (:data:`ALIGNED_CURVED`): a round rod (r = 10 mm, L = 0.5 m) with two cells across its
+    section rang up to +5.8 cents sharp at its fourth bending pair, with three +3.7 (its
+    partly filled cells' material placed by :func:`.hex._cell_operators`' moments)."""
     t = thin_wall(mesh, thickness)
     if np.isfinite(t) and t > 0:
         across = np.where(mesh.extents > 1.5 * t, np.ceil(mesh.extents / (0.5 * t)), 1)
@@ -394,16 +405,38 @@ def hex_min_cells(mesh: trimesh.Trimesh, thickness: float | None, quality: str, 
         across = np.ones(3)
     min_across = quality_preset(quality)["min_across"]
     if order == 2:
-        min_across = (min_across + 1) // 2
+        min_across = (min_across + (2 if axis_aligned_fraction(mesh) < ALIGNED_CURVED else 1)) // 2
     return np.minimum(min_across, across).astype(int)
 
 
-def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality: str) -> int:
+def hex_moments(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality: str, order: int = 2) -> bool:
+    """Whether quadratic hex cells place their surface voxels' material by its moments
+    (:func:`.hex._cell_operators`): on a curved closed solid (not a thin wall) whose grid has
+    at most :data:`MOMENT_MAX_CELLS` cells along its smallest side (rods, pins, handles,
+    discs), where the surface voxels are a large part of the section. Counted at their
+    centres they made the round rod (r = 10 mm, 3 cells across) up to 10 cents sharp in
+    bending; with the moments within 4. Larger solids (the 0.1 m sphere, 8 cells across:
+    0.7 cents) skip the moments' seven children tables."""
+    if order != 2 or not mesh.is_watertight or axis_aligned_fraction(mesh) >= ALIGNED_CURVED:
+        return False
+    ext = np.asarray(mesh.extents, float)
+    t = thin_wall(mesh, thickness)
+    if not (np.isfinite(t) and t >= THIN_WALL_RATIO * float(ext.min())):
+        return False
+    d = int(np.argmin(ext))
+    cells = max(int(hex_min_cells(mesh, thickness, quality, order)[d]), int(np.ceil(ext[d] / h - 1e-9)))
+    return cells <= MOMENT_MAX_CELLS
+
+
+def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality: str, order: int = 2,
+               moments: bool | None = None) -> int:
     """Fine voxels per coarse hex cell per axis: the quality's ``refine``, raised so that a
     fine voxel is at most a quarter of a closed mesh's wall (:func:`thin_wall`), at most
     :data:`MAX_REFINE`. A wall smeared over partly filled voxels is too thick in bending (a
     20 cm bowl with 4 mm walls rang 12 % sharp with 2.4 mm voxels and 4 % with 1 mm ones);
-    an open surface is a slab of ``thickness`` and keeps the quality's value.
+    an open surface is a slab of ``thickness`` and keeps the quality's value. A solid
+    whose voxels' material is placed by their moments (``moments``; None:
+    :func:`hex_moments`) keeps at most :data:`.hex.MOMENT_MAX_REFINE` instead.
 
     A curved closed surface (less than :data:`ALIGNED_CURVED` of its area facing along an
     axis) gets at least ``curved_refine``: its staircase, not the element size, limits the
@@ -415,6 +448,10 @@ def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality
     if np.isfinite(t) and t > 0 and mesh.is_watertight:
         r = int(np.clip(np.ceil(4 * h / t), r, MAX_REFINE))
         if axis_aligned_fraction(mesh) < ALIGNED_CURVED:
+            if hex_moments(mesh, h, thickness, quality, order) if moments is None else moments:
+                from .hex import MOMENT_MAX_REFINE
+
+                r = max(q["refine"], min(r, MOMENT_MAX_REFINE))
             cells = float(np.prod(np.maximum(1.0, np.ceil(np.asarray(mesh.extents, float) / h))))
             r = max(r, min(q["curved_refine"], int((MAX_FINE_VOXELS / cells) ** (1.0 / 3.0))))
     return r
@@ -481,7 +518,7 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
             h = wall_element_size(mesh, material, f_max, q, resolution, kind="facet")
         else:
             h = element_size(mesh, material, f_max, q, resolution, thickness, order if kind != "shell" else 1)
-        r = hex_refine(mesh, h, thickness, q) if kind == "hex" and refine is None else refine
+        r = hex_refine(mesh, h, thickness, q, order) if kind == "hex" and refine is None else refine
         dofs, extra = _estimate_dofs(kind, mesh, h, order, r, thickness, q)
         mem = memory_gb(dofs, modes, extra)
         tried.append((q, dofs, mem))

@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 
-__all__ = ["winding_fill", "winding_occupancy", "surface_voxels", "block_mean"]
+__all__ = ["winding_fill", "winding_occupancy", "winding_moments", "surface_voxels", "block_mean"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -188,6 +188,98 @@ def winding_occupancy(triangles: np.ndarray, origin, spacing, shape, s: int) -> 
     counts = np.zeros((nx, ny, nz), np.int32)
     _count_columns(start, zs, sg, float(origin[2]), float(h[2]), ny * s, nz * s, s, counts)
     return counts.astype(np.float32) * np.float32(1.0 / (s * s * s))
+
+
+@nb.njit(cache=True, nogil=True)
+def _moment_columns(start, zs, sg, oz, dz, ny, nz, s, occ, mom):
+    """Filled length and its first moments per fine voxel, exact along z.
+
+    Sample column ``c`` (``s x s`` per fine voxel column, at offsets ``(i % s + 1/2) / s -
+    1/2`` voxels from its centre) is inside on the z-intervals between consecutive sorted
+    crossings where the winding number is not zero; each interval's overlap with fine voxel
+    ``k`` (length ``l`` voxels, midpoint ``z_m``) adds ``l / s^2`` to ``occ[i // s, j // s,
+    k]`` and ``l / s^2`` times the offsets ``(x, y, z_m)`` from the voxel's centre [voxels]
+    to ``mom[..., :]``."""
+    order, _ = _column_scratch(start)
+    w2 = 1.0 / (s * s)
+    for c in range(start.shape[0] - 1):
+        a = start[c]
+        b = start[c + 1]
+        if b - a < 2:
+            continue
+        i = c // ny
+        j = c - i * ny
+        fi = i // s
+        fj = j // s
+        ox = ((i - fi * s) + 0.5) / s - 0.5
+        oy = ((j - fj * s) + 0.5) / s - 0.5
+        for m in range(b - a):  # insertion sort of the column's crossings by height
+            z = zs[a + m]
+            q = m
+            while q > 0 and zs[a + order[q - 1]] > z:
+                order[q] = order[q - 1]
+                q -= 1
+            order[q] = m
+        wind = 0
+        for m in range(b - a - 1):
+            wind += sg[a + order[m]]
+            if wind == 0:
+                continue
+            z0 = (zs[a + order[m]] - oz) / dz  # in voxels from the grid's origin
+            z1 = (zs[a + order[m + 1]] - oz) / dz
+            k0 = max(int(np.floor(z0)), 0)
+            k1 = min(int(np.floor(z1)), nz - 1)
+            for k in range(k0, k1 + 1):
+                lo = max(z0, float(k))
+                hi = min(z1, float(k + 1))
+                if hi <= lo:
+                    continue
+                length = (hi - lo) * w2
+                occ[fi, fj, k] += length
+                mom[fi, fj, k, 0] += length * ox
+                mom[fi, fj, k, 1] += length * oy
+                mom[fi, fj, k, 2] += length * (0.5 * (lo + hi) - k - 0.5)
+
+
+def winding_moments(triangles: np.ndarray, origin, spacing, shape, s: int):
+    r"""Occupancy and first moments of the filled part of each fine voxel.
+
+    With :math:`\chi` the inside indicator (non-zero winding) and :math:`\xi` the position
+    in voxel units from the voxel's centre (each in [-1/2, 1/2]):
+
+    .. math:: o = \int_{voxel} \chi \, d\xi, \qquad m_k = \int_{voxel} \chi\, \xi_k \, d\xi
+
+    integrated exactly along z (the inside intervals of each sample column) and by the
+    midpoint rule over ``s x s`` sample columns in x and y. ``m / o`` is the filled part's
+    centroid: a partly filled voxel's material is not at its centre, and a solid's surface
+    voxels, counted at their centres, make it too stiff in bending (a round rod's section
+    second moment ~1 % high: +15 cents).
+
+    Parameters
+    ----------
+    triangles : (T, 3, 3) float array
+        Triangle corners [m].
+    origin, spacing : (3,) floats
+        Grid corner and fine voxel size [m].
+    shape : (nx, ny, nz)
+        Fine voxels per axis.
+    s : int
+        Sample columns per voxel per axis in x and y.
+
+    Returns
+    -------
+    occ : (nx, ny, nz) float32 in [0, 1]; mom : (nx, ny, nz, 3) float32 [voxels].
+    """
+    s = int(s)
+    nx, ny, nz = (int(v) for v in shape)
+    h = np.asarray(spacing, float)
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    start, zs, sg = _column_crossings(tri, float(origin[0]), float(origin[1]), float(h[0] / s), float(h[1] / s),
+                                      nx * s, ny * s)
+    occ = np.zeros((nx, ny, nz), np.float64)
+    mom = np.zeros((nx, ny, nz, 3), np.float64)
+    _moment_columns(start, zs, sg, float(origin[2]), float(h[2]), ny * s, nz, s, occ, mom)
+    return np.minimum(occ, 1.0).astype(np.float32), mom.astype(np.float32)
 
 
 @nb.njit(cache=True, nogil=True)
