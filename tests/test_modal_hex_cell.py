@@ -71,3 +71,47 @@ def test_cell_sum_uses_the_full_cell_and_builds_the_table_only_when_needed():
     assert np.allclose(out[0], full.ravel()) and np.allclose(out[1], np.einsum("c,cij->ij", w[1], A).ravel())
     plain = CellSum(lambda: A, 4)  # no full matrix given: the children's sum
     assert np.allclose(plain(np.ones((1, 8)))[0], A.sum(axis=0).ravel())
+
+
+def _cut_cell_children(r, z0):
+    """Occupancy and first moments (r^3,), (r^3, 3) of the children of a cell filled below
+    the height z0 (a fraction of the cell): layer k holds ``o = clip(z0 r - k, 0, 1)`` with
+    its centroid ``o / 2 - 1 / 2`` children below the layer's centre."""
+    abc = np.stack(np.meshgrid(np.arange(r), np.arange(r), np.arange(r), indexing="ij"), -1).reshape(-1, 3)
+    o = np.clip(z0 * r - abc[:, 2], 0.0, 1.0)
+    mom = np.zeros((r**3, 3))
+    mom[:, 2] = o * (o / 2 - 0.5)
+    return o, mom
+
+
+def test_moments_place_the_mass_of_partly_filled_children():
+    """A quadratic cell filled below 0.3 of its height with 4 children per axis: the first
+    moment of its mass (1^T M z) is exact with the children's moments and off without
+    (their material counted at their centres); the stiffness stays positive semi-definite
+    even for children a sliver full at their far side."""
+    from mjsound.modal.hex import _cell_operators
+
+    embed = _serendipity_embedding()
+    r, z0 = 4, 0.3
+    hf = SIZE / r
+    o, mom = _cut_cell_children(r, z0)
+    z = _nodes(embed)[:, 2]
+    want = AL.rho * SIZE[0] * SIZE[1] * (z0 * SIZE[2]) ** 2 / 2  # rho * integral of z over the filled part
+    got = {}
+    for moments in (False, True):
+        cell_K, cell_M = _cell_operators(hf, r, AL, 2, True, embed, moments=moments)
+        m = cell_M(o[None], mom[None, :, :]).reshape(20, 20)
+        assert m.sum() == pytest.approx(AL.rho * np.prod(SIZE) * z0, rel=1e-9)  # the mass either way
+        got[moments] = m.sum(axis=0) @ z
+    assert got[True] == pytest.approx(want, rel=1e-9)
+    assert abs(got[False] / want - 1) > 0.01
+    rng = np.random.default_rng(3)
+    occ = rng.uniform(0.0, 0.05, (2, r**3))  # slivers at the children's corners
+    d = rng.choice([-0.49, 0.49], (2, r**3, 3))
+    cell_K, _ = _cell_operators(hf, r, AL, 2, True, embed, moments=True)
+    # node-block order (a, b, i, j) -> dofs (3 a + i, 3 b + j)
+    K = cell_K(occ, occ[:, :, None] * d).reshape(2, 20, 20, 3, 3).transpose(0, 1, 3, 2, 4).reshape(2, 60, 60)
+    for k in K:
+        assert np.allclose(k, k.T, atol=1e-9 * np.abs(k).max())
+        w = np.linalg.eigvalsh(k)
+        assert w.min() > -1e-9 * w.max(), w[:3]
