@@ -156,6 +156,13 @@ def test_hollow_can_against_tet10():
     assert m.info["crease_cents"] < -5 and 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)
     wall = hollow(load_mesh("cylinder:0.04,0.12"), 0.001)
     assert m.mass_kg == pytest.approx(wall.volume * AL.rho, rel=0.005)
+    # one thickness rule for the crease in auto's choice and in the estimate: the median of
+    # the mid-surface's (a 1 mm wall: ~1 mm)
+    from mjsound.modal.midsurface import CREASE_RESIDUAL, crease_cents, mid_surface
+
+    t = float(np.median(mid_surface(wall).thickness))
+    assert m.info["crease_thickness"] == pytest.approx(t, rel=1e-12) and t == pytest.approx(0.001, rel=0.05)
+    assert m.info["crease_cents"] == pytest.approx(-CREASE_RESIDUAL * crease_cents(t, 0.08), rel=1e-12)
 
 
 def test_rigid_corner_stiffens_only_triangles_along_a_crease():

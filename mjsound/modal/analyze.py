@@ -102,8 +102,11 @@ def _discretize(method, mesh, material, h, points, quality, thickness, order, re
         if len(mid.faces) == 0:
             raise ValueError("facet: no part of this surface is a thin wall (two sheets facing each other); "
                              "use method='auto', 'hex' or 'tet'")
+        from .midsurface import crease_thickness
+
         disc = discretize_facet(mid.vertices, mid.faces, mid.thickness, material, points, h=h)
         disc.info["crease_edges"] = mid.creases
+        disc.info["crease_thickness"] = crease_thickness(mid.thickness)
         return disc
     if method == "shell":
         from .shell import discretize_shell
@@ -381,7 +384,7 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     if method == "facet" and disc.info.get("crease_edges", 0) > 0:
         from .midsurface import CREASE_RESIDUAL, crease_cents
 
-        crease = CREASE_RESIDUAL * crease_cents(float(np.median(disc.info["thickness"])), float(np.min(tm.extents)))
+        crease = CREASE_RESIDUAL * crease_cents(disc.info["crease_thickness"], float(np.min(tm.extents)))
         info["crease_cents"] = -crease
         err = float(np.hypot(err, crease)) if np.isfinite(err) else err
     if pool is not None:

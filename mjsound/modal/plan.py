@@ -325,11 +325,11 @@ def _choose_method(mesh: trimesh.Trimesh, thickness: float | None):
     if not (t < THIN_WALL_RATIO * smallest):
         return "hex", (f"hex: a solid, bar or plate (wall 2V/A = {t * 1e3:.3g} mm against its smallest side "
                        f"{smallest * 1e3:.3g} mm), where voxel hexahedra are exact in bending and fast"), mid
-    from .midsurface import crease_cents, mid_surface
+    from .midsurface import crease_cents, crease_thickness, mid_surface
 
     mid = mid_surface(mesh)
     coverage = mid.coverage
-    crease = crease_cents(float(np.median(mid.thickness)), smallest) if mid.creases else 0.0
+    crease = crease_cents(crease_thickness(mid.thickness), smallest) if mid.creases else 0.0
     if coverage >= FACET_MIN_COVERAGE and crease <= FACET_MAX_CREASE_CENTS:
         return "facet", (f"facet: thin curved wall ({t * 1e3:.3g} mm against a smallest side of "
                          f"{smallest * 1e3:.3g} mm), {100 * coverage:.0f} % of its surface pairs across the wall: "
