@@ -14,7 +14,12 @@ cache (run once first to fill it); ``--warm-only`` skips the cold runs. The chil
 Python's bytecode cache on (``PYTHONDONTWRITEBYTECODE`` removed, as users have it): compiling
 mjsound's and its dependencies' sources at every start would add about 0.1 s.
 
-Usage: python scripts/bench_startup.py [--rounds 1] [--json]
+With ``--compile-profile`` each cold child also records where its compilation went (numba's
+``numba:compile`` and ``numba:llvm_lock`` events): the seconds inside LLVM, the number of
+functions compiled, and the functions with the most compile time of their own (their callees'
+compilation excluded).
+
+Usage: python scripts/bench_startup.py [--rounds 1] [--json] [--compile-profile]
 """
 
 from __future__ import annotations
@@ -62,17 +67,51 @@ print(t1 - t0, t2 - t1, t3 - t2, time.time(), time.process_time())
 }
 
 
-def run_case(code: str, cache_dir: str) -> dict:
+#: Prepended to a child's code with --compile-profile: numba's compile events, summed per function
+#: (self time) and inside LLVM, written to stderr at exit as one JSON line.
+PROFILE = """
+import atexit, collections, json, sys, time
+from numba.core import event as _ev
+_open, _self, _llvm = [], collections.Counter(), [0.0]
+class _Listen(_ev.Listener):
+    def on_start(self, e):
+        _open.append((e.kind, time.perf_counter(), [0.0]))
+    def on_end(self, e):
+        kind, t, child = _open.pop()
+        dt = time.perf_counter() - t
+        if kind == "numba:llvm_lock":
+            _llvm[0] += dt
+            return
+        f = getattr(e.data.get("dispatcher"), "py_func", None)
+        _self[f"{f.__module__}.{f.__qualname__}" if f else "?"] += dt - child[0]
+        for k, _, c in reversed(_open):
+            if k == "numba:compile":
+                c[0] += dt
+                break
+_ev.register("numba:compile", _Listen()); _ev.register("numba:llvm_lock", _Listen())
+atexit.register(lambda: print("COMPILE_PROFILE " + json.dumps({"llvm_s": _llvm[0], "functions": len(_self),
+    "compile_s": sum(_self.values()), "top": _self.most_common(12)}), file=sys.stderr))
+"""
+
+
+def run_case(code: str, cache_dir: str, profile: bool = False) -> dict:
     env = dict(os.environ, PYTHONPATH=ROOT)
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # (as a user has it: Python keeps compiled modules)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = cache_dir
     t0, start = time.perf_counter(), time.time()
+    if profile:  # (after the case's first line, which starts its clock)
+        first_line, rest = code.lstrip("\n").split("\n", 1)
+        code = first_line + "\n" + PROFILE + rest
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     wall = time.perf_counter() - t0
     imports, setup, first, heard_at, cpu = (float(x) for x in out.stdout.split())
-    return {"to_audio_s": heard_at - start, "cpu_s": cpu, "wall_s": wall, "import_s": imports, "setup_s": setup,
-            "first_audio_s": first, "compile_notice": "compiling numba kernels" in out.stderr}
+    res = {"to_audio_s": heard_at - start, "cpu_s": cpu, "wall_s": wall, "import_s": imports, "setup_s": setup,
+           "first_audio_s": first, "compile_notice": "compiling numba kernels" in out.stderr}
+    for line in out.stderr.splitlines():
+        if line.startswith("COMPILE_PROFILE "):
+            res["compile_profile"] = json.loads(line.split(" ", 1)[1])
+    return res
 
 
 def main(argv=None) -> int:
@@ -81,6 +120,8 @@ def main(argv=None) -> int:
     p.add_argument("--cases", nargs="+", default=list(CASES))
     p.add_argument("--json", action="store_true")
     p.add_argument("--warm-only", action="store_true", help="use numba's usual cache; no cold runs")
+    p.add_argument("--compile-profile", action="store_true",
+                   help="cold runs: where the compilation went (LLVM seconds, functions, the largest self times)")
     args = p.parse_args(argv)
     res = {}
     for name in args.cases:
@@ -90,7 +131,7 @@ def main(argv=None) -> int:
                 rows["warm"].append(run_case(CASES[name], None))
                 continue
             with tempfile.TemporaryDirectory(prefix="mjsound-numba-") as d:
-                rows["cold"].append(run_case(CASES[name], d))
+                rows["cold"].append(run_case(CASES[name], d, profile=args.compile_profile))
                 rows["warm"].append(run_case(CASES[name], d))
         res[name] = {k: sorted(v, key=lambda r: r["to_audio_s"])[len(v) // 2] for k, v in rows.items()}
     if args.json:
@@ -102,6 +143,11 @@ def main(argv=None) -> int:
                       f"setup {v['setup_s']:.2f} s, first block {v['first_audio_s']:.2f} s; process exit at "
                       f"{v['wall_s']:.2f} s; {v['cpu_s']:.2f} s of CPU to the first audio)"
                       + ("; said it compiles" if v["compile_notice"] else ""))
+                cp = v.get("compile_profile")
+                if cp:
+                    print(f"      compiled {cp['functions']} functions in {cp['compile_s']:.1f} s, "
+                          f"{cp['llvm_s']:.1f} s of it inside LLVM; largest self times: "
+                          + ", ".join(f"{n.rsplit('.', 1)[-1]} {t:.2f}" for n, t in cp["top"]))
     return 0
 
 
