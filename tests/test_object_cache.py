@@ -86,3 +86,50 @@ def test_a_cached_scene_starts_without_the_analysis_stack():
     out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True,
                          env=dict(os.environ, PYTHONPATH=root))
     assert out.stdout.split("\n")[0] == "1 []", out.stdout + out.stderr
+
+
+def test_processes_starting_together_analyse_each_object_once(monkeypatch):
+    """Two scenes built at once (threads here; the lock is the same between processes: each
+    holds its own open file) analyse the table once: the second waits for the first's entry and
+    loads it, with the same modes."""
+    import threading
+    import time
+
+    real, calls = sa._analyze_with_fallback, []
+
+    def slow(*a, **k):  # (long enough that the second scene misses the cache before the entry exists)
+        calls.append(a[0])
+        time.sleep(0.5)
+        return real(*a, **k)
+
+    monkeypatch.setattr(sa, "_analyze_with_fallback", slow)
+    sa._MODEL_MEMO.clear()
+    scenes = [None, None]
+
+    def build_into(i):
+        scenes[i] = build()
+
+    threads = [threading.Thread(target=build_into, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=300)
+    assert calls == ["table"] and len(entries()) == 1
+    np.testing.assert_array_equal(scenes[0].sounding[0].model.frequencies_hz, scenes[1].sounding[0].model.frequencies_hz)
+
+
+def test_analysis_lock_waits_then_goes_on():
+    """A lock held elsewhere is waited for up to ``wait_s``, then the caller goes on without it
+    (a stuck process never hangs the others); without a key nothing is locked."""
+    import time
+
+    with sa.analysis_lock("k" * 40):
+        t0 = time.monotonic()
+        with sa.analysis_lock("k" * 40, wait_s=0.3):
+            waited = time.monotonic() - t0
+        with sa.analysis_lock(None):
+            pass
+    assert 0.3 <= waited < 5.0
+    t0 = time.monotonic()
+    with sa.analysis_lock("k" * 40, wait_s=10.0):  # (released: taken at once)
+        assert time.monotonic() - t0 < 1.0

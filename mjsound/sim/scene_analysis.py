@@ -4,11 +4,13 @@ masses that disagree with MuJoCo's). Used by :meth:`mjsound.sim.SoundScene.from_
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
 import os
 import sys
+import time
 import warnings
 from typing import NamedTuple
 
@@ -119,12 +121,20 @@ class AnalysisOptions(NamedTuple):
 def object_model(plan: dict, options: AnalysisOptions, on_analyse=None):
     """``(model, notes)`` of one scene object: from the object cache, else analysed (mode cap
     for large solids, ``method`` then ``hex``; ``on_analyse()`` is called first) and kept
-    there; ``(None, [])`` when the analysis failed (a warning says why)."""
+    there; ``(None, [])`` when the analysis failed (a warning says why). A process that finds
+    another one analysing the same object waits for its entry (:func:`analysis_lock`)."""
     key = object_cache_key(plan, options)
     hit = load_object_model(key)
-    if hit is not None:
-        mm, plan["label"], notes = hit
-        return mm, notes
+    if hit is None:
+        with analysis_lock(key):  # (another process analysing this object: wait for its entry)
+            hit = load_object_model(key)
+            if hit is None:
+                return _analyse_object(plan, options, key, on_analyse)
+    mm, plan["label"], notes = hit
+    return mm, notes
+
+
+def _analyse_object(plan: dict, options: AnalysisOptions, key, on_analyse):
     if on_analyse is not None:
         on_analyse()
     o, notes = options, []
@@ -155,6 +165,51 @@ def object_cache_key(plan: dict, options: AnalysisOptions) -> str | None:
         return None
     text = repr((plan["recipe"], plan["material"].key(), tuple(options), max_memory_gb(), analysis_source_digest()))
     return hashlib.sha256(text.encode()).hexdigest()[:40]
+
+
+#: Longest wait for another process's analysis of the same object [s]; then this one analyses too.
+LOCK_WAIT_S = 1800.0
+
+
+@contextlib.contextmanager
+def analysis_lock(key: str | None, wait_s: float | None = None):
+    """Hold the object cache's lock of ``key`` (an exclusive ``flock`` on a file beside the cache).
+
+    Processes that start together on a new machine (the workers of a vectorised env) need the
+    same objects: with the lock one of them analyses each object and the others wait and load its
+    entry, instead of every process analysing it at once (the time, and the memory, of N
+    analyses). A process that dies releases its lock. Without a key (no cache), without
+    ``fcntl`` (Windows) or when the lock file cannot be made, nothing is locked; after ``wait_s``
+    (default :data:`LOCK_WAIT_S`) of waiting this process goes on without the lock."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover (Windows: no flock)
+        fcntl = None
+    if key is None or fcntl is None:
+        yield
+        return
+    from ..modal.cache import cache_dir
+
+    try:
+        d = os.path.join(cache_dir(), "locks")
+        os.makedirs(d, exist_ok=True)
+        fd = os.open(os.path.join(d, f"{key}.lock"), os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError:
+        yield
+        return
+    try:
+        deadline = time.monotonic() + (LOCK_WAIT_S if wait_s is None else wait_s)
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    break
+                time.sleep(0.05)
+        yield
+    finally:
+        os.close(fd)  # (releases the lock)
 
 
 def _object_path(key: str) -> str:
