@@ -56,8 +56,8 @@ def notice_first_compile(stream=None) -> None:
         return
     _NOTICED[0] = True
     if not kernels_cached():
-        print("mjsound: compiling numba kernels (first run on this machine only; cached afterwards)",
-              file=stream or sys.stderr, flush=True)
+        print("mjsound: compiling numba kernels, about half a minute of CPU (once per machine and mjsound "
+              "version, cached afterwards; `mjsound warmup` does it ahead of time)", file=stream or sys.stderr, flush=True)
 
 
 def warmup(verbose: bool = True, once: bool = False) -> float:
