@@ -384,7 +384,7 @@ def _fmax_point(f_max, method="hex", shape="bowl"):
 
 
 #: f_max of the sweep per shape: every one from 2 to 20 kHz that has a reference below it
-FMAX_SWEEP = {"beam": (2000.0, 5000.0, 10000.0, 20000.0), "rod": (5000.0, 10000.0, 20000.0),
+FMAX_SWEEP = {"beam": (2000.0, 5000.0, 10000.0, 20000.0), "rod": (2000.0, 5000.0, 10000.0, 20000.0),
               "sphere": (14500.0, 20000.0), "bowl": (2000.0, 3500.0, 5000.0, 10000.0, 20000.0)}
 
 
