@@ -59,7 +59,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 16  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 17  # bump when discretization or model contents change (invalidates cache)
 METHODS = ("auto", "hex", "tet", "facet", "shell")
 
 
@@ -272,6 +272,11 @@ def analyze(
         tm = hollow(tm, float(wall))
     elif method == "auto" and thickness is not None and not tm.is_watertight:
         tm = _open_surface_as_shell(tm, float(thickness))
+    from .frame import into_frame, model_out_of_frame, principal_frame
+
+    frame = principal_frame(tm)  # a mesh at an angle to the axes: analysed along its own
+    if frame is not None:
+        tm = into_frame(tm, frame)
     # Modes above the frequency where Rayleigh damping leaves them less than a cycle of
     # ringing (Q < MIN_Q; overdamped a little higher) make a thud, not a tone: neither the
     # mesh nor the solve is sized for them (rubber: 0.7 kHz instead of 20 kHz shear waves,
@@ -309,6 +314,8 @@ def analyze(
         plan.reason = reason
         model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
                      resolution, wall, t0)
+    if frame is not None:
+        model = model_out_of_frame(model, frame)
     if cache:
         try:
             model.save(path)
