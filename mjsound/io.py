@@ -1,6 +1,7 @@
 """Small file helpers shared by every writer: atomic replacement with normal permissions,
-temporary files that never outlive their run, and output-path checks; and the content digest
-of a set of source files (cache keys that follow the code).
+temporary files that never outlive their run, and output-path checks; the content digest
+of a set of source files (cache keys that follow the code); and a lock file between processes
+that would otherwise do the same long work at once (:func:`file_lock`).
 
 Temporary files are named ``.mjsound-tmp-<host>-<pid>-<random><suffix>`` in the directory of
 the final file. A run that is killed (SIGKILL, OOM) cannot remove its own; the next run that
@@ -15,9 +16,10 @@ import hashlib
 import os
 import socket
 import tempfile
+import time
 
 __all__ = ["temp_beside", "commit_temp", "discard_temp", "remove_stale_temps", "check_output_file", "atomic_path",
-           "atomic_open", "TEMP_PREFIX", "sources_digest"]
+           "atomic_open", "TEMP_PREFIX", "sources_digest", "file_lock"]
 
 #: Prefix of every temporary file mjsound writes.
 TEMP_PREFIX = ".mjsound-tmp-"
@@ -160,3 +162,40 @@ def sources_digest(root: str, members) -> bytes:
             with open(f, "rb") as fh:
                 h.update(fh.read())
     return h.digest()
+
+
+@contextlib.contextmanager
+def file_lock(path, wait_s: float):
+    """Hold an exclusive ``flock`` on the file ``path`` (made if missing) for the ``with`` body.
+
+    For work that processes started together would otherwise all do at once (analysing the
+    same object, compiling the same kernel): one does it, the others wait and then find its
+    result. The kernel releases the lock of a process that dies. Without ``fcntl`` (Windows) or
+    when the file cannot be made, nothing is locked; after ``wait_s`` seconds of waiting the
+    caller goes on without the lock (a stuck process never hangs the others)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover (Windows: no flock)
+        fcntl = None
+    fd = None
+    if fcntl is not None:
+        try:
+            os.makedirs(os.path.dirname(os.fspath(path)) or ".", exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError:
+            fd = None
+    try:
+        if fd is not None:
+            deadline = time.monotonic() + wait_s
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() >= deadline:
+                        break
+                    time.sleep(0.05)
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)  # (releases the lock)

@@ -10,19 +10,25 @@ Here each kernel is stamped with the digest of every source of its group
 Importing this module registers the group-stamped cache locators with numba (in front of
 numba's own, for mjsound's files only); kernel modules take ``njit`` from here so that the
 registration always precedes their decorators.
+
+Processes that start together on a machine whose cache is empty (the workers of a vectorised
+env) would each compile the same kernels at once: :func:`compile_lock` lets one of them
+compile a kernel while the others wait and then load it from the cache.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 
 import numba
 from numba.core import caching
 
+from .io import file_lock
 from .io import sources_digest as files_digest
 
-__all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest"]
+__all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest", "compile_lock", "COMPILE_WAIT_S"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -84,3 +90,17 @@ def _register() -> None:
 
 
 _register()
+
+#: Longest wait for another process's compilation of the same kernel [s]; then this one compiles too.
+COMPILE_WAIT_S = 600.0
+
+
+def compile_lock(dispatcher):
+    """A lock (:func:`mjsound.io.file_lock`) beside ``dispatcher``'s cache index, for its first
+    call in a process: if another process is compiling it, wait for it, then load the result
+    from the cache instead of compiling it a second time. Nothing is locked for a kernel
+    without a disk cache."""
+    path = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
+    if not path:
+        return contextlib.nullcontext()
+    return file_lock(os.path.join(path, f"{dispatcher.py_func.__qualname__}.compile.lock"), COMPILE_WAIT_S)

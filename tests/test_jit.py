@@ -53,3 +53,68 @@ def test_digest_follows_every_source_of_the_group_and_only_it(tmp_path):
     assert jit.kernel_group(str(root / "modal" / "a.py"), r) == "modal"
     assert jit.kernel_group(str(root / "synth" / "a.py"), r) == "sim"
     jit.sources_digest.cache_clear()
+
+
+def test_file_lock_makes_a_second_holder_wait_then_go_on(tmp_path):
+    """``io.file_lock``: a second holder (another open file, as in another process) waits
+    while the first holds the lock, takes it as soon as it is free, and goes on without it
+    after ``wait_s`` (a stuck process never hangs the others)."""
+    import threading
+    import time
+
+    from mjsound.io import file_lock
+
+    path = str(tmp_path / "sub" / "k.lock")
+    order = []
+    first_holds = threading.Event()
+
+    def first():
+        with file_lock(path, 10.0):
+            first_holds.set()
+            time.sleep(0.4)
+            order.append("first done")
+
+    t = threading.Thread(target=first)
+    t.start()
+    first_holds.wait(5.0)
+    with file_lock(path, 10.0):
+        order.append("second in")
+    t.join()
+    assert order == ["first done", "second in"]
+
+    with file_lock(path, 10.0):
+        t0 = time.monotonic()
+        with file_lock(path, 0.3):
+            waited = time.monotonic() - t0
+    assert 0.3 <= waited < 5.0
+
+
+def test_an_entry_points_first_call_compiles_under_the_kernels_lock(monkeypatch):
+    """The first call of a kernel through ``EntryPoint`` holds ``jit.compile_lock`` (beside the
+    kernel's cache index), so that processes starting together compile it once; later calls do
+    not take it."""
+    import contextlib
+
+    import numpy as np
+
+    import mjsound.synth.dispatch as dispatch
+    from mjsound.jit import compile_lock
+    from mjsound.sim.step import advance
+
+    with compile_lock(advance):
+        pass
+    assert os.path.exists(os.path.join(advance._cache._cache_path, "advance.compile.lock"))
+    assert isinstance(compile_lock(jit.njit(lambda x: x)), contextlib.nullcontext)  # (no disk cache: no lock)
+    taken = []
+
+    @contextlib.contextmanager
+    def recording(fn):
+        taken.append(fn)
+        yield
+
+    monkeypatch.setattr(dispatch, "compile_lock", recording)
+    kernel = jit.njit(lambda a, b: a[0] + b)  # (a fresh dispatcher: nothing compiled yet)
+    call = dispatch.EntryPoint(kernel)
+    assert call((np.ones(2),), 1.0) == 2.0
+    assert call((np.ones(2),), 2.0) == 3.0
+    assert taken == [kernel]

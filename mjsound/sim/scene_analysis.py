@@ -10,13 +10,12 @@ import functools
 import hashlib
 import os
 import sys
-import time
 import warnings
 from typing import NamedTuple
 
 import numpy as np
 
-from ..io import sources_digest
+from ..io import file_lock, sources_digest
 from ..limits import max_memory_gb
 from ..modal.band import default_f_max, ringing_below
 from ..modal.model import ModalModel
@@ -171,45 +170,18 @@ def object_cache_key(plan: dict, options: AnalysisOptions) -> str | None:
 LOCK_WAIT_S = 1800.0
 
 
-@contextlib.contextmanager
 def analysis_lock(key: str | None, wait_s: float | None = None):
-    """Hold the object cache's lock of ``key`` (an exclusive ``flock`` on a file beside the cache).
-
-    Processes that start together on a new machine (the workers of a vectorised env) need the
-    same objects: with the lock one of them analyses each object and the others wait and load its
-    entry, instead of every process analysing it at once (the time, and the memory, of N
-    analyses). A process that dies releases its lock. Without a key (no cache), without
-    ``fcntl`` (Windows) or when the lock file cannot be made, nothing is locked; after ``wait_s``
-    (default :data:`LOCK_WAIT_S`) of waiting this process goes on without the lock."""
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover (Windows: no flock)
-        fcntl = None
-    if key is None or fcntl is None:
-        yield
-        return
+    """The object cache's lock of ``key`` (:func:`mjsound.io.file_lock` on a file in the
+    cache's ``locks/``): processes that start together on a new machine (the workers of a
+    vectorised env) need the same objects; with the lock one of them analyses each object and
+    the others wait and load its entry, instead of every process analysing it at once (the time,
+    and the memory, of N analyses). Nothing is locked without a key (no cache); after
+    ``wait_s`` (default :data:`LOCK_WAIT_S`) of waiting the caller goes on."""
+    if key is None:
+        return contextlib.nullcontext()
     from ..modal.cache import cache_dir
 
-    try:
-        d = os.path.join(cache_dir(), "locks")
-        os.makedirs(d, exist_ok=True)
-        fd = os.open(os.path.join(d, f"{key}.lock"), os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError:
-        yield
-        return
-    try:
-        deadline = time.monotonic() + (LOCK_WAIT_S if wait_s is None else wait_s)
-        while True:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except BlockingIOError:
-                if time.monotonic() >= deadline:
-                    break
-                time.sleep(0.05)
-        yield
-    finally:
-        os.close(fd)  # (releases the lock)
+    return file_lock(os.path.join(cache_dir(), "locks", f"{key}.lock"), LOCK_WAIT_S if wait_s is None else wait_s)
 
 
 def _object_path(key: str) -> str:

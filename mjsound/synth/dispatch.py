@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from numba import typeof
 
+from ..jit import compile_lock
+
 __all__ = ["EntryPoint"]
 
 
@@ -34,7 +36,11 @@ class EntryPoint:
         if key == self._key:
             return self._entry(*state, *args)
         self._key = None
-        out = self.fn(*state, *args)
+        if self.fn.overloads:
+            out = self.fn(*state, *args)
+        else:  # (its first call here: compiled once by one of the processes starting together)
+            with compile_lock(self.fn):
+                out = self.fn(*state, *args)
         self._keep = state  # (keeps the ids unique while they are the key)
         self._entry = self.fn.overloads[tuple(typeof(a) for a in (*state, *args))].entry_point
         self._key = key  # (last: an interrupt before it leaves no stale key)
