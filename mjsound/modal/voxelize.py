@@ -77,6 +77,19 @@ def _column_crossings(tri, ox, oy, dx, dy, nx, ny):
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
+def _sort_column(zs, a, b, order):
+    """``order[:b - a]``: the indices of the column's crossings ``zs[a:b]`` by height
+    (insertion sort: a column has few crossings, and np.argsort allocates)."""
+    for m in range(b - a):
+        z = zs[a + m]
+        q = m
+        while q > 0 and zs[a + order[q - 1]] > z:
+            order[q] = order[q - 1]
+            q -= 1
+        order[q] = m
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
 def _inside_runs(start, zs, sg, c, oz, dz, nz, order, runs):
     """The inside runs of sample column ``c``: rows ``[k0, k1]`` of ``runs`` (ascending, no
     sample twice even where two runs meet exactly on it), walking the column's crossings
@@ -85,14 +98,7 @@ def _inside_runs(start, zs, sg, c, oz, dz, nz, order, runs):
     b = start[c + 1]
     if b - a < 2:
         return 0
-    # insertion sort of the column's few crossings by height (np.argsort allocates)
-    for m in range(b - a):
-        z = zs[a + m]
-        q = m
-        while q > 0 and zs[a + order[q - 1]] > z:
-            order[q] = order[q - 1]
-            q -= 1
-        order[q] = m
+    _sort_column(zs, a, b, order)
     w = 0
     last = -1
     n = 0
@@ -213,13 +219,7 @@ def _moment_columns(start, zs, sg, oz, dz, ny, nz, s, occ, mom):
         fj = j // s
         ox = ((i - fi * s) + 0.5) / s - 0.5
         oy = ((j - fj * s) + 0.5) / s - 0.5
-        for m in range(b - a):  # insertion sort of the column's crossings by height
-            z = zs[a + m]
-            q = m
-            while q > 0 and zs[a + order[q - 1]] > z:
-                order[q] = order[q - 1]
-                q -= 1
-            order[q] = m
+        _sort_column(zs, a, b, order)
         wind = 0
         for m in range(b - a - 1):
             wind += sg[a + order[m]]
