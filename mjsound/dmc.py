@@ -97,12 +97,12 @@ class AudioEnvironment(dm_env.Environment):
                         mujoco.mj_step2(model, data)  # completes the step mj_step1 began
                         sim.step(render=False)
                         if nstep > 1:
-                            sim.substeps(nstep - 1)
+                            sim.substeps(nstep - 1, render=True)
                     else:
-                        sim.substeps(nstep)
+                        sim.substeps(nstep, render=True)
                     mujoco.mj_step1(model, data)
                 else:
-                    sim.substeps(nstep)
+                    sim.substeps(nstep, render=True)  # (rendered in the same numba call; end_step flushes)
 
         physics.step = step
 

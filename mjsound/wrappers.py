@@ -477,17 +477,19 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         """Replace the env's stepping method (on the instance) by one that hears every substep."""
         mj = self._mj
         model, data = uw.model, uw.data
-        substeps = self.sim.substeps  # mj_step + on_substep, n times (one numba call)
+        # mj_step + on_substep, n times, and the env step's audio rendered, in one numba call
+        # (end_step's flush returns that block)
+        substeps = self.sim.substeps
         if hook == "_step_mujoco_simulation":  # gymnasium MujocoEnv
             def _step_mujoco_simulation(ctrl, n_frames):
                 data.ctrl[:] = ctrl
-                substeps(n_frames)
+                substeps(n_frames, True)
                 mj.mj_rnePostConstraint(model, data)
 
             uw._step_mujoco_simulation = _step_mujoco_simulation
         else:  # gymnasium-robotics MujocoRobotEnv: mj_step(model, data, nstep=n_substeps)
             def _mujoco_step(action):
-                substeps(uw.n_substeps)
+                substeps(uw.n_substeps, True)
 
             uw._mujoco_step = _mujoco_step
         self._hooked = hook

@@ -41,14 +41,15 @@ def make(fused_on, keep_events=0, **kw):
     return model, data, sim
 
 
-def play(model, data, sim, n_env=150, frame_skip=5, jump_at=None):
-    """``substeps(frame_skip)`` + ``flush()`` per env step; the box is pushed for a while."""
+def play(model, data, sim, n_env=150, frame_skip=5, jump_at=None, render=False):
+    """``substeps(frame_skip, render)`` + ``flush()`` per env step; the box is pushed for a
+    while."""
     blocks = []
     for i in range(n_env):
         data.xfrc_applied[2, 0] = 3.0 if 30 <= i < 90 else 0.0
         if i == jump_at:
             data.time += 0.37  # a state jump: the clock re-anchors
-        sim.substeps(frame_skip)
+        sim.substeps(frame_skip, render)
         blocks.append(sim.flush())
     return np.concatenate(blocks, axis=1)
 
@@ -90,8 +91,8 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     reasons = {}
     orig = StepKernel._advance
 
-    def counting(self, args):
-        orig(self, args)
+    def counting(self, state, block):
+        orig(self, state, block)
         key = (self.can_step, int(self.run[0]["reason"]))
         reasons[key] = reasons.get(key, 0) + 1
 
@@ -139,6 +140,44 @@ def test_fused_substeps_follow_a_time_jump_like_the_python_loop():
     assert out[0][1:] == out[1][1:]
 
 
+@pytest.mark.parametrize("jump", [None, "forward", "backward"])
+def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
+    """``substeps(n, render=True)`` renders the pending samples in the step kernel's call
+    (``flush`` returns that block): the same blocks, bit for bit, as rendering in ``flush``,
+    the same ones handed to an observer, also around a clock jump (forward: re-anchored;
+    backward: an automatic reset) and with steps taken one by one before it."""
+    from mjsound.sim.records import NOT_RENDERED
+
+    out = []
+    for render in (False, True):
+        model, data, sim = make(True)
+        seen = []
+        sim.on_block = lambda s, block, n0, seen=seen: seen.append((n0, block.copy()))
+        codes = []
+        blocks = []
+        for i in range(120):
+            data.xfrc_applied[2, 0] = 3.0 if 30 <= i < 90 else 0.0
+            if i == 20 and jump is not None:
+                data.time += 0.37 if jump == "forward" else -0.05
+            if i % 7 == 3:  # a step taken by hand first: its samples are pending too
+                mujoco.mj_step(model, data)
+                sim.step(render=False)
+            sim.substeps(5, render)
+            codes.append(int(sim._kernel.f["render_code"][0]))
+            blocks.append(sim.flush())
+        out.append((blocks, seen, sim.samples, sim.clock.n))
+        if render:  # (every call rendered, but the one that met the jump)
+            assert codes.count(NOT_RENDERED) == (0 if jump is None else 1)
+    (b0, seen0, *n0), (b1, seen1, *n1) = out
+    assert n0 == n1 and len(b0) == len(b1) and len(seen0) == len(seen1)
+    assert np.abs(np.concatenate(b0, axis=1)).max() > 0
+    for x, y in zip(b0, b1):
+        np.testing.assert_array_equal(x, y)
+    for (m0, x), (m1, y) in zip(seen0, seen1):
+        assert m0 == m1
+        np.testing.assert_array_equal(x, y)
+
+
 def test_fused_path_can_be_switched_off(monkeypatch):
     monkeypatch.setenv("MJSOUND_FUSED", "0")
     assert make(True)[2]._fused is False
@@ -180,15 +219,16 @@ def test_a_mujoco_build_without_the_c_functions_falls_back_to_python(monkeypatch
     np.testing.assert_array_equal(play(model, data, sim, n_env=40), play(ref_model, ref_data, ref, n_env=40))
 
 
-@pytest.mark.parametrize("fused_streams", [True, False])
-def test_render_zeroes_non_finite_samples(fused_streams):
+@pytest.mark.parametrize("fused_streams,render", [(True, False), (False, False), (True, True)])
+def test_render_zeroes_non_finite_samples(fused_streams, render):
     """A modal state gone non-finite (what an exploding simulation could leave) never reaches
-    the output: those samples are 0, the others are rendered as usual."""
+    the output: those samples are 0, the others are rendered as usual (also when the step
+    kernel renders: ``substeps(render=True)``)."""
     model, data, sim = make(True, clicks=False)  # (the modes' state only: no clicks of the bounces)
     sim.synth.fused_streams = fused_streams
     play(model, data, sim, n_env=40)  # something rolls: streams exist
     assert sim.synth.n_streams > 0
     sim.synth._bank.zr[:] = np.nan  # (the modal state, as an exploding simulation could leave it)
-    sim.substeps(5)
+    sim.substeps(5, render)
     block = sim.flush()
     assert block.size and np.isfinite(block).all() and not block.any()

@@ -18,8 +18,8 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
-           "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "CLICK_PARAMS", "CLICK_BODY",
-           "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState",
+           "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "NOT_RENDERED", "CLICK_PARAMS",
+           "CLICK_BODY", "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState",
            "ClickModel", "PulseState", "record"]
 
 i8, f8 = np.int64, np.float64
@@ -129,11 +129,17 @@ DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", 
 #: times and samples, sustained rows, hits, onset pairs and impacts. Outputs: why it stopped
 #: (``reason``, ``need``, ``n_missing``), impacts queued and log entries written (counting
 #: up over calls until Python takes them), whether poses and microphones are current.
+#: ``render`` (input): after the last substep, render the pending block into the call's block
+#: argument (it must end where the last substep ends); ``render_code`` (output): the render's
+#: code (``mjsound.synth.kernels.RENDERED`` or ``RENDERED_NONFINITE``), :data:`NOT_RENDERED`
+#: when no block was rendered.
 RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", i8), ("ncon", i8), ("nefc", i8),
                 ("explicit", i8), ("log_limit", i8), ("solved", i8), ("stage", i8), ("t0", f8), ("t1", f8),
                 ("n0", i8), ("n1", i8), ("n_sust", i8), ("n_hits", i8), ("n_onset", i8), ("n_imp", i8),
                 ("reason", i8), ("need", i8), ("n_missing", i8), ("n_impacts", i8), ("n_log", i8),
-                ("poses_current", i8)])
+                ("poses_current", i8), ("render", i8), ("render_code", i8)])
+#: ``RUN.render_code`` of a call that rendered no block.
+NOT_RENDERED = 1
 
 
 #: Impact pulses' constants (owner: :class:`mjsound.sim.clicks.ImpactPulses`): whether air

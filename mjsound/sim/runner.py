@@ -12,15 +12,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..synth.dispatch import EntryPoint
-from ..synth.records import CHANNEL, SYNTH_CONSTS, ObjectTable, SynthState
+from ..synth.records import CHANNEL, SYNTH_CONSTS, Bank, BankLayout, ObjectTable, RenderTarget, SynthState
 from ..synth.queue import EventQueue
 from ..synth.stream_table import StreamTable
 from .clicks import silent_pulse_state
 from .fused import mj_link
-from .records import DRIVE_PARAMS, RUN, SOUND, DataViews, DriveState
+from .records import DRIVE_PARAMS, NOT_RENDERED, RUN, SOUND, DataViews, DriveState
 from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance
 
-__all__ = ["StepKernel", "silent_drive", "silent_synth_state"]
+__all__ = ["StepKernel", "silent_drive", "silent_synth_state", "silent_render_target"]
 
 
 def silent_drive(ngeom: int) -> DriveState:
@@ -41,6 +41,16 @@ def silent_synth_state(dtype="float32") -> SynthState:
                           z(1, np.int64), z(0), z(0), z(0, np.complex128), z(0, np.complex128))
     return SynthState(objects, z((0, 3)), z((0, 3, 3)), z((0, 3)), z(1, SYNTH_CONSTS), EventQueue(1).state,
                       StreamTable(0, dtype).empty, z(0, CHANNEL), z(0, np.complex128))
+
+
+def silent_render_target(dtype="float32") -> RenderTarget:
+    """A :class:`mjsound.synth.records.RenderTarget` without banks (the types of a
+    synthesizer's, for :func:`silent_synth_state`)."""
+    z = np.zeros
+    i8 = np.int64
+    bank = Bank(z(0), z(0), z(0), z(0, np.bool_), z(0, dtype), z(0, dtype), z(0), z(0), z(0, i8), z(0, i8), z(0, i8),
+                z(0, np.bool_))
+    return RenderTarget(bank, BankLayout(z(0, i8), z(0, i8), z(0, i8), z(0, i8), 0), z(1, dtype), z((0, 0), dtype))
 
 
 class StepKernel:
@@ -78,6 +88,7 @@ class StepKernel:
             clock[0]["fs"] = clock[0]["den"] = 1
         self.clock = clock
         self._advance_call = EntryPoint(advance)
+        self._silent = None  # (silent_render_target, made on first use)
 
     @property
     def can_step(self) -> bool:
@@ -90,23 +101,35 @@ class StepKernel:
         run = self.run[0]
         run["ncon"], run["nefc"] = self.reader.copy_contacts(self.data)
 
-    def _advance(self, args) -> None:
-        """``advance(*args)`` through its compiled entry point (:class:`mjsound.synth.dispatch.EntryPoint`:
-        numba's dispatch computes the types of tuples in Python, microseconds per call)."""
-        self._advance_call(args)
+    def _advance(self, state, block) -> None:
+        """``advance(*state, block)`` through its compiled entry point
+        (:class:`mjsound.synth.dispatch.EntryPoint`: numba's dispatch computes the types of
+        tuples in Python, microseconds per call; ``state`` keeps its objects between calls,
+        ``block`` is a new array of the same type)."""
+        self._advance_call(state, block)
+
+    def _silent_target(self) -> RenderTarget:
+        if self._silent is None:
+            self._silent = silent_render_target()
+        return self._silent
 
     def call(self, drive, synth_state, nstep: int = 1, call_step: bool = False, explicit=None, log_limit: int = 0,
-             on_stop=None, synth=None) -> None:
+             on_stop=None, synth=None, target=None, block=None) -> None:
         """Run ``nstep`` substeps (``call_step``: the kernel calls ``mj_step``; else the step
         was taken and its contacts are read). ``explicit``: ``(t0, t1, n0, n1)`` of a single
         step instead of the clock's. ``drive``: a DriveState or a callable returning the
-        current one, ``synth_state()``: the current SynthState (both asked again after every
+        current one, ``synth_state()``: the current SynthState and ``target()`` the current
+        RenderTarget (None: :func:`silent_render_target`; all asked again after every
         hand-back); ``synth``: the Synthesizer whose queue grows on :data:`.step.ROOM`;
-        ``on_stop(reason)`` handles the other reasons, then the call resumes."""
+        ``on_stop(reason)`` handles the other reasons, then the call resumes. ``block``: a
+        zeroed (mics, n) array of the bank dtype into which the kernel renders the pending
+        samples after the last substep (``run.render_code`` says whether it did; None: no
+        render)."""
         f = self.f  # (plain one-element views of the record's fields: fast to set in Python)
         f["nstep"][0], f["done"][0], f["call_step"][0] = nstep, 0, call_step
         f["stage"][0] = STAGE_STEP if call_step else STAGE_READ
         f["log_limit"][0], f["n_log"][0], f["n_impacts"][0], f["solved"][0], f["poses_current"][0] = log_limit, 0, 0, 0, 0
+        f["render"][0], f["render_code"][0] = block is not None, NOT_RENDERED
         if explicit is not None:
             f["explicit"][0] = 1
             f["t0"][0], f["t1"][0], f["n0"][0], f["n1"][0] = explicit
@@ -118,10 +141,13 @@ class StepKernel:
             self._copy_contacts()
         reader = self.reader
         reason_f = f["reason"]
+        if target is None:
+            target = self._silent_target
         while True:
             d = drive() if callable(drive) else drive
+            t = target()
             self._advance((self.mj, self.views, reader.state(), reader.buffers, self.clock, d, synth_state(),
-                           self.run))
+                           self.run, t), t.empty if block is None else block)
             reason = reason_f[0]
             if reason == DONE:
                 return

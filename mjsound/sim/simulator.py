@@ -26,10 +26,12 @@ import numpy as np
 
 from ..synth.constants import ROLL_PATCH_M, ROLL_ROUGHNESS, SLIDE_GRAIN_M, SLIDE_ROUGHNESS
 from ..synth.dispatch import EntryPoint
+from ..synth.kernels import RENDERED
 from .clock import SampleClock
 from .contacts import ContactReader
-from .drive import follow_rows, sync_poses
-from .records import DRIVE_PARAMS, SOUND, DriveState
+from .drive import sync_poses
+from .records import DRIVE_PARAMS, NOT_RENDERED, SOUND, DriveState
+from .listener import ListenerMethods
 from .reports import SimulatorReports
 from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
@@ -39,7 +41,7 @@ from .warmup import notice_first_compile
 
 __all__ = ["AudioSimulator", "SampleClock"]
 
-class AudioSimulator(SimulatorReports):
+class AudioSimulator(ListenerMethods, SimulatorReports):
     """Sound for a running MuJoCo simulation, one audio block per physics step.
 
     Parameters
@@ -244,6 +246,7 @@ class AudioSimulator(SimulatorReports):
         self.seconds_fused = 0.0  # substeps run in numba (mj_step included)
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
+        self._ready = None  # a block substeps(render=True) rendered, returned by the next flush
 
     @property
     def _geom_obj(self) -> np.ndarray:
@@ -268,6 +271,9 @@ class AudioSimulator(SimulatorReports):
         dt = float(self._opt.timestep)
         t_new = float(self.data.time) - dt
         if self.data.time < c.time_at(c.k) - 0.25 * c.timestep:  # backwards
+            if self._ready is not None:
+                self._held.append(self._ready)
+                self._ready = None
             if self._pending:
                 self._held.append(self._render_pending())
             self._reset_at(t_new, keep_observer=True)
@@ -276,35 +282,7 @@ class AudioSimulator(SimulatorReports):
         c.anchor(dt, t_new)
         self._origin += c.n - n_prev
 
-    def follow(self, body: int, offsets) -> None:
-        """Move the microphones with ``body`` (translation only): microphone m sits at
-        ``data.xpos[body] + offsets[m]``, updated whenever an event needs the positions
-        (an impact, or a sustained contact's gains). ``body=None`` stops following."""
-        if body is None:
-            self._follow = None
-            self._drive = None
-            return
-        off = np.asarray(offsets, np.float64).reshape(-1, 3)
-        if not 0 <= int(body) < self.model.nbody:
-            raise ValueError(f"follow: body {body} does not exist (the model has {self.model.nbody} bodies)")
-        if len(off) != self.n_air or not np.isfinite(off).all():
-            raise ValueError(f"follow: give {self.n_air} finite (x, y, z) offsets [m], one per microphone (the air "
-                             f"ones); got {len(off)}")
-        self._follow = (int(body), np.ascontiguousarray(np.vstack([off, np.zeros((len(self.contact_channels), 3))])))
-        self._drive = None
-
     # ------------------------------------------------------------------ the kernel's inputs
-    def _mic_config(self):
-        """``(mode, source, rows, offsets)``: ``mics[m] = source_positions[rows[m]] +
-        offsets[m]`` when mode is 1 (source 0: bodies' ``xpos``, 1: ``site_xpos``); mode 0: the
-        microphones stay."""
-        M = self.n_channels
-        if self._follow is not None:
-            return 1, 0, np.full(M, self._follow[0], np.int64), self._follow[1]
-        if self._sites_move and M == len(self._mic_sites):
-            return 1, 1, self._mic_sites, np.zeros((M, 3))
-        return 0, 0, np.zeros(M, np.int64), np.zeros((M, 3))
-
     def _drive_state(self) -> DriveState:
         """The drive's arrays (:class:`.records.DriveState`), rebuilt when one was replaced."""
         synth = self.synth
@@ -323,14 +301,6 @@ class AudioSimulator(SimulatorReports):
             self._drive = DriveState(self._drive_prm, self._sound, self._coef, self._sidx, rows, offsets,
                                      self._dyn_geoms, self._dyn_obj, self.pulses.state)
         return self._drive
-
-    def _update_mics(self) -> None:
-        """Microphones to where their sites / the followed body are now (nothing when they
-        cannot move)."""
-        mode, source, rows, offsets = self._mic_config()
-        if mode:  # (mics updated in place; a non-finite position keeps the last)
-            follow_rows(self.data.site_xpos if source else self.data.xpos, rows, offsets,
-                        self.synth.kernel_state().mics)
 
     def _sync_poses(self) -> None:
         """Microphones and every moving sounding object to where they are now, before an
@@ -397,14 +367,16 @@ class AudioSimulator(SimulatorReports):
             self._read_step(explicit=(t0, t1, n0, n1))
         return self._render_pending() if render else None
 
-    def substeps(self, nstep: int) -> None:
+    def substeps(self, nstep: int, render: bool = False) -> None:
         """``mj_step`` then :meth:`step` ``(render=False)``, ``nstep`` times (a gymnasium env's
         ``frame_skip``); the audio comes from :meth:`flush`.
 
         The substeps run in one numba call (the step kernel calls ``mj_step`` itself) whenever
         this simulator can (``fused=True``, MuJoCo's C functions and struct layout checked,
         the clock fits 64-bit integers); the result is the same as the loop in Python, bit
-        for bit."""
+        for bit. ``render=True``: the same call also renders every pending sample (when the
+        synthesizer has no Python forcing sources), which :meth:`flush` then returns: the
+        same audio as rendering in :meth:`flush`, one numba call fewer."""
         nstep = int(nstep)
         c = self.clock
         k0 = c.k
@@ -415,12 +387,22 @@ class AudioSimulator(SimulatorReports):
                 self.step(render=False)
             return
         synth.poses_current = False
-        self._seg = (k0, c.sample_at(k0))
+        n0 = c.sample_at(k0)
+        self._seg = (k0, n0)
+        block = None
+        if render and nstep > 0 and self._ready is None and not self._held and synth.renders_in_kernel:
+            block = synth.new_block(self._pending + c.sample_at(k0 + nstep) - n0)
         tc = _time.perf_counter()
-        self._call(nstep, call_step=True)
+        self._call(nstep, call_step=True, block=block)
         self.seconds_fused += _time.perf_counter() - tc
         self._count_segment()
         synth.poses_current = bool(self._kernel.f["poses_current"][0])
+        if block is not None:
+            code = int(self._kernel.f["render_code"][0])
+            if code != NOT_RENDERED:  # (the pending samples are rendered: flush returns them)
+                n0 = self._pending_n0
+                self._pending = 0
+                self._ready = self._deliver(self.pulses.mix(synth.kernel_block(block, code == RENDERED)), n0)
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
@@ -432,11 +414,12 @@ class AudioSimulator(SimulatorReports):
             self._count(n0, n, k - k0)
         self._seg = (k, n)
 
-    def _call(self, nstep: int, call_step: bool, explicit=None) -> None:
-        """One call of the step kernel (and its hand-backs), then collect what it produced."""
+    def _call(self, nstep: int, call_step: bool, explicit=None, block=None) -> None:
+        """One call of the step kernel (and its hand-backs), then collect what it produced;
+        ``block``: render the pending samples into it (:meth:`.runner.StepKernel.call`)."""
         synth = self.synth
         self._kernel.call(self._drive_state, synth.kernel_state, nstep, call_step, explicit,
-                          max(0, self.keep_events - self._n_logged), self._on_stop, synth)
+                          max(0, self.keep_events - self._n_logged), self._on_stop, synth, synth.render_target, block)
         self._collect()
 
     def _collect(self) -> None:
@@ -470,6 +453,7 @@ class AudioSimulator(SimulatorReports):
         elif reason == RING:
             self.synth.grow_stream_ring(int(run["need"]))
         elif reason == CLOCK_JUMP:
+            run["render"] = 0  # (the pending samples change: flush renders them)
             self._collect()
             self._count_segment()
             self._clock_jump()
@@ -505,7 +489,13 @@ class AudioSimulator(SimulatorReports):
     def flush(self) -> np.ndarray:
         """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
         ``(channels, n)`` float32 pressure [Pa]."""
-        return self._render_pending()
+        ready = self._ready
+        if ready is None:
+            return self._render_pending()
+        self._ready = None  # (rendered by substeps(render=True))
+        if not self._pending and not self._held:
+            return ready
+        return np.concatenate([ready, self._render_pending()], axis=1)
 
     def _count(self, n0: int, n1: int, steps: int = 1) -> None:
         """Count ``steps`` physics steps of samples ``[n0, n1)``, not rendered yet."""
@@ -525,6 +515,11 @@ class AudioSimulator(SimulatorReports):
             tc = _time.perf_counter()
             block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
             self.seconds_synth += _time.perf_counter() - tc
+        return self._deliver(block, n0)
+
+    def _deliver(self, block: np.ndarray, n0: int) -> np.ndarray:
+        """A rendered block (first absolute sample ``n0``) to the observer, after the blocks
+        held back by an automatic reset."""
         if self.on_block is not None:
             self.on_block(self, block, n0)
         if self._held:
@@ -566,7 +561,7 @@ class AudioSimulator(SimulatorReports):
         for i in range(0, nsteps, every):  # render_block_s of steps at a time
             m = min(every, nsteps - i)
             if callback is None:
-                self.substeps(m)  # (one numba call)
+                self.substeps(m, render=True)  # (one numba call, the render included)
             else:
                 for _ in range(m):
                     callback(self.model, self.data)

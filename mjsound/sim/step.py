@@ -15,7 +15,9 @@ flow):
 5. drive: the sliding / rolling streams (:func:`.drive.drive_sustained`),
 
 and after the last substep syncs the poses and microphones once more (for the render's
-stream gains). It stops and hands back to Python only for what numba cannot do, with a
+stream gains) and, when ``run.render`` asks, renders the pending block
+(:func:`mjsound.synth.kernels.render_streams`, as ``Synthesizer.render`` would right after
+the call), so that an env step costs one numba call. It stops and hands back to Python only for what numba cannot do, with a
 named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
 :data:`SOLVE`, :data:`HERTZ`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
 says where the substep resumes when Python calls again, and nothing of a stage is changed
@@ -31,11 +33,13 @@ a pending signal into ``SystemError``.
 from __future__ import annotations
 
 from ..jit import njit
+from ..synth.kernels import render_streams
 from .click_kernels import pulse_room, queue_pulses
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
 from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
 from .impulses import event_impulses, normal_jacobians, write_records
 from .pairs import read_pairs
+from .records import NOT_RENDERED
 
 __all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
            "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
@@ -106,10 +110,35 @@ def _log(buf, rn, t, kind, g1, g2, value):
 
 
 @njit(cache=True)
-def advance(mj, views, reader, buf, clock, drive, synth, run):
+def _render_block(synth, target, rn, ck, out):
+    """Render the pending block ``out`` (mics, n) (``run.render``): the synthesizer's samples
+    ``[rendered, rendered + n)``, which must end where the last substep ends (else nothing is
+    rendered: ``render_code`` :data:`NOT_RENDERED`). False when the stream rings must grow
+    first (``run.reason`` :data:`RING`)."""
+    cst = synth.consts[0]
+    start = cst.rendered
+    n = out.shape[1]
+    if rn.explicit or rn.nstep < 1 or start + n != rn.n1 - ck.origin:
+        rn.render_code = NOT_RENDERED
+        return True
+    code = render_streams(synth, target.bank, target.layout, start, n, True, out, target.zero[0])
+    if code > 0:  # the ring must hold the block plus the delays (the gains are computed)
+        rn.reason = RING
+        rn.need = code
+        return False
+    cst.rendered = start + n
+    rn.render_code = code
+    rn.render = 0
+    return True
+
+
+@njit(cache=True)
+def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
     """Run the substeps of ``run`` (see the module docstring): ``mj`` (1,) MJ, ``views``
     DataViews of the mjData, ``reader`` ReaderState, ``buf`` StepBuffers, ``clock`` (1,)
-    CLOCK, ``drive`` DriveState, ``synth`` SynthState, ``run`` (1,) RUN (inputs and outputs)."""
+    CLOCK, ``drive`` DriveState, ``synth`` SynthState, ``run`` (1,) RUN (inputs and outputs);
+    then, when ``run.render`` is set, the pending block into ``out`` (mics, n) (the bank dtype,
+    zeroed) with ``target`` (RenderTarget)."""
     rn = run[0]
     cnt = reader.counts[0]
     ck = clock[0]
@@ -217,3 +246,5 @@ def advance(mj, views, reader, buf, clock, drive, synth, run):
             rn.stage = STAGE_STEP
     sync_poses(drive, views, synth)
     rn.poses_current = 1
+    if rn.render and not _render_block(synth, target, rn, ck, out):
+        return

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["STREAM", "STREAMS", "EVENT", "QUEUE", "SYNTH_CONSTS", "CHANNEL", "AIR", "DEAF", "ObjectTable", "QueueState", "StreamState",
-           "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank"]
+           "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank", "RenderTarget"]
 
 i8, f8 = np.int64, np.float64
 
@@ -159,3 +159,14 @@ class Bank(NamedTuple):
     length: np.ndarray  # (banks,) int64 modes of each bank
     mic: np.ndarray  # (banks,) int64 output channel of each bank
     live: np.ndarray  # (banks,) bool: has running modes (kept up to date by render_all)
+
+
+class RenderTarget(NamedTuple):
+    """What the step kernel needs to render the pending block itself, right after its
+    substeps (:meth:`mjsound.synth.Synthesizer.render_target`; the block's array is passed
+    on its own, so that this tuple stays the same object from call to call)."""
+
+    bank: Bank
+    layout: BankLayout
+    zero: np.ndarray  # (1,) state dtype: 0 (fixes the render's accumulator type)
+    empty: np.ndarray  # (mics, 0) state dtype: the block argument of a call that renders nothing

@@ -55,7 +55,7 @@ from .impacts import ImpactMethods
 from .interrupt import interruptible
 from .objects import ObjectModes, PoseTable, SynthObject, VoiceState, build_layout, finite_array, prepare_object
 from .queue import EventQueue
-from .records import AIR, CHANNEL, DEAF, SYNTH_CONSTS, EventRows, SourceRows, SynthState
+from .records import AIR, CHANNEL, DEAF, SYNTH_CONSTS, EventRows, RenderTarget, SourceRows, SynthState
 from .sources import ForcingSources
 from .stream_table import RING_SLACK, StreamMethods
 
@@ -174,6 +174,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         self.samples_rendered = 0
         self._streams_clear()
         self._kernel_state = None  # (kernel_state(): made on first use, kept while its arrays are)
+        self._render_target = None  # (render_target(): likewise)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -383,6 +384,33 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
             ks = self._kernel_state = SynthState(self._object_table, self._poses.pos, self._poses.R, self._mics,
                                                  self._consts, self._ev.state, st, self._channels, self._chan_w)
         return ks
+
+    def render_target(self) -> RenderTarget:
+        """What the step kernel needs to render a block itself (:class:`.records.RenderTarget`:
+        the banks and their layout), valid as long as :meth:`kernel_state` is."""
+        if self._dirty:
+            self._rebuild()
+        rt = self._render_target
+        if rt is None or rt.bank is not self._bank or rt.layout is not self._layout:
+            dt = self.dtype
+            rt = self._render_target = RenderTarget(self._bank, self._layout, np.zeros(1, dt),
+                                                    np.zeros((len(self._mics), 0), dt))
+        return rt
+
+    @property
+    def renders_in_kernel(self) -> bool:
+        """Whether a block can be rendered by one numba call (:func:`.kernels.render_streams`,
+        as :meth:`render` does; not with Python forcing sources pending)."""
+        return not self._src and self.fused_streams
+
+    def new_block(self, n: int) -> np.ndarray:
+        """A zeroed ``(channels, n)`` block of the bank dtype for a kernel to render into."""
+        return np.zeros((len(self._mics), n), self.dtype)
+
+    def kernel_block(self, out: np.ndarray, finite: bool) -> np.ndarray:
+        """The block a kernel rendered into ``out`` (:meth:`new_block`) as :meth:`render`
+        returns it: float32, never NaN (``finite``: the kernel found every sample finite)."""
+        return _finite(out.astype(np.float32, copy=False), finite)
 
     # ------------------------------------------------------------------ rendering
     def _rebuild(self) -> None:
