@@ -363,10 +363,12 @@ def streams_bank_rows(streams, layout, start, end, zero):
             sa[j] = start
             sb[j] = hi if hi < end else end
             gen = t[s].gen
-            lo_src = gen - cap  # oldest sample still in the ring
-            for u in range(start, sb[j]):
-                ks = u - Dm
-                if ks >= lo_src and ks < gen:
-                    F[j, u - start] = ring[s, ks & mask]
+            # source samples ks = u - Dm still in the ring (gen - cap <= ks < gen); the rest stay 0
+            u0 = max(start, gen - cap + Dm)
+            u1 = min(sb[j], gen + Dm)
+            Fj = F[j]
+            rs = ring[s]
+            for u in range(u0, u1):
+                Fj[u - start] = rs[(u - Dm) & mask]
             j += 1
     return ptr, sa, sb, gr, gi, F  # (the fields of SourceRows: a NamedTuple is not boxed safely on Ctrl-C)

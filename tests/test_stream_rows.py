@@ -1,0 +1,73 @@
+"""A block's rows of the persistent streams (``streams.streams_bank_rows``) against a plain
+Python reading of the rings: which streams have rows at which microphone, their gains placed
+in the banks, their ranges, and the force samples read through each stream's delay (zero
+where the ring no longer holds the source sample, or not yet)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mjsound.synth.records import STREAM, STREAMS, BankLayout, StreamState
+from mjsound.synth.streams import streams_bank_rows
+
+
+def plain_rows(st, layout, start, end):
+    """The rows as the loops over every sample would make them (numpy, no ring arithmetic)."""
+    n_mics, cap = st.D.shape[1], st.ring.shape[1]
+    rows = []
+    for m in range(n_mics):
+        for s in range(int(st.counts[0]["n"])):
+            t = st.table[s]
+            hi = int(t["last"]) + int(st.D[s, m])
+            if not t["live"] or hi <= start:
+                continue
+            v = layout.vbase[t["obj"]] + m
+            gr = np.zeros(layout.width, np.float32)
+            gi = np.zeros(layout.width, np.float32)
+            w = min(layout.v_len[v], st.gr.shape[2])
+            gr[layout.v_rel[v]: layout.v_rel[v] + w] = st.gr[s, m, :w]
+            gi[layout.v_rel[v]: layout.v_rel[v] + w] = st.gi[s, m, :w]
+            F = np.zeros(end - start, np.float32)
+            b = min(hi, end)
+            for u in range(start, b):
+                ks = u - int(st.D[s, m])
+                if int(t["gen"]) - cap <= ks < int(t["gen"]):
+                    F[u - start] = st.ring[s, ks % cap]
+            rows.append((m, start, b, gr, gi, F))
+    return rows
+
+
+def test_stream_rows_read_the_rings_through_the_delays():
+    rng = np.random.default_rng(5)
+    cap, n_mics, nmax = 64, 2, 3
+    S = 5
+    table = np.zeros(8, STREAM)
+    # (live, object, samples generated up to gen, last driven sample): a stream that stops
+    # inside the block, one whose ring wraps inside it (and whose far microphone hears samples
+    # older than the ring holds), one that stopped before it, one heard only at its far
+    # microphone, one retired (no rows)
+    for s, (live, obj, gen, last) in enumerate([(1, 0, 230, 230), (1, 1, 300, 290), (1, 0, 205, 205),
+                                                (1, 1, 150, 150), (0, 0, 260, 260)]):
+        table[s]["live"], table[s]["obj"], table[s]["gen"], table[s]["last"] = live, obj, gen, last
+    D = np.array([[3, 9], [0, 40], [7, 2], [1, 60], [0, 0]] + [[0, 0]] * 3, np.int64)
+    gr = rng.standard_normal((8, n_mics, nmax)).astype(np.float32)
+    gi = rng.standard_normal((8, n_mics, nmax)).astype(np.float32)
+    ring = rng.standard_normal((8, cap))
+    counts = np.zeros(1, STREAMS)
+    counts[0]["n"] = S
+    st = StreamState(table, D, gr, gi, ring, counts)
+    # two objects (3 and 2 modes) at two microphones: voices object-major, banks microphone-major
+    layout = BankLayout(np.array([0, 2], np.int64), np.array([0, 0, 3, 3], np.int64), np.array([3, 3, 2, 2], np.int64),
+                        np.array([0, 1, 0, 1], np.int64), 5)
+    start, end = 200, 260
+    ptr, sa, sb, rgr, rgi, F = streams_bank_rows(st, layout, start, end, np.float32(0))
+    ref = plain_rows(st, layout, start, end)
+    assert len(sa) == len(ref) == 7  # streams 0-2 at both microphones, stream 3 only where it is still heard
+    assert ptr.tolist() == [0, 3, 7]
+    for j, (m, a, b, g_r, g_i, f) in enumerate(ref):
+        assert ptr[m] <= j < ptr[m + 1]
+        assert (sa[j], sb[j]) == (a, b)
+        np.testing.assert_array_equal(rgr[j], g_r)
+        np.testing.assert_array_equal(rgi[j], g_i)
+        np.testing.assert_array_equal(F[j], f)
+    assert F[0].any() and not F[0][-20:].any()  # (stream 0: its last samples come after gen)
