@@ -196,6 +196,30 @@ def _accel_pulse(t, tau, channel=0, b0=1.0):
     return p
 
 
+def test_pulse_track_take_into_adds_what_take_returns():
+    """``take_into(block)`` adds to a float32 block exactly what ``block +=
+    take(n).astype(float32)`` adds (the ring wrapping inside a block, blocks before, across and
+    after the pulses), a non-finite sample as nothing, and leaves the track where ``take``
+    leaves it."""
+    rng = np.random.default_rng(4)
+    tracks = [bl.PulseTrack(2, FS), bl.PulseTrack(2, FS)]
+    for tr in tracks:
+        tr.reset(900)
+        for t, ch in ((0.0201, 1), (0.0213, 0), (0.0440, 1)):
+            tr.add(_accel_pulse(t, 5e-6, channel=ch), 2.5)
+        tr._acc[1, (1000 + 17) & (tr._acc.shape[1] - 1)] = np.nan  # (as an exploding simulation could leave it)
+    for k in (50, 700, 333, 1024, 400):
+        a = rng.standard_normal((2, k)).astype(np.float32)
+        b = a.copy()
+        extra = tracks[0].take(k)
+        if extra is not None:
+            a += np.nan_to_num(extra, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
+        tracks[1].take_into(b)
+        assert np.array_equal(a, b) and np.isfinite(b).all()
+        assert (tracks[0].start, tracks[0].pending_from) == (tracks[1].start, tracks[1].pending_from)
+    assert tracks[1].take(10) is None and not tracks[1]._acc.any()
+
+
 def test_pulse_track_integral_blocks_and_nothing_pending():
     track = bl.PulseTrack(2, FS)
     assert track.take(480) is None  # nothing pending: no work, nothing to add

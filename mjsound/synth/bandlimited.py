@@ -40,6 +40,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .dispatch import EntryPoint
 from .interrupt import interruptible
 from .pulse import half_sine
 
@@ -261,6 +262,22 @@ def _render_pulses(pulses, dv, fs, acc, start, work, out):
 _ENTRY = {}
 
 
+@njit(cache=True)
+def _take_into(acc, n0, lo, hi, block):
+    """Add the ring ``acc``'s (channels, cap) samples ``[lo, hi)`` (absolute; sample ``u`` at
+    ``u & (cap - 1)``) into ``block`` (channels, n) float32, whose first sample is ``n0``, each
+    rounded to float32 first (as ``block += samples.astype(float32)``; a non-finite sample
+    adds nothing), and clear them in the ring."""
+    mask = acc.shape[1] - 1
+    for c in range(acc.shape[0]):
+        for u in range(lo, hi):
+            i = u & mask
+            x = acc[c, i]
+            acc[c, i] = 0.0
+            if np.isfinite(x):
+                block[c, u - n0] += np.float32(x)
+
+
 @interruptible
 def _call(kernel, *args):
     """``kernel(*args)`` through its compiled entry point once it has been compiled for these
@@ -309,6 +326,7 @@ class PulseTrack:
         self.pending_from = self.pending_until = 0
         self.dropped = 0
         self._acc = np.zeros((self.n_channels, 1024))
+        self._take_into_call = EntryPoint(_take_into)
         self._work = np.zeros(256, np.complex128)
         self._out = np.zeros(256)
 
@@ -368,6 +386,18 @@ class PulseTrack:
         if hi > lo:
             self.pending_from = lo if self.pending_until <= self.start else min(self.pending_from, lo)
             self.pending_until = max(self.pending_until, hi)
+
+    def take_into(self, block: np.ndarray) -> None:
+        """Add the next ``block.shape[1]`` samples of every channel into ``block`` (channels, n)
+        float32 in place and remove them from the track, as ``block += take(n)`` does (a
+        non-finite sample adds nothing); one numba call, none when no pulse reaches them."""
+        n0, n1 = self.start, self.start + block.shape[1]
+        self.start = n1
+        lo, hi = max(n0, self.pending_from), min(n1, self.pending_until)
+        if hi <= lo:
+            return
+        self._take_into_call((self._acc,), n0, lo, hi, block)
+        self.pending_from = hi
 
     def take(self, n: int) -> np.ndarray | None:
         """The next ``n`` samples of every channel, (channels, n), removed from the track; ``None``
