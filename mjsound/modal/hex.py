@@ -47,101 +47,20 @@ import trimesh
 
 from ..materials import Material
 from .discretization import Discretization
-from .hex_cell import CellSum, quadratic_cell_matrices
+from .hex_cell import (
+    _CORNERS,
+    CellSum,
+    _condense,
+    _elasticity_matrix,
+    _taylor_correction,
+    hex_element_matrices,
+    hex_strain_integral,
+    quadratic_cell_matrices,
+)
 from .surface import cavities, face_components
 from .voxelize import surface_voxels, winding_moments, winding_occupancy
 
 __all__ = ["discretize_hex", "hex_element_matrices", "grid_for"]
-
-# local corner k = a + 2b + 4c sits at (xi, eta, zeta) = (2a-1, 2b-1, 2c-1)
-_CORNERS = np.array([[2 * (k & 1) - 1, 2 * ((k >> 1) & 1) - 1, 2 * ((k >> 2) & 1) - 1] for k in range(8)], float)
-_GAUSS = np.array([-1.0, 1.0]) / np.sqrt(3.0)
-
-
-def _elasticity_matrix(material: Material) -> np.ndarray:
-    """Isotropic D (6x6) for strains (xx, yy, zz, xy, yz, xz) with engineering shears."""
-    lam, mu = material.lame
-    D = np.zeros((6, 6))
-    D[:3, :3] = lam
-    D[np.arange(3), np.arange(3)] = lam + 2 * mu
-    D[3, 3] = D[4, 4] = D[5, 5] = mu
-    return D
-
-
-def _strain_rows(grads: np.ndarray) -> np.ndarray:
-    """B (6, 3m) from shape-function gradients (m, 3) for one integration point."""
-    m = grads.shape[0]
-    B = np.zeros((6, 3 * m))
-    gx, gy, gz = grads[:, 0], grads[:, 1], grads[:, 2]
-    B[0, 0::3] = gx
-    B[1, 1::3] = gy
-    B[2, 2::3] = gz
-    B[3, 0::3], B[3, 1::3] = gy, gx
-    B[4, 1::3], B[4, 2::3] = gz, gy
-    B[5, 0::3], B[5, 2::3] = gz, gx
-    return B
-
-
-def hex_element_matrices(size, material: Material, incompatible: bool = True):
-    """Stiffness and consistent mass (24x24) of one full box cell.
-
-    Parameters
-    ----------
-    size : (3,) floats
-        Cell side lengths (hx, hy, hz) [m].
-    material : Material
-    incompatible : bool
-        Use Wilson's incompatible modes (condensed). False gives the plain trilinear
-        hexahedron, which locks in bending (kept for the accuracy report).
-
-    Returns
-    -------
-    K : (24, 24) [N/m], M : (24, 24) [kg]; dof order (corner0 x, y, z, corner1 x, ...).
-    """
-    h = np.asarray(size, float)
-    jac = 2.0 / h  # d(xi)/dx per axis
-    detJ = np.prod(h) / 8.0
-    D = _elasticity_matrix(material)
-    Kuu = np.zeros((24, 24))
-    Kua = np.zeros((24, 9))
-    Kaa = np.zeros((9, 9))
-    M = np.zeros((24, 24))
-    for gx in _GAUSS:
-        for gy in _GAUSS:
-            for gz in _GAUSS:
-                xi = np.array([gx, gy, gz])
-                f = 1.0 + _CORNERS * xi  # (8, 3)
-                N = f.prod(axis=1) / 8.0
-                dN = np.empty((8, 3))
-                dN[:, 0] = _CORNERS[:, 0] * f[:, 1] * f[:, 2] / 8.0
-                dN[:, 1] = _CORNERS[:, 1] * f[:, 0] * f[:, 2] / 8.0
-                dN[:, 2] = _CORNERS[:, 2] * f[:, 0] * f[:, 1] / 8.0
-                Bu = _strain_rows(dN * jac)
-                # bubble P_d = 1 - xi_d^2, gradient only along axis d
-                dP = np.diag(-2.0 * xi * jac)  # (3 bubbles, 3 axes)
-                Ba = _strain_rows(dP)
-                Kuu += Bu.T @ D @ Bu * detJ
-                Kua += Bu.T @ D @ Ba * detJ
-                Kaa += Ba.T @ D @ Ba * detJ
-                Nm = np.kron(N[None, :], np.eye(3))  # (3, 24)
-                M += material.rho * Nm.T @ Nm * detJ
-    K = Kuu - Kua @ np.linalg.solve(Kaa, Kua.T) if incompatible else Kuu
-    return 0.5 * (K + K.T), 0.5 * (M + M.T)
-
-
-def hex_strain_integral(size) -> np.ndarray:
-    """S = integral of B over one box cell (6, 24): ``S u`` is the cell's volume x mean strain.
-
-    Trilinear shape-function gradients are linear in each other coordinate, so the cell
-    mean is the gradient at the centre.
-    """
-    h = np.asarray(size, float)
-    f = np.ones((8, 3))
-    dN = np.empty((8, 3))
-    dN[:, 0] = _CORNERS[:, 0] * f[:, 1] * f[:, 2] / 8.0
-    dN[:, 1] = _CORNERS[:, 1] * f[:, 0] * f[:, 2] / 8.0
-    dN[:, 2] = _CORNERS[:, 2] * f[:, 0] * f[:, 1] / 8.0
-    return _strain_rows(dN * (2.0 / h)) * np.prod(h)
 
 
 def _child_interpolations(r: int) -> np.ndarray:
@@ -263,26 +182,6 @@ def _serendipity_embedding() -> np.ndarray:
     return T
 
 
-def _taylor_correction(K33, G, W, D):
-    """Make the bubbles pass the patch test in partly filled cells (in place).
-
-    Wilson's bubbles have zero mean strain over a *homogeneous* rectangular cell, which
-    is why the element converges. In a partly filled cell the occupancy-weighted mean
-    strain ``e_b = G_b / W`` of a bubble is not zero, it couples to constant-strain
-    states and the cell turns too soft (7 % low torsion on a voxelized rod). As Taylor,
-    Beresford & Wilson (1976) do for distorted cells, the bubble strains are replaced by
-    ``e_b - mean(e_b)``; with ``G`` (cells, 6, 33) the weighted strain integrals of all 33
-    fields and ``W`` the filled volume, the energy changes by
-
-        K_ua -= G_u^T D G_a / W,    K_aa -= G_a^T D G_a / W     (K_uu unchanged).
-    """
-    C = np.swapaxes(G, 1, 2) @ (D @ G) / W[:, None, None]
-    K33[:, :24, 24:] -= C[:, :24, 24:]
-    K33[:, 24:, :24] -= C[:, 24:, :24]
-    K33[:, 24:, 24:] -= C[:, 24:, 24:]
-    return K33
-
-
 def _congruence(L: np.ndarray, A: np.ndarray) -> np.ndarray:
     """``L_c^T A L_c`` for every child c (batched matmuls; einsum of three operands is slow)."""
     return np.swapaxes(L, 1, 2) @ (A @ L)
@@ -294,19 +193,6 @@ def _node_block_order(m3: int) -> np.ndarray:
     ``(3 a + i, 3 b + j)``, so the 9 numbers of each node pair are contiguous."""
     a, b, i, j = np.meshgrid(np.arange(m3), np.arange(m3), np.arange(3), np.arange(3), indexing="ij")
     return ((3 * a + i) * (3 * m3) + 3 * b + j).ravel()
-
-
-def _condense(Ke: np.ndarray) -> np.ndarray:
-    """Static condensation of the 9 bubble dofs, batched: (cells, 33, 33) -> (cells, 24, 24).
-
-    ``K = K_uu - K_ua K_aa^-1 K_au``; ``K_aa`` gets a relative 1e-9 diagonal shift because
-    a cell whose material sits where a bubble has no strain leaves it singular.
-    """
-    Kuu, Kua, Kaa = Ke[:, :24, :24], Ke[:, :24, 24:], Ke[:, 24:, 24:]
-    shift = 1e-9 * np.trace(Kaa, axis1=1, axis2=2)[:, None, None] / 9.0 + 1e-300
-    X = np.linalg.solve(Kaa + shift * np.eye(9), np.swapaxes(Kua, 1, 2))
-    K = Kuu - Kua @ X
-    return 0.5 * (K + np.swapaxes(K, 1, 2))
 
 
 def grid_for(bounds, h: float, min_cells=1):
