@@ -28,7 +28,7 @@ from numba.core import caching
 from .io import file_lock
 from .io import sources_digest as files_digest
 
-__all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest", "compile_lock", "COMPILE_WAIT_S"]
+__all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest", "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -95,12 +95,18 @@ _register()
 COMPILE_WAIT_S = 600.0
 
 
+def cache_folder(dispatcher) -> str | None:
+    """The folder of ``dispatcher``'s on-disk cache (its index and machine code), or None for a
+    kernel without one (or when numba's internals moved)."""
+    return getattr(getattr(dispatcher, "_cache", None), "_cache_path", None) or None
+
+
 def compile_lock(dispatcher):
     """A lock (:func:`mjsound.io.file_lock`) beside ``dispatcher``'s cache index, for its first
     call in a process: if another process is compiling it, wait for it, then load the result
     from the cache instead of compiling it a second time. Nothing is locked for a kernel
     without a disk cache."""
-    path = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
-    if not path:
+    path = cache_folder(dispatcher)
+    if path is None:
         return contextlib.nullcontext()
     return file_lock(os.path.join(path, f"{dispatcher.py_func.__qualname__}.compile.lock"), COMPILE_WAIT_S)

@@ -29,38 +29,43 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def warm_kernels(progress=None) -> dict:
-    """Compile or load every kernel group; returns ``{part: seconds}`` for the per-step path
-    (``"sim"``), the gymnasium wrapper (``"wrapper"``) and the modal analysis (``"modal"``).
-    ``progress(part)`` is called before each part."""
-    import numpy as np
-
-    times = {}
-    t = time.perf_counter()
-    if progress:
-        progress("sim")
+def _warm_sim() -> None:
     from ..sim.warmup import warmup
 
     warmup(verbose=False, once=True)
-    times["sim"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    if progress:
-        progress("wrapper")
+
+def _warm_wrapper() -> None:
+    import numpy as np
+
     from ..wrappers import AudioWindow
 
     AudioWindow(1, 64).push(np.zeros((1, 16), dtype=np.float32))
-    times["wrapper"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    if progress:
-        progress("modal")
+
+def _warm_modal() -> None:
     from ..modal.analyze import analyze
 
     # a solid (voxel hexahedra) and a thin wall (shell triangles): every modal kernel
     analyze("box:0.1,0.06,0.02", "steel", quality="draft", f_max=8000.0, cache=False, progress=False)
     analyze("sphere:0.1", "aluminium,wall=2mm", quality="draft", f_max=4000.0, cache=False, progress=False)
-    times["modal"] = time.perf_counter() - t
+
+
+#: The kernel groups, in the order they are warmed: the per-step path, the gymnasium wrapper,
+#: the modal analysis.
+PARTS = {"sim": _warm_sim, "wrapper": _warm_wrapper, "modal": _warm_modal}
+
+
+def warm_kernels(progress=None) -> dict:
+    """Compile or load every kernel group; returns ``{part: seconds}`` for each of
+    :data:`PARTS`. ``progress(part)`` is called before each part."""
+    times = {}
+    for part, warm in PARTS.items():
+        if progress:
+            progress(part)
+        t = time.perf_counter()
+        warm()
+        times[part] = time.perf_counter() - t
     return times
 
 

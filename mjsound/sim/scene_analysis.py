@@ -170,18 +170,18 @@ def object_cache_key(plan: dict, options: AnalysisOptions) -> str | None:
 LOCK_WAIT_S = 1800.0
 
 
-def analysis_lock(key: str | None, wait_s: float | None = None):
+def analysis_lock(key: str | None):
     """The object cache's lock of ``key`` (:func:`mjsound.io.file_lock` on a file in the
     cache's ``locks/``): processes that start together on a new machine (the workers of a
     vectorised env) need the same objects; with the lock one of them analyses each object and
     the others wait and load its entry, instead of every process analysing it at once (the time,
     and the memory, of N analyses). Nothing is locked without a key (no cache); after
-    ``wait_s`` (default :data:`LOCK_WAIT_S`) of waiting the caller goes on."""
+    :data:`LOCK_WAIT_S` of waiting the caller goes on."""
     if key is None:
         return contextlib.nullcontext()
     from ..modal.cache import cache_dir
 
-    return file_lock(os.path.join(cache_dir(), "locks", f"{key}.lock"), LOCK_WAIT_S if wait_s is None else wait_s)
+    return file_lock(os.path.join(cache_dir(), "locks", f"{key}.lock"), LOCK_WAIT_S)
 
 
 def _object_path(key: str) -> str:

@@ -113,23 +113,22 @@ def _log(buf, rn, t, kind, g1, g2, value):
 def _render_block(synth, target, rn, ck, out):
     """Render the pending block ``out`` (mics, n) (``run.render``): the synthesizer's samples
     ``[rendered, rendered + n)``, which must end where the last substep ends (else nothing is
-    rendered: ``render_code`` :data:`NOT_RENDERED`). False when the stream rings must grow
-    first (``run.reason`` :data:`RING`)."""
+    rendered: ``render_code`` :data:`NOT_RENDERED`). When the stream rings must grow first it
+    sets ``run.reason`` :data:`RING` and leaves ``run.render`` set (the next call renders)."""
     cst = synth.consts[0]
     start = cst.rendered
     n = out.shape[1]
     if rn.explicit or rn.nstep < 1 or start + n != rn.n1 - ck.origin:
         rn.render_code = NOT_RENDERED
-        return True
+        return
     code = render_streams(synth, target.bank, target.layout, start, n, True, out, target.zero[0])
     if code > 0:  # the ring must hold the block plus the delays (the gains are computed)
         rn.reason = RING
         rn.need = code
-        return False
+        return
     cst.rendered = start + n
     rn.render_code = code
     rn.render = 0
-    return True
 
 
 @njit(cache=True)
@@ -246,5 +245,5 @@ def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
             rn.stage = STAGE_STEP
     sync_poses(drive, views, synth)
     rn.poses_current = 1
-    if rn.render and not _render_block(synth, target, rn, ck, out):
-        return
+    if rn.render:
+        _render_block(synth, target, rn, ck, out)

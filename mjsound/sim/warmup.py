@@ -42,12 +42,10 @@ def kernels_cached() -> bool:
 def kernel_cache_dir() -> str:
     """The folder of numba's on-disk cache that mjsound's kernels use (``$NUMBA_CACHE_DIR``
     when set, else ``__pycache__`` next to the sources or the user-wide cache)."""
+    from ..jit import cache_folder
     from .step import advance
 
-    try:
-        return os.path.dirname(advance._cache._cache_file._index_path)
-    except AttributeError:  # (numba internals moved)
-        return os.environ.get("NUMBA_CACHE_DIR", "numba's default cache")
+    return cache_folder(advance) or os.environ.get("NUMBA_CACHE_DIR", "numba's default cache")
 
 
 def notice_first_compile(stream=None) -> None:
