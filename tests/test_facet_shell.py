@@ -82,6 +82,29 @@ def test_element_matrices_symmetric_and_rigid_motions_strain_free():
     assert abs(u @ Ke[0] @ u) < 1e-10 * np.abs(Ke[0]).max()
 
 
+def test_to_global_kernel_against_the_plain_rotation():
+    """The kernel placing the membrane's and the plate's 9 x 9 parts into the 18 x 18 element
+    matrix and rotating it to global axes equals ``T^T K T`` (``T = I_6 (x) R``) built with
+    numpy, for random parts and random rotations."""
+    from mjsound.modal.facet_shell import _to_global
+
+    rng = np.random.default_rng(5)
+    n = 7
+    Km, Kb = rng.standard_normal((2, n, 9, 9))
+    R = np.stack([np.linalg.qr(rng.standard_normal((3, 3)))[0] for _ in range(n)])
+    K = np.zeros((n, 18, 18))
+    mem = (6 * np.arange(3)[:, None] + np.array([0, 1, 5])).ravel()
+    plate = (6 * np.arange(3)[:, None] + np.arange(2, 5)).ravel()
+    K[:, mem[:, None], mem] = Km
+    K[:, plate[:, None], plate] = Kb
+    T = np.zeros((n, 18, 18))
+    for blk in range(6):
+        T[:, 3 * blk:3 * blk + 3, 3 * blk:3 * blk + 3] = R
+    out = np.full((n, 18, 18), np.nan)
+    _to_global(Km, Kb, R, out)
+    np.testing.assert_allclose(out, np.swapaxes(T, 1, 2) @ K @ T, rtol=0, atol=1e-13)
+
+
 def test_thin_wall_mid_surface_of_the_bowl():
     """The bowl's outer sheet (the rim left out), moved half the 4 mm wall inward."""
     tm = load_mesh("bowl:0.1,0.004")

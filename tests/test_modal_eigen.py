@@ -147,6 +147,7 @@ def test_early_start_and_split_solves_give_the_band_bit_for_bit(cube, monkeypatc
         pytest.skip("pypardiso not installed")
     d, w = cube
     lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 66)
+    monkeypatch.setattr(E, "INTERIOR_SHIFT", None)  # the definite shift below zero
     monkeypatch.setattr(E, "SPLIT_MIN_DOFS", 0)
     split_calls = []
     split_call = E._SplitSolve.__call__
@@ -177,11 +178,63 @@ def test_early_start_gives_up_when_the_count_is_too_large(cube, monkeypatch):
         pytest.skip("pypardiso not installed")
     d, w = cube
     lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 40)
+    monkeypatch.setattr(E, "INTERIOR_SHIFT", None)  # the definite shift below zero
     monkeypatch.setattr(E, "SPLIT_MIN_DOFS", 0)
     monkeypatch.setattr(E, "BLOCK_MAX_MODES", 10)
     sol = E.solve_band(d.K, d.M, lo, hi, dense_max=10, slice_modes=20, backend="pardiso")
     assert not sol.backend.startswith("block")
     assert np.allclose(sol.eigenvalues, _band(w, lo, hi), rtol=1e-8)
+
+
+def test_interior_shift_finds_the_band_and_falls_back_when_refused(cube, monkeypatch):
+    """With PARDISO the block Lanczos run shifts inside the band (an indefinite
+    factorization, both ends of its spectrum wanted): the band matches dense LAPACK, rigid
+    modes included; when that factorization is refused (a perturbed pivot) the definite
+    shift below zero finds the same band; and when the count is too large for one block
+    solve, spectrum slicing does, without the interior factorization."""
+    if E.backend_name() != "pardiso":
+        pytest.skip("pypardiso not installed")
+    d, w = cube
+    lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 66)
+    shifts = []
+    block_band = E._block_band
+
+    def spy(K, M, sigma, *args, **kw):
+        shifts.append(sigma)
+        return block_band(K, M, sigma, *args, **kw)
+
+    monkeypatch.setattr(E, "_block_band", spy)
+    inside = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
+    assert shifts == [E.INTERIOR_SHIFT * hi] and inside.backend == "block-lanczos+pardiso"
+    assert inside.n_below == 6 and np.allclose(inside.eigenvalues, _band(w, lo, hi), rtol=1e-9)
+    V = inside.vectors
+    assert np.allclose(V.T @ (d.M @ V), np.eye(V.shape[1]), atol=1e-9)
+    monkeypatch.setattr(E, "factorize_indefinite", lambda A: None)
+    below = E.solve_band(d.K, d.M, lo, hi, dense_max=10, backend="pardiso")
+    assert shifts[1] < 0 and below.n_below == 6
+    assert np.allclose(below.eigenvalues, inside.eigenvalues, rtol=1e-9)
+    monkeypatch.undo()
+    monkeypatch.setattr(E, "BLOCK_MAX_MODES", 10)
+    sliced = E.solve_band(d.K, d.M, lo, hi, dense_max=10, slice_modes=20, backend="pardiso")
+    assert not sliced.backend.startswith("block")
+    assert np.allclose(sliced.eigenvalues, inside.eigenvalues, rtol=1e-8)
+
+
+def test_indefinite_factorization_counts_and_refuses_a_singular_matrix(cube):
+    """PARDISO's L D L^T of K - sigma M counts the eigenvalues below sigma (Sylvester) and
+    solves with it; a singular matrix (K itself, six rigid modes; a shift on an eigenvalue),
+    which PARDISO factors without a word, is refused by the residual of a solve."""
+    if E.backend_name() != "pardiso":
+        pytest.skip("pypardiso not installed")
+    d, w = cube
+    sigma = _cut(w, 30)
+    A_ = (d.K - sigma * d.M).tocsr()
+    solve, negative = E.factorize_indefinite(A_)
+    assert negative == int(np.sum(w < sigma))
+    B = np.random.default_rng(4).standard_normal((A_.shape[0], 3))
+    assert np.linalg.norm(A_ @ solve(B) - B) < 1e-8 * np.linalg.norm(B)
+    assert E.factorize_indefinite(d.K.tocsr()) is None
+    assert E.factorize_indefinite((d.K - w[40] * d.M).tocsr()) is None  # the shift on an eigenvalue
 
 
 def test_project_out_halves_on_two_threads_match_in_turn():
@@ -199,13 +252,13 @@ def test_project_out_halves_on_two_threads_match_in_turn():
     MQ = Q * Mdiag
     F0 = rng.standard_normal((6, n))
     F1, F2 = F0.copy(), F0.copy()
-    C1 = E._project_out(F1, Q, MQ)
+    C1 = E._project_out(F1, F0 * Mdiag, Q)
     with ThreadPoolExecutor(1) as pool:
         def both(f, g):
             other = pool.submit(g)
             return f(), other.result()
 
-        C2 = E._project_out(F2, Q, MQ, both)
+        C2 = E._project_out(F2, F0 * Mdiag, Q, both)
     assert k >= E.PROJECT_SPLIT_MIN
     assert np.array_equal(C1, C2) and np.array_equal(F1, F2)
     assert np.abs(MQ @ F1.T).max() < 1e-12 * np.abs(F0).max()

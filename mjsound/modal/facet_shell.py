@@ -70,18 +70,22 @@ per corner), times ``I_3`` (:data:`MASS_LUMPING`). Rotations: lumped rotary iner
 ``DRILL_INERTIA`` of it about the normal (keeps M positive definite; the drilling modes
 stay far above any audible band).
 
-Element matrices are built for all triangles at once (batched matrix products), rotated
-to global axes with ``T^T K T`` (``T = I_3 (x) diag(R, R)``, ``R`` the rows ``e_1, e_2,
-e_3``) and summed into sparse matrices, 6 x 6 node blocks at a time.
+Element matrices are built for all triangles at once (batched matrix products of the
+membrane's and the plate's 9 x 9 parts), placed and rotated to global axes with
+``T^T K T`` (``T = I_3 (x) diag(R, R)``, ``R`` the rows ``e_1, e_2, e_3``) 3 x 3 block by
+3 x 3 block (:func:`_to_global`), and summed into sparse matrices, 6 x 6 node blocks at a
+time.
 """
 
 from __future__ import annotations
 
 import time
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 from .discretization import Discretization
 from .midsurface import CREASE_DEGREES
 
@@ -238,14 +242,19 @@ def facet_matrices(X: np.ndarray, thickness: np.ndarray, E: float, nu: float, rh
     c = np.stack([xy[:, (i + 2) % 3, 0] - xy[:, (i + 1) % 3, 0] for i in range(3)], axis=1)
     gL = np.stack([b, c], axis=2) / (2 * A)[:, None, None]  # (E, 3, 2)
     C = E / (1 - nu**2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
-    K = np.zeros((n, 18, 18))  # local axes
 
     # membrane (Allman): dofs (u_i, v_i, theta_z,i) at 6 i + (0, 1, 5)
     Tm = _allman_transfer(xy)
     Bqs = [_quadratic_B(_quadratic_gradients(L, gL)) for L in _GAUSS_L]
     Km = sum(_btdb(Bq @ Tm, C, t * A / 3.0) for Bq in Bqs)
-    mem = (6 * np.arange(3)[:, None] + np.array([0, 1, 5])).ravel()
-    K[:, mem[:, None], mem] += Km
+
+    # drilling: (theta_z,i - omega)^2, omega = (dv/dx - du/dy) / 2, on the membrane's dofs
+    g = np.zeros((n, 3, 9))
+    for i in range(3):
+        g[:, i, 3 * i + 2] = 1.0
+        g[:, i, 0::3] += 0.5 * gL[:, :, 1]
+        g[:, i, 1::3] -= 0.5 * gL[:, :, 0]
+    Km += _btdb(g, None, DRILL_ALPHA * E / (2 * (1 + nu)) * t * A)
 
     # bending (DKT): dofs (w_i, theta_x,i, theta_y,i) at 6 i + (2, 3, 4)
     lengths = np.stack([np.linalg.norm(xy[:, j] - xy[:, i], axis=1) for i, j in _EDGES], axis=1)
@@ -259,24 +268,9 @@ def facet_matrices(X: np.ndarray, thickness: np.ndarray, E: float, nu: float, rh
         tang = np.stack([(xy[:, j] - xy[:, i]) / lengths[:, m, None] for m, (i, j) in enumerate(_EDGES)], axis=1)
         gam = np.linalg.pinv(tang) @ Gs  # (E, 2, 9)
         Kb += _btdb(gam, None, SHEAR_FACTOR * E / (2 * (1 + nu)) * t * A)
-    bend = (6 * np.arange(3)[:, None] + np.arange(2, 5)).ravel()
-    K[:, bend[:, None], bend] += Kb
-
-    # drilling: (theta_z,i - omega)^2, omega = (dv/dx - du/dy) / 2
-    G = E / (2 * (1 + nu))
-    g = np.zeros((n, 3, 18))
-    for i in range(3):
-        g[:, i, 6 * i + 5] = 1.0
-        g[:, i, 0::6] += 0.5 * gL[:, :, 1]
-        g[:, i, 1::6] -= 0.5 * gL[:, :, 0]
-    K += _btdb(g, None, DRILL_ALPHA * G * t * A)
-
     # to global axes: u_local = R u_global per node and per rotation
-    Tg = np.zeros((n, 18, 18))
-    for blk in range(6):
-        Tg[:, 3 * blk:3 * blk + 3, 3 * blk:3 * blk + 3] = R
-    Ke = np.swapaxes(Tg, 1, 2) @ K @ Tg
-    Ke = 0.5 * (Ke + np.swapaxes(Ke, 1, 2))
+    Ke = np.empty((n, 18, 18))
+    _to_global(np.ascontiguousarray(Km), np.ascontiguousarray(Kb), np.ascontiguousarray(R), Ke)
 
     # mass (isotropic per node, so the same in every frame except the drilling part)
     Me = np.zeros((n, 18, 18))
@@ -295,24 +289,83 @@ def facet_matrices(X: np.ndarray, thickness: np.ndarray, E: float, nu: float, rh
     return Ke, Me
 
 
+
+
+@nb.njit(cache=True, nogil=True)
+def _to_global(Km, Kb, R, Ke):
+    """Element stiffness in global axes, ``Ke = T^T K T`` with ``K`` the local matrix of the
+    membrane part ``Km`` (E, 9, 9) on the dofs ``(u, v, theta_z)`` of each corner and the
+    plate part ``Kb`` (E, 9, 9) on ``(w, theta_x, theta_y)`` (corner-major, 3 dofs each),
+    and ``T = I_6 (x) R`` (``R`` (E, 3, 3) rows ``e_1, e_2, e_3``): every 3 x 3 block
+    ``(s, t)`` of ``Ke`` (E, 18, 18) is ``R^T K_st R``."""
+    mem = (0, 1, 5)
+    plate = (2, 3, 4)
+    L = np.zeros((18, 18))
+    tmp = np.empty((3, 3))
+    for e in range(Km.shape[0]):
+        for a in range(3):
+            for p in range(3):
+                for b in range(3):
+                    for q in range(3):
+                        L[6 * a + mem[p], 6 * b + mem[q]] = Km[e, 3 * a + p, 3 * b + q]
+                        L[6 * a + plate[p], 6 * b + plate[q]] = Kb[e, 3 * a + p, 3 * b + q]
+        for s in range(6):
+            for t in range(6):
+                for i in range(3):  # tmp = K_st R
+                    for j in range(3):
+                        acc = 0.0
+                        for k in range(3):
+                            acc += L[3 * s + i, 3 * t + k] * R[e, k, j]
+                        tmp[i, j] = acc
+                for i in range(3):  # R^T tmp
+                    for j in range(3):
+                        acc = 0.0
+                        for k in range(3):
+                            acc += R[e, k, i] * tmp[k, j]
+                        Ke[e, 3 * s + i, 3 * t + j] = acc
+
+
+@nb.njit(cache=True, nogil=True)
+def _sum_node_blocks(Ke, Me, order, group, Kb, Mb):
+    """Sum the 6 x 6 corner-pair blocks of the element matrices ``Ke``, ``Me`` (E, 18, 18)
+    over equal node pairs: block ``src = 9 e + 3 a + b`` (corners ``a``, ``b`` of element
+    ``e``), taken in ``order``, is added to row ``group`` of ``Kb``, ``Mb`` (pairs, 36),
+    row-major within the block."""
+    for p in range(order.shape[0]):
+        src = order[p]
+        g = group[p]
+        e = src // 9
+        a = (src // 3) % 3
+        b = src % 3
+        for i in range(6):
+            for j in range(6):
+                Kb[g, 6 * i + j] += Ke[e, 6 * a + i, 6 * b + j]
+                Mb[g, 6 * i + j] += Me[e, 6 * a + i, 6 * b + j]
+
+
 def _assemble(F: np.ndarray, Ke: np.ndarray, Me: np.ndarray, n_nodes: int):
     """Sum element matrices (E, 18, 18) over the triangles ``F`` (E, 3) into csr matrices,
-    6 x 6 node blocks at a time (one sort of the node-pair keys for both)."""
-    from .hex import _block_pattern, _sum_blocks
+    6 x 6 node blocks at a time (one sort of the node-pair keys for both), made exactly
+    symmetric block by block (``(B_rc + B_cr^T) / 2``: every element gives both pairs)."""
+    from .hex import _block_pattern
 
-    n = len(F)
     key = (F[:, :, None].astype(np.int64) * n_nodes + F[:, None, :]).ravel()  # (E 3 3)
-
-    def blocks(X):
-        return np.ascontiguousarray(X.reshape(n, 3, 6, 3, 6).transpose(0, 1, 3, 2, 4)).reshape(-1, 36)
-
-    key, Kb, Mb = _sum_blocks(key, blocks(Ke), blocks(Me))
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    first = np.r_[True, key[1:] != key[:-1]]
+    group = np.cumsum(first) - 1
+    key = key[first]
+    sums = [np.zeros((len(key), 36)) for _ in range(2)]
+    _sum_node_blocks(np.ascontiguousarray(Ke), np.ascontiguousarray(Me), order, group, *sums)
     indptr, bcol = _block_pattern(key, n_nodes)
+    brow = key // n_nodes
+    mirror = np.searchsorted(key, bcol.astype(np.int64) * n_nodes + brow)  # block (c, r) of each (r, c)
     shape = (6 * n_nodes, 6 * n_nodes)
     out = []
-    for B in (Kb, Mb):
-        X = sp.bsr_matrix((B.reshape(-1, 6, 6), bcol, indptr), shape=shape).tocsr()
-        out.append(((X + X.T) * 0.5).tocsr())  # exact symmetry
+    for B in sums:
+        B = B.reshape(-1, 6, 6)
+        B = 0.5 * (B + B[mirror].transpose(0, 2, 1))
+        out.append(sp.bsr_matrix((B, bcol, indptr), shape=shape).tocsr())
     return out
 
 
