@@ -234,6 +234,7 @@ class EnvAudio:
                 self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
         self._audible = audible_geoms(model, self.scene, self.sim)
+        self._audible_list = self._audible.tolist()  # (indexed per impact: plain bools)
         self._rng = None
         self._reader_impacts = 0
 
@@ -251,18 +252,18 @@ class EnvAudio:
         return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
 
     def _audible_impacts(self) -> int:
-        """Impacts since the last call that make a sound (:func:`audible_geoms`; the reader's
-        newest records)."""
+        """Impacts since the last call that make a sound (:func:`audible_geoms`; the geoms of
+        the reader's newest impacts)."""
         r = self.sim.reader
         new = r.n_impacts - self._reader_impacts
         self._reader_impacts = r.n_impacts
         if new <= 0:
             return 0
-        recs = r.newest_records(new)
-        if recs is None:
+        geoms = r.newest_geoms(new)
+        if geoms is None:
             return int(new)  # (more than the reader keeps: counted as audible)
-        aud = self._audible
-        return sum(1 for rec in recs if aud[rec.geom1] or aud[rec.geom2])
+        aud = self._audible_list
+        return sum(1 for g1, g2 in geoms if aud[g1] or aud[g2])
 
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""

@@ -512,10 +512,43 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
     buf.onsets[0]["slot"], buf.onsets[0]["first"], buf.onsets[1]["first"] = j, 0, 1
     write_records(reader.state(), buf, 1, np.array([[0.5, 5.0, 3.0, 0.0]]), 0.02)
     reader.take_records()
+    (new,) = reader.newest_records(1)  # (records are made, and close their slot's last one, when read)
     assert not old.open and old.steps == 2
     assert old.impulse_sim == pytest.approx(1.5) and old.duration == pytest.approx(0.02)
-    new = reader._open[j]
+    assert reader._open[j] is new
     assert new.open and (new.time, new.geom1, new.geom2, new.speed, new.impulse_pred) == (0.02, 0, 1, 5.0, 3.0)
+
+
+def test_impact_records_are_made_when_read_and_keep_only_the_newest():
+    """Rows taken in several calls, read once: the same records (and closings) as made one by
+    one, only the newest ``keep_records`` kept; an older row still closes its slot's record."""
+    from mjsound.sim.records import RECORD
+
+    model = mujoco.MjModel.from_xml_string(drop_xml(h=0.3))
+
+    def rows(*spec):  # (time, g1, g2, slot, clamped, prev_impulse)
+        r = np.zeros(len(spec), RECORD)
+        for i, (t, g1, g2, slot, clamped, p_imp) in enumerate(spec):
+            r[i] = (t, g1, g2, 1.0, 2.0, 0.5, slot, clamped, p_imp, 3, t)
+        return r
+
+    reader = ContactReader(model, keep_records=3)
+    reader.add_records(rows((0.1, 0, 1, 0, 0, 0.0), (0.2, 0, 2, 1, 0, 0.0)))
+    (first,) = reader.newest_records(2)[1:]  # (read: made now)
+    with pytest.warns(RuntimeWarning, match="clamped"):
+        reader.add_records(rows((0.3, 0, 1, 0, 1, 7.0), (0.4, 0, 1, 0, 0, 8.0)))
+    reader.add_records(rows((0.5, 0, 2, 1, 0, 9.0), (0.6, 0, 1, 0, 0, 4.0)))
+    assert reader.n_impacts == 6 and reader.n_clamped == 1
+    assert reader.newest_geoms(3) == [(0, 1), (0, 2), (0, 1)]
+    assert reader.newest_geoms(4) is None
+    recs = reader.newest_records(3)
+    assert [r.time for r in recs] == [0.6, 0.5, 0.4]
+    # the slot-0 record read before is closed by the first later slot-0 row (not kept itself)
+    assert not first.open and first.impulse_sim == 7.0 and first.duration == pytest.approx(0.3 - 0.1)
+    # the kept 0.4 record closed by the 0.6 row; the newest of each slot open
+    assert not recs[2].open and recs[2].impulse_sim == 4.0
+    assert recs[0].open and recs[1].open
+    assert len(reader.impacts) == 3
 
 
 def test_impact_records_read_lazily_equal_records_read_every_step():

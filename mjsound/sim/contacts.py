@@ -284,6 +284,10 @@ class ContactReader:
         # slot's next onset (its values banked in prev_* by the state machine)
         self._open: dict[int, ImpactRecord] = {}
         self._records = deque(maxlen=self.keep_records)  # (the oldest drop out in O(1))
+        # record rows not turned into ImpactRecord yet (most runs never read them: they are
+        # made when read, :meth:`_materialize`), and the geoms of the newest impacts
+        self._raw: list[tuple] = []
+        self._geoms = deque(maxlen=self.keep_records)  # ((g1, g2) of each impact)
         self.n_impacts = 0
         self.n_clamped = 0
 
@@ -390,26 +394,54 @@ class ContactReader:
             )
 
     def add_records(self, rows: np.ndarray) -> None:
-        """An :class:`ImpactRecord` for each impact event (:data:`.records.RECORD` rows, in
-        order); each closes its slot's previous record with the sums banked at its onset."""
-        records = self._records
-        if len(rows):
-            self.counts[0]["any_open"] = 1
-        for t0, g1, g2, vmax, total, eq, j, clamped, p_imp, p_steps, p_end in rows.tolist():
-            old = self._open.pop(int(j), None)
-            if old is not None:
-                old.impulse_sim, old.steps, old.duration, old.open = p_imp, int(p_steps), p_end - old.time, False
-            rec = ImpactRecord(
-                time=t0, geom1=int(g1), geom2=int(g2), speed=vmax, impulse_pred=total, impulse_sim=0.0, restitution=eq,
-                effective_mass=total / ((1.0 + eq) * vmax) if vmax > 0 else 0.0,
-            )
-            self._open[int(j)] = rec
-            records.append(rec)
-            if clamped:
+        """Take the impact events' :data:`.records.RECORD` rows (in order). Their
+        :class:`ImpactRecord` are made when read (:attr:`impacts`, :meth:`newest_records`):
+        each closes its slot's previous record with the sums banked at its onset."""
+        if not len(rows):
+            return
+        self.counts[0]["any_open"] = 1
+        # (a few rows per step: plain tuples cost less than numpy operations on them)
+        rows = rows.tolist()
+        raw, geoms = self._raw, self._geoms
+        for row in rows:
+            raw.append(row)
+            geoms.append((row[1], row[2]))
+            if row[7]:  # clamped
                 self.n_clamped += 1
                 self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
                                 "reported once")
         self.n_impacts += len(rows)
+        if len(raw) > 2 * self.keep_records:  # (bounded memory when nobody reads them)
+            self._materialize()
+
+    def _materialize(self) -> None:
+        """Make the :class:`ImpactRecord` of the rows taken since the last read (only the
+        newest ``keep_records`` are kept: an older row only closes its slot's open record)."""
+        if not self._raw:
+            return
+        rows, self._raw = self._raw, []
+        records, opened = self._records, self._open
+        keep_from = len(rows) - self.keep_records
+        for i, (t0, g1, g2, vmax, total, eq, j, _, p_imp, p_steps, p_end) in enumerate(rows):
+            old = opened.pop(j, None)
+            if old is not None:
+                old.impulse_sim, old.steps, old.duration, old.open = p_imp, p_steps, p_end - old.time, False
+            if i < keep_from:
+                continue  # (never kept: the deque would drop it)
+            rec = ImpactRecord(
+                time=t0, geom1=g1, geom2=g2, speed=vmax, impulse_pred=total, impulse_sim=0.0, restitution=eq,
+                effective_mass=total / ((1.0 + eq) * vmax) if vmax > 0 else 0.0,
+            )
+            opened[j] = rec
+            records.append(rec)
+
+    def newest_geoms(self, n: int) -> list[tuple[int, int]] | None:
+        """The geoms ``(g1, g2)`` of the ``n`` newest impacts, newest first; None when the
+        reader keeps fewer than ``n`` (``keep_records``)."""
+        geoms = self._geoms
+        if n > len(geoms):
+            return None
+        return list(itertools.islice(reversed(geoms), int(n)))
 
     def _warn_once(self, key, msg):
         if key not in self._warned:
@@ -420,6 +452,7 @@ class ContactReader:
     def impacts(self) -> list[ImpactRecord]:
         """The last ``keep_records`` impact events' :class:`ImpactRecord`, oldest first (the
         open ones brought up to date)."""
+        self._materialize()
         pairs = self._pairs
         for j, rec in list(self._open.items()):
             p = pairs[j]
@@ -435,6 +468,7 @@ class ContactReader:
         """The ``n`` newest :class:`ImpactRecord`, newest first, as they were made (open ones
         not brought up to date: geoms, time and predicted impulse are final); None when the
         reader keeps fewer than ``n`` (``keep_records``)."""
+        self._materialize()
         records = self._records
         if n > len(records):
             return None

@@ -244,6 +244,9 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.seconds_contacts = 0.0
         self.seconds_synth = 0.0
         self.seconds_fused = 0.0  # substeps run in numba (mj_step included)
+        # clock re-anchors and resets so far (never decreases: substeps counts a call's
+        # substeps in one go when none happened during it)
+        self._clock_jumps = getattr(self, "_clock_jumps", 0) + 1
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
         self._ready = None  # a block substeps(render=True) rendered, returned by the next flush
@@ -267,6 +270,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         step (the step just taken ends at ``data.time``). Backwards in time is a reset the
         simulator was not told about: the ringing is cleared (the samples counted so far are
         rendered first and come out with the next block)."""
+        self._clock_jumps += 1
         c = self.clock
         dt = float(self._opt.timestep)
         t_new = float(self.data.time) - dt
@@ -388,17 +392,24 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             return
         synth.poses_current = False
         n0 = c.sample_at(k0)
+        n1 = c.sample_at(k0 + nstep)
         self._seg = (k0, n0)
+        jumps = self._clock_jumps
         block = None
         if render and nstep > 0 and self._ready is None and not self._held and synth.renders_in_kernel:
-            block = synth.new_block(self._pending + c.sample_at(k0 + nstep) - n0)
+            block = synth.new_block(self._pending + n1 - n0)
         tc = _time.perf_counter()
         self._call(nstep, call_step=True, block=block)
         self.seconds_fused += _time.perf_counter() - tc
-        self._count_segment()
-        synth.poses_current = bool(self._kernel.f["poses_current"][0])
+        if self._clock_jumps == jumps:  # (the usual case: every substep counted in one go)
+            self._count(n0, n1, nstep)
+            self._seg = (k0 + nstep, n1)
+        else:
+            self._count_segment()
+        f = self._kernel.f
+        synth.poses_current = bool(f["poses_current"][0])
         if block is not None:
-            code = int(self._kernel.f["render_code"][0])
+            code = int(f["render_code"][0])
             if code != NOT_RENDERED:  # (the pending samples are rendered: flush returns them)
                 n0 = self._pending_n0
                 self._pending = 0
@@ -426,8 +437,9 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         """Take the kernel's impact records, impact count and event log entries."""
         f = self._kernel.f
         self.reader.take_records()
-        if self.pulses.waiting:
-            self.pulses.flush()
+        pulses = self.pulses
+        if pulses.active and pulses.waiting:
+            pulses.flush()
         n_imp, n_log = f["n_impacts"][0], f["n_log"][0]
         if not (n_imp or n_log):
             return
