@@ -91,8 +91,8 @@ def test_timoshenko_reference_against_the_square_beam_and_a_rectangle():
 
 @pytest.mark.parametrize("f_max", [2000.0, 20000.0])
 def test_round_rod_bending_within_5_cents_at_low_and_high_f_max(f_max):
-    """The round rod (r = 10 mm, L = 0.5 m) against Timoshenko's beam with its 62-gon
-    section (mjsound.report.accuracy_modal.rod_bending_references): counted at their
+    """The round rod (r = 10 mm, L = 0.5 m) against its converged 3D bending values
+    (mjsound.report.accuracy_modal.ROD_BENDING_3D): counted at their
     centres its surface voxels made it +14 .. +19 cents sharp at default quality; their
     moments and a third cell across the section bring every bending pair below f_max within
     5 cents, the pairs within 0.5 cent of each other, and the estimate within a factor of two."""
@@ -108,3 +108,28 @@ def test_round_rod_bending_within_5_cents_at_low_and_high_f_max(f_max):
     assert np.max(np.abs(c[0::2] - c[1::2])) < 0.5, c
     rms = np.sqrt(np.mean(c**2))
     assert 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)
+
+
+def test_round_rod_draft_estimate_from_the_length_alone():
+    """At draft the rod's coarser grid keeps its 2 x 2 cells across and coarsens only its
+    length (14 -> 9 cells), where its surface is straight: the estimate takes that ratio
+    and the order of a surface the voxels follow, and lands within a factor of two of the
+    measured error (the staircase's order and the nominal 1.5 made it 49.7 cents against
+    10). A grid coarsened along every axis keeps the nominal ratio and order; the same
+    grid gives no estimate."""
+    from mjsound.modal.analyze import _hex_coarsening
+    from mjsound.report.accuracy_modal import SHAPES, match_modes, references
+
+    tm = load_mesh(SHAPES["rod"]["mesh"])
+    assert axis_aligned_fraction(tm) < 0.1
+    assert axis_aligned_fraction(tm, along=[False, False, True]) > 0.999  # the side is square to z
+    assert axis_aligned_fraction(tm, along=[True, False, False]) < 0.1
+    r, p = _hex_coarsening(tm, [2, 2, 14], 1.5, 1.63, True, [2, 2, 9])
+    assert r == pytest.approx(14 / 9) and p == pytest.approx(4.0)
+    assert _hex_coarsening(tm, [3, 3, 14], 1.5, 1.63, True, [2, 2, 9]) == (1.5, 1.63)
+    assert _hex_coarsening(tm, [2, 2, 9], 1.5, 1.63, True, [2, 2, 9]) is None
+    m = analyze(SHAPES["rod"]["mesh"], AL, quality="draft", f_max=10000.0, cache=False)
+    labels, refs = zip(*references("rod"))
+    c = cents(match_modes("rod", m.frequencies_hz, m.points, m.shapes), np.array(refs))
+    rms = np.sqrt(np.nanmean(c**2))
+    assert 5.0 < rms < 20.0 and 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)

@@ -386,8 +386,11 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     err = float("nan")
     # the shell model has no resolution to vary (it lives on the given surface mesh)
     if error_estimate and under.sum() > 0 and method != "shell":
-        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max,
-                              order=_convergence_order(plan, tm, thickness))
+        p = _convergence_order(plan, tm, thickness)
+        grids = None
+        if method == "hex":  # the coarser grid may keep some axes (a rod's section)
+            grids = partial(_hex_coarsening, tm, disc.info["grid"], ratio, p, plan.order == 2 and p != HEX_STAIRCASE_ERROR_ORDER)
+        err = _error_estimate(omega[under] / (2 * np.pi), coarse, ratio, f_max, order=p, coarsening=grids)
     if method == "facet" and disc.info.get("crease_edges", 0) > 0:
         from .midsurface import CREASE_RESIDUAL, crease_cents
 
@@ -527,15 +530,46 @@ def _thin_curved_wall(tm, thickness) -> bool:
     return bool(tm.is_watertight and np.isfinite(t) and t < THIN_WALL_RATIO * float(np.min(tm.extents)))
 
 
-def _error_estimate(f_fine, coarse, ratio, f_max, n=10, order=2.0):
+def _hex_coarsening(tm, fine_grid, ratio, order, quadratic, coarse_grid):
+    """``(ratio, order)`` of the Richardson estimate for a coarser hex grid, or None.
+
+    A bar or rod keeps its least cells across (:func:`.plan.hex_min_cells`) in the coarser
+    grid too: only its length is coarsened, by ``n_fine / n_coarse`` there, and its
+    frequencies then move only by the error along it, where the surface is straight: the
+    order is that of a surface the voxels follow (:func:`hex_error_order` with the area
+    square to the coarsened axes counted as followed). The round rod at draft (2 x 2 x 14
+    cells against 2 x 2 x 9) was estimated 49.7 cents with the staircase's order 1.63 and
+    the nominal 1.5, 8.9 with 4 and 14 / 9 (measured against its converged 3D values:
+    10.0). A grid coarsened along every axis keeps ``ratio``, ``order``; the same grid
+    (nothing to compare): None."""
+    from .plan import axis_aligned_fraction
+
+    nf, nc = np.asarray(fine_grid, float), np.asarray(coarse_grid, float)
+    changed = nf != nc
+    if not changed.any():
+        return None
+    if changed.all():
+        return ratio, order
+    r = float(np.exp(np.mean(np.log(nf[changed] / nc[changed]))))
+    return r, (1.5 + 2.5 * axis_aligned_fraction(tm, along=changed) if quadratic else order)
+
+
+def _error_estimate(f_fine, coarse, ratio, f_max, n=10, order=2.0, coarsening=None):
     """Richardson-style error [cents] of the first ``n`` modes from a coarser solve.
 
     With convergence f(h) = f* + C h^p (p = ``order``, :data:`ERROR_ORDER`), the fine solve's error is
     ``(f(r h) - f(h)) / (r^p - 1)`` for the coarse solve at ``r h``; the RMS over the
-    first modes is returned. ``coarse``: a future of the coarser discretization.
+    first modes is returned. ``coarse``: a future of the coarser discretization;
+    ``coarsening(grid)``: ``(r, p)`` from the coarser discretization's grid instead, or
+    None when it cannot tell (:func:`_hex_coarsening`).
     """
     try:
         disc = coarse.result()
+        if coarsening is not None:
+            got = coarsening(disc.info["grid"])
+            if got is None:
+                return float("nan")
+            ratio, order = got
         f_hi = float(f_fine[min(n, len(f_fine)) - 1]) * 1.3
         sol = _solve(disc, max(min(f_hi, 2 * f_max), 2 * F_MIN_HZ), False)
     except Exception:  # an estimate must never break the analysis itself

@@ -144,14 +144,19 @@ def frequency_of_mode(material: Material, volume: float, area: float, wall: floa
     return hi
 
 
-def axis_aligned_fraction(mesh: trimesh.Trimesh) -> float:
+def axis_aligned_fraction(mesh: trimesh.Trimesh, along=None) -> float:
     """Fraction of the surface area whose normal points along a coordinate axis (boxes:
-    1; a sphere: 0): where the voxel embedding follows the surface exactly."""
+    1; a sphere: 0): where the voxel embedding follows the surface exactly. ``along`` (3,)
+    bools: also the area whose normal is square to every axis marked (a round rod's side
+    for its own axis), where refining the grid along those axes alone changes nothing."""
     n = np.abs(np.asarray(mesh.face_normals))
     area = np.asarray(mesh.area_faces)
     if len(area) == 0:
         return 1.0
-    return float(area[n.max(axis=1) > 0.999].sum() / max(area.sum(), 1e-300))
+    exact = n.max(axis=1) > 0.999
+    if along is not None:
+        exact |= np.all(n[:, np.asarray(along, bool)] < 1e-3, axis=1)
+    return float(area[exact].sum() / max(area.sum(), 1e-300))
 
 
 def solid_modes(material: Material, volume: float, f: float) -> float:

@@ -56,8 +56,8 @@ import time
 import numpy as np
 
 from ..io import atomic_open, atomic_path
-from .accuracy_modal import (ALU, BEAM_BENDING_3D, BEAM_BENDING_EB, BOWL_REFERENCE, SHAPES, lamb_sphere,  # noqa: F401
-                             fmax_markdown, references, rod_bending_references, run_fmax, run_modal,
+from .accuracy_modal import (ALU, BEAM_BENDING_3D, BEAM_BENDING_EB, BOWL_REFERENCE, ROD_BENDING_3D, SHAPES,  # noqa: F401
+                             lamb_sphere, fmax_markdown, references, rod_bending_references, run_fmax, run_modal,
                              sphere_references)
 from .measure import cents, machine_info, measure  # noqa: F401
 
@@ -350,9 +350,12 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
       "(Rayleigh-Love). 9 modes.")
     w("* **rod** r = 10 mm, L = 0.5 m (`cylinder:0.01,0.5`, 62-gon), f_max 10 kHz: torsion "
       "f_n = n c_s / 2L = 3122.0, 6243.9, 9365.9 Hz (exact in 3D), and the first four bending pairs "
-      "from Timoshenko's beam with the 62-gon's own section (`mjsound.report.timoshenko`, within 0.5 "
-      "cent of the square beam's converged 3D values): " + ", ".join(f"{x:.2f}" for x in rod_bending_references())
-      + " Hz. 11 modes.")
+      "against their converged 3D values " + ", ".join(f"{x:.2f}" for x in ROD_BENDING_3D) + " Hz "
+      "(`mjsound.report.accuracy_modal.ROD_BENDING_3D`: quadratic hex cells, 8 across and 100 along, "
+      "Richardson-extrapolated from 60 along; 6 across moves them by 0.04 cent); Timoshenko's beam with "
+      "the 62-gon's own section (`mjsound.report.timoshenko`, within 0.5 cent of the square beam's converged "
+      "3D values) is " + ", ".join(f"{x:+.2f}" for x in cents(rod_bending_references(), ROD_BENDING_3D))
+      + " cents off (a beam model, whose error grows with the section's width over the wavelength). 11 modes.")
     sr = sphere_references(__import__("mjsound.materials", fromlist=["x"]).get_material(ALU))
     w(f"* **sphere** radius 0.1 m (icosphere with 642 vertices scaled to the sphere's volume), f_max 14.5 kHz: "
       f"Lamb's (1882) free-sphere modes, x = omega a / c_s from the exact frequency equations "
