@@ -57,6 +57,8 @@ def test_quadratic_forms_equal_the_dense_products():
     Y = np.random.default_rng(3).standard_normal((7, d.dofs))
     ref = np.einsum("ij,ji->i", Y, d.K @ Y.T)
     assert np.allclose(quadratic_forms(d.K, Y), ref, rtol=1e-12, atol=0)
+    V = np.ascontiguousarray(Y.T)  # the same vectors as columns, on two threads
+    assert np.allclose(quadratic_forms(d.K, V, threads=2, columns=True), ref, rtol=1e-12, atol=0)
     B = sp.random(9, 9, density=0.4, random_state=4, format="csr")  # not symmetric
     Z = np.random.default_rng(5).standard_normal((3, 9))
     assert np.allclose(quadratic_forms(B, Z), np.einsum("ij,ji->i", Z, B @ Z.T), rtol=1e-12, atol=1e-14)

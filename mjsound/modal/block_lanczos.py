@@ -304,10 +304,13 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         if ok:
             est = np.linalg.norm(R @ S[d0:d], axis=0)
             if np.all(est <= tol * np.abs(mu) * _tol_scale(sigma + 1.0 / mu, lam_max)):
-                # Ritz vectors as rows, in two halves (the cut depends on the count only)
-                h = S.shape[1] // 2
-                Qd = Q[:d]
-                Y = np.vstack(both(partial(np.matmul, S[:, :h].T, Qd), partial(np.matmul, S[:, h:].T, Qd)))
+                # Ritz vectors as the columns of one C-ordered (n, count) array, ascending by
+                # Ritz value, its rows in two halves (the cut depends on n only): no copy
+                # of them is made from here to the caller (four 33 MB copies on the bowl)
+                S = np.ascontiguousarray(S[:, np.argsort(sigma + 1.0 / mu)])
+                V = np.empty((n, S.shape[1]))
+                h = n // 2
+                both(partial(np.matmul, Q[:d, :h].T, S, out=V[:h]), partial(np.matmul, Q[:d, h:].T, S, out=V[h:]))
                 # Eigenvalues as Rayleigh quotients of the vectors (error ~ residual^2): the
                 # Ritz values sigma + 1/mu carry rounding of order eps * mu_max / mu, and
                 # mu_max (rigid modes, 1/|sigma|) is ~1e6 x the mu at the top of the band:
@@ -316,8 +319,10 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
                 # (2e-12 on the bowl), so the quotient needs only K (the mass products
                 # of the 120 vectors took 0.12..0.18 s; eigenvalues moved by 2e-12). The
                 # forms run on two threads (0.25 s on one).
-                lam = quadratic_forms(K, Y, threads=2)
-                order = np.argsort(lam)
-                return lam[order], Y[order].T  # mass-normalised
+                lam = quadratic_forms(K, V, threads=2, columns=True)
+                order = np.argsort(lam, kind="stable")
+                if np.any(np.diff(order) != 1):  # quotients of a near pair in the other order
+                    lam, V = lam[order], V[:, order]
+                return lam, V  # mass-normalised
         if d + W.shape[0] > max_dim:
             return None

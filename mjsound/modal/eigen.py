@@ -214,10 +214,9 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
     if res is not None:
-        w, V = res
+        w, V = res  # ascending
         n_below = int(np.sum(w < lam_min))
-        sel = w >= lam_min
-        w, V = w[sel], V[:, sel]
+        w, V = w[n_below:], V[:, n_below:]  # a view: the vectors are not copied
         if max_modes is not None:
             w, V = w[:max_modes], V[:, :max_modes]
         if progress:

@@ -47,8 +47,9 @@ def _quadratic_forms(indptr, indices, data, Yt, out, r0, r1):
             out[c] += yr[c] * acc[c]
 
 
-def quadratic_forms(A: sp.spmatrix, Y: np.ndarray, threads: int = 1) -> np.ndarray:
-    """``q_i = Y[i] @ A @ Y[i]`` for vectors stored as rows ``Y`` (k, n).
+def quadratic_forms(A: sp.spmatrix, Y: np.ndarray, threads: int = 1, columns: bool = False) -> np.ndarray:
+    """``q_i = Y[i] @ A @ Y[i]`` for vectors stored as rows ``Y`` (k, n), or as columns
+    (``columns=True``: ``Y`` (n, k), used as it is when C-contiguous).
 
     ``threads > 1`` splits the rows of ``A`` into that many ranges summed on threads (the
     kernel releases the GIL), each range of about equal non-zeros; the partial sums are
@@ -57,10 +58,10 @@ def quadratic_forms(A: sp.spmatrix, Y: np.ndarray, threads: int = 1) -> np.ndarr
     A = sp.csr_matrix(A)
     Y = np.asarray(Y, dtype=np.float64)
     indptr, indices = A.indptr.astype(np.int64), A.indices.astype(np.int64)
-    data, Yt = np.ascontiguousarray(A.data, dtype=np.float64), np.ascontiguousarray(Y.T)
+    data, Yt = np.ascontiguousarray(A.data, dtype=np.float64), np.ascontiguousarray(Y if columns else Y.T)
     n = A.shape[0]
     threads = int(max(1, min(threads, n // 1000)))
-    outs = np.zeros((threads, Y.shape[0]))
+    outs = np.zeros((threads, Yt.shape[1]))
     if threads == 1:
         _quadratic_forms(indptr, indices, data, Yt, outs[0], 0, n)
         return outs[0]
