@@ -9,7 +9,10 @@ per call) and prints microseconds per physics step (demo scene) or per env step 
 * ``render``: ``Synthesizer.render`` (``render_streams``: its one-call render kernel: due gains, due events, streams, banks);
 * ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper);
 * ``physics``: ``mj_step`` alone on a copy of the same model (demo: the same number of steps;
-  env: ``frame_skip`` steps per env step).
+  env: ``frame_skip`` steps per env step);
+* ``call_in_step`` / ``call_back_to_back`` (env): one step-kernel call that steps and renders
+  nothing, made after every env step of a run / in a tight loop: the fixed cost of a call
+  (unboxing its ~95 state arrays, the pose sync), which a run pays with cold caches.
 
 The demo is also run with ``sustained=False`` (no sliding / rolling sound), which shows what
 the streams cost. Clicks and contact microphones are off (their cost: ``bench_scene.py``).
@@ -103,6 +106,7 @@ def env_parts(env_id: str, steps: int) -> dict:
     TIMES.clear()
     run()
     out = {k: 1e6 * v / steps for k, v in TIMES.items()}
+    out["call_in_step"], out["call_back_to_back"] = empty_call_cost(env, acts)
     m, d = env.unwrapped.model, mujoco.MjData(env.unwrapped.model)
     fs = env.unwrapped.frame_skip
     t0 = time.perf_counter()
@@ -111,6 +115,36 @@ def env_parts(env_id: str, steps: int) -> dict:
     out["physics"] = 1e6 * (time.perf_counter() - t0) / steps
     env.close()
     return out
+
+
+def empty_call_cost(env, acts) -> tuple[float, float]:
+    """Microseconds of one step-kernel call that runs no substep and renders nothing (its
+    arguments' unboxing and the end-of-call pose sync): between env steps, as in a run (the
+    caches hold the physics' and gymnasium's data then), and back to back."""
+    sim = env.core.sim
+    k = sim._kernel
+    run, ep = k.run[0], k._advance_call
+
+    def current_state():  # (as StepKernel.call makes it)
+        return (k.mj, k.views, k.reader.state(), k.reader.buffers, k.clock, sim._drive_state(),
+                sim.synth.kernel_state(), k.run, sim.synth.render_target())
+
+    env.reset(seed=0)
+    tot = 0.0
+    for a in acts:
+        _, _, te, tr, _ = env.step(a)
+        if te or tr:
+            env.reset()
+        state = current_state()
+        run["nstep"], run["done"], run["render"] = 0, 0, 0
+        t0 = time.perf_counter()
+        ep(state, state[-1].empty)
+        tot += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for _ in acts:
+        run["nstep"], run["done"], run["render"] = 0, 0, 0
+        ep(state, state[-1].empty)
+    return 1e6 * tot / len(acts), 1e6 * (time.perf_counter() - t0) / len(acts)
 
 
 def main(argv=None) -> int:
