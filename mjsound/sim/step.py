@@ -32,6 +32,8 @@ a pending signal into ``SystemError``.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..jit import njit
 from ..synth.kernels import render_streams
 from .click_kernels import pulse_room, queue_pulses
@@ -219,7 +221,7 @@ def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
         if rn.stage == STAGE_LOG:
             for i in range(rn.n_imp):
                 im = buf.impacts[i]
-                _log(buf, rn, rn.t0, LOG_IMPACT, im.g1, im.g2, im.impulse)
+                _log(buf, rn, rn.t0, np.int64(LOG_IMPACT), im.g1, im.g2, im.impulse)  # (one _log for both kinds)
             for i in range(rn.n_sust):
                 row = buf.sustained[i]
                 _log(buf, rn, rn.t0, row.kind, row.g1, row.g2, row.speed)

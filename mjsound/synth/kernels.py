@@ -151,7 +151,7 @@ def _gather(voice, gr, gi, work, gwr, gwi, idx, span):
     (:func:`source_spans`); returns how many modes."""
     zr, zi, active, pr, pi = voice.zr, voice.zi, voice.active, voice.pr, voice.pi
     wr, wi, wpr, wpi = work
-    k = 0
+    k = np.int64(0)  # (not a literal 0: the callee it reaches would compile twice)
     nsrc = gr.shape[0]
     for i in range(zr.shape[0]):
         if active[i]:
@@ -260,7 +260,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                 if src_a[q] <= pos and pos < src_b[q]:
                     act[nact] = q
                     nact += 1
-            w = 0
+            w = np.int64(0)  # (not a literal 0: the callee it reaches would compile twice)
             for k in range(na):
                 i = idx[k]
                 a = np.float64(wr[k])
@@ -327,7 +327,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
             stop = g
         if e < ne and ev_n[e] < stop:
             stop = ev_n[e]
-        nact = 0
+        nact = np.int64(0)  # (not a literal 0: the callee it reaches would compile twice)
         for q in range(nsrc):
             if src_a[q] > pos and src_a[q] < stop:
                 stop = src_a[q]
