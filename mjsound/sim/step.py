@@ -123,7 +123,8 @@ def _render_block(synth, target, rn, ck, out):
     if rn.explicit or rn.nstep < 1 or start + n != rn.n1 - ck.origin:
         rn.render_code = NOT_RENDERED
         return
-    code = render_streams(synth, target.bank, target.layout, start, n, True, out, target.zero[0])
+    # (may_regain not a literal True: the compiled render_streams is the one Synthesizer.render uses)
+    code = render_streams(synth, target.bank, target.layout, start, n, np.bool_(True), out, target.zero[0])
     if code > 0:  # the ring must hold the block plus the delays (the gains are computed)
         rn.reason = RING
         rn.need = code
