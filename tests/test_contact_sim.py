@@ -159,3 +159,19 @@ def test_sonify_writes_contact_channels_at_their_full_scale(tmp_path):
     assert np.allclose(wav[:, 0], audio[0] / 20.0, atol=1e-6)  # 20 Pa -> 1
     assert np.allclose(wav[:, 1], np.clip(audio[1] / 5000.0, -1, 1), atol=1e-6)  # 5000 m/s^2 -> 1
     assert np.abs(audio[1]).max() > 100.0 and s["peak_pa"] == pytest.approx(float(np.abs(audio[0]).max()))
+
+
+def test_pinv_psd_matches_numpy_pinv_on_contact_space_inertias():
+    """The step kernel's pseudo-inverse (Jacobi, no LAPACK) against numpy's SVD one, on
+    symmetric positive semi-definite matrices of full and deficient rank (several contacts
+    of one body: ``A = Jn M^-1 Jn^T`` has rank at most its dofs), and near-duplicates."""
+    from mjsound.sim.impulses import pinv_psd
+
+    rng = np.random.default_rng(7)
+    for k in range(1, 9):
+        for trial in range(40):
+            B = rng.standard_normal((k, int(rng.integers(1, k + 1)))) * rng.uniform(0.1, 10.0)
+            S = B @ B.T + (1e-9 * np.eye(k) if trial % 3 == 0 else 0.0)
+            ref = np.linalg.pinv(S, 1e-4)
+            np.testing.assert_allclose(pinv_psd(S, 1e-4), ref, rtol=0, atol=1e-10 * np.abs(ref).max())
+    assert np.all(pinv_psd(np.zeros((3, 3)), 1e-4) == 0.0)  # (nothing invertible)

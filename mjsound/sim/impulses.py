@@ -16,7 +16,7 @@ import numpy as np
 
 from ..jit import njit
 
-__all__ = ["normal_jacobians", "restitution_of", "impulse_kernel", "event_impulses", "write_records"]
+__all__ = ["normal_jacobians", "restitution_of", "pinv_psd", "impulse_kernel", "event_impulses", "write_records"]
 
 
 @njit(cache=True)
@@ -70,6 +70,72 @@ def restitution_of(geoms, g1, g2):
 
 
 @njit(cache=True)
+def pinv_psd(S, rcond):
+    """Pseudo-inverse of a symmetric ``(k, k)`` matrix ``S``, as ``numpy.linalg.pinv(S, rcond)``.
+
+    ``S = V diag(lambda) V^T`` by cyclic Jacobi rotations (Numerical Recipes 11.1: each
+    rotation zeroes one off-diagonal entry, ``theta = (s_qq - s_pp) / (2 s_pq)``,
+    ``t = sgn(theta) / (|theta| + sqrt(theta^2 + 1))``, ``c = 1 / sqrt(t^2 + 1)``, ``s = t c``;
+    sweeps until the off-diagonal part is below rounding), then
+    ``S^+ = sum_{|lambda_i| > rcond max|lambda|} v_i v_i^T / lambda_i`` (a symmetric matrix's
+    singular values are its ``|lambda|``). ``k`` is the number of contacts of one impact, a
+    few: this keeps LAPACK (and its threads) out of the step kernel."""
+    k = S.shape[0]
+    A = S.copy()
+    V = np.eye(k)
+    scale = 0.0
+    for i in range(k):
+        for j in range(k):
+            scale += A[i, j] * A[i, j]
+    for _ in range(100):
+        off = 0.0
+        for p in range(k):
+            for q in range(p + 1, k):
+                off += A[p, q] * A[p, q]
+        if off <= 1e-32 * scale:
+            break
+        for p in range(k - 1):
+            for q in range(p + 1, k):
+                apq = A[p, q]
+                if apq == 0.0:
+                    continue
+                theta = (A[q, q] - A[p, p]) / (2.0 * apq)
+                t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                if theta < 0.0:
+                    t = -t
+                c = 1.0 / np.sqrt(t * t + 1.0)
+                s = t * c
+                for r in range(k):  # columns p, q
+                    arp = A[r, p]
+                    arq = A[r, q]
+                    A[r, p] = c * arp - s * arq
+                    A[r, q] = s * arp + c * arq
+                for r in range(k):  # rows p, q
+                    apr = A[p, r]
+                    aqr = A[q, r]
+                    A[p, r] = c * apr - s * aqr
+                    A[q, r] = s * apr + c * aqr
+                A[p, q] = 0.0
+                A[q, p] = 0.0
+                for r in range(k):
+                    vrp = V[r, p]
+                    vrq = V[r, q]
+                    V[r, p] = c * vrp - s * vrq
+                    V[r, q] = s * vrp + c * vrq
+    lmax = 0.0
+    for i in range(k):
+        lmax = max(lmax, abs(A[i, i]))
+    P = np.zeros((k, k))
+    for i in range(k):
+        lam = A[i, i]
+        if abs(lam) > rcond * lmax:
+            for a in range(k):
+                for b in range(k):
+                    P[a, b] += V[a, i] * V[b, i] / lam
+    return P
+
+
+@njit(cache=True)
 def impulse_kernel(Jn, MinvJt, v, e, m1, m2, cap_mass, jmax):
     """Per-contact normal impulses ``lambda = A^+ (1 + e) v`` with ``A = Jn M^-1 Jn^T``
     (contact-space inverse inertia), or the body-mass fallback when ``A`` is degenerate; the
@@ -104,7 +170,7 @@ def impulse_kernel(Jn, MinvJt, v, e, m1, m2, cap_mass, jmax):
             else:
                 S = 0.5 * (A + A.T)
                 # rcond: near-duplicate contacts make A nearly singular; do not amplify noise
-                Ap = np.linalg.pinv(S, 1e-4)
+                Ap = pinv_psd(S, 1e-4)
                 for a in range(k):
                     acc = 0.0
                     for b in range(k):
