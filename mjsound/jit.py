@@ -28,7 +28,7 @@ from numba.core import caching
 from .io import file_lock
 from .io import sources_digest as files_digest
 
-__all__ = ["njit", "KERNEL_GROUPS", "kernel_group", "sources_digest", "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
+__all__ = ["njit", "njit_inner", "call_inner", "KERNEL_GROUPS", "kernel_group", "sources_digest", "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -41,6 +41,46 @@ KERNEL_GROUPS = {
 }
 
 njit = numba.njit
+
+
+class _InnerEntry:
+    """Mixed into an inner kernel's dispatcher class: a call from Python raises instead of
+    running the missing entry (which would crash the interpreter)."""
+
+    def __call__(self, *args, **kwargs):
+        raise TypeError(f"mjsound: {self.py_func.__qualname__} is an inner kernel (njit_inner): other kernels "
+                        "call it; from Python use mjsound.jit.call_inner(kernel, *args)")
+
+
+@functools.lru_cache(maxsize=None)
+def _inner_class(cls):
+    return type("Inner" + cls.__name__, (_InnerEntry, cls), {})
+
+
+def njit_inner(fn=None, **options):
+    """``njit(**options)`` for a kernel that only other kernels call: without the entries numba
+    compiles for calls from Python and C (``no_cpython_wrapper``, ``no_cfunc_wrapper``). Such
+    an entry unboxes every argument, and for the state records (tens of arrays each) it costs
+    about half a second of compilation per kernel on a cold cache, for code that never runs.
+    Called from Python the kernel raises ``TypeError``."""
+    def wrap(f):
+        d = numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **options)(f)
+        d.__class__ = _inner_class(type(d))
+        return d
+
+    return wrap if fn is None else wrap(fn)
+
+
+@numba.njit
+def _trampoline(kernel, args):
+    return kernel(*args)
+
+
+def call_inner(kernel, *args):
+    """Call the inner kernel ``kernel`` (:func:`njit_inner`) from Python: through a compiled
+    trampoline, itself compiled (not cached) for each kernel and argument types. For tests of
+    a kernel against a plain reference and for one-off use, not for a hot loop."""
+    return _trampoline(kernel, args)
 
 
 def kernel_group(py_file: str, root: str = _ROOT) -> str | None:

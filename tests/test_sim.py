@@ -480,6 +480,7 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
     """A pair struck again while its impact record is still open: the state machine banks the
     old record's sum F dt, steps and end so the reader can close it with its own values."""
     from mjsound.sim.contacts import ImpactRecord
+    from mjsound.jit import call_inner
     from mjsound.sim.impulses import write_records
     from mjsound.sim.pairs import update_pairs
 
@@ -490,7 +491,7 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
 
     def step(k, vmax, f):
         reader.counts[0]["step"] = k
-        slot, onset, kind, speed = update_pairs(reader.state(), key, np.array([vmax]), np.array([f]), zeros, zeros,
+        slot, onset, kind, speed = call_inner(update_pairs, reader.state(), key, np.array([vmax]), np.array([f]), zeros, zeros,
                                                 0.01 * (k - 1), 0.01 * k)
         return bool(onset[0]), int(slot[0])
 
@@ -510,7 +511,7 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
     buf = reader.buffers
     buf.hits[0]["g1"], buf.hits[0]["g2"] = 0, 1
     buf.onsets[0]["slot"], buf.onsets[0]["first"], buf.onsets[1]["first"] = j, 0, 1
-    write_records(reader.state(), buf, 1, np.array([[0.5, 5.0, 3.0, 0.0]]), 0.02)
+    call_inner(write_records, reader.state(), buf, 1, np.array([[0.5, 5.0, 3.0, 0.0]]), 0.02)
     reader.take_records()
     (new,) = reader.newest_records(1)  # (records are made, and close their slot's last one, when read)
     assert not old.open and old.steps == 2
@@ -568,6 +569,7 @@ def test_impact_records_read_lazily_equal_records_read_every_step():
 def test_normal_jacobians_equal_mujoco_mj_jac():
     """The numba contact Jacobians (normal_jacobians) against mj_jac on a tree with free, ball,
     hinge and slide joints and a welded (dof-less) child body."""
+    from mjsound.jit import call_inner
     from mjsound.sim.impulses import normal_jacobians
     from mjsound.sim.records import HIT
 
@@ -600,7 +602,7 @@ def test_normal_jacobians_equal_mujoco_mj_jac():
     hits = np.zeros(k, HIT)
     hits["g1"], hits["g2"], hits["point"], hits["normal"] = geom[:, 0], geom[:, 1], pos, nrm
     Jn = np.full((k, m.nv), np.nan)
-    normal_jacobians(ContactReader(m).state(), hits, k, d.cdof, d.subtree_com, Jn)
+    call_inner(normal_jacobians, ContactReader(m).state(), hits, k, d.cdof, d.subtree_com, Jn)
     ref = np.zeros((k, m.nv))
     J = np.zeros((3, m.nv))
     for r in range(k):

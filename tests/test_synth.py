@@ -477,6 +477,7 @@ def test_forced_bank_visits_only_each_sources_span(na, nact):
     Banks of 16 modes or more fold the last one or two acting sources into the oscillator
     loop, smaller ones do not: one, two, three and four acting sources, an acting source
     without any gain, sources acting in another order than their rows."""
+    from mjsound.jit import call_inner
     from mjsound.synth.kernels import bank_forced, source_spans
 
     rng = np.random.default_rng(3)
@@ -486,7 +487,7 @@ def test_forced_bank_visits_only_each_sources_span(na, nact):
     gwr[1, 9:12] = rng.standard_normal(3)  # source 1: modes 9..11; source 2: no gain at all
     gwr[3, 4:na], gwi[3, 4:na] = rng.standard_normal(na - 4), rng.standard_normal(na - 4)  # overlaps 0 and 1
     span = np.full((2, nsrc), -7, np.int64)
-    source_spans(gwr, gwi, na, span)
+    call_inner(source_spans, gwr, gwi, na, span)
     assert span.tolist() == [[2, 9, 0, 4], [6, 12, 0, na]]
     p = 0.99 * np.exp(1j * rng.uniform(0.1, 3.0, na))
     z0 = rng.standard_normal(na) + 1j * rng.standard_normal(na)
@@ -494,7 +495,7 @@ def test_forced_bank_visits_only_each_sources_span(na, nact):
     act = np.array([3, 0, 2, 1], np.int64)[:nact]
     work = (z0.real.copy(), z0.imag.copy(), p.real.copy(), p.imag.copy())
     out = np.zeros(n)
-    bank_forced(work, na, out, 0, n, 0.0, gwr, gwi, F, act, nact, span)
+    call_inner(bank_forced, work, na, out, 0, n, 0.0, gwr, gwi, F, act, nact, span)
     z, ref = z0.copy(), np.zeros(n)
     g = (gwr + 1j * gwi)[act]
     for s in range(n):

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ..jit import njit
+from ..jit import njit, njit_inner
 
 from ..synth.pulse import contact_time
 
@@ -35,7 +35,7 @@ def pulse_rows_needed(n_impacts: int, n_air: int, n_sites: int) -> int:
     return 2 * int(n_impacts) * (int(n_air) + int(n_sites))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _effective(a, b):
     """``1 / (1/a + 1/b)``, ``inf`` meaning absent (:func:`mjsound.synth.pulse.effective`)."""
     if math.isinf(a):
@@ -66,12 +66,12 @@ def hertz_coefficient(cm, g1, g2):
     return 2.87 * (m * m / (R * E * E)) ** 0.2
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _norm3(x0, x1, x2):
     return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _capped(x, y, z, cap):
     """``(x, y, z)`` scaled to length ``cap`` when longer (and ``cap > 0``), and its length."""
     norm = _norm3(x, y, z)
@@ -81,7 +81,7 @@ def _capped(x, y, z, cap):
     return x, y, z, norm
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _body_pulses(cm, b, J, point, speed, tau, time_s, pose, mics, rows, dv, n):
     """Append body ``b``'s pulses (its clicks, its contact microphones') from row ``n`` on, for
     the impulse ``J`` (3,) [N s] on it at ``point`` (3,) [m], approach ``speed`` [m/s], pulse
@@ -247,7 +247,7 @@ def impact_pulses(cm, impacts, k, time_s, xpos, xmat, mics, rows, dv, n):
     return n
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def pulse_room(ps, k):
     """Whether the rows of :class:`.records.PulseState` ``ps`` hold the pulses of ``k`` more
     impact rows."""
@@ -256,7 +256,7 @@ def pulse_room(ps, k):
     return ps.counts[0].n + need <= ps.rows.shape[0]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def queue_pulses(ps, impacts, k, time_s, views, mics):
     """The pulses of the substep's impacts ``impacts[:k]`` at ``time_s`` [s] appended to the
     waiting rows of ``ps`` (:func:`pulse_room` said they fit), from the body poses ``views.xpos``,

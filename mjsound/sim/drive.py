@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from ..synth.constants import MAX_AMPLITUDE
 from ..synth.kernels import commit_queued, impacts_to_queue
 from ..synth.pulse import contact_time
@@ -28,7 +28,7 @@ __all__ = ["sync_poses", "impact_sides", "queue_impacts", "missing_streams", "dr
            "follow_rows"]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def pose_rows(gxpos, gxmat, geoms, idx, pos_out, R_out):
     """Object ``idx[q]``'s pose from geom ``geoms[q]``: ``pos_out[idx[q]] = gxpos[g]``,
     ``R_out[idx[q]] = gxmat[g]`` as 3x3 (rows with a non-finite pose are left as they were:
@@ -80,7 +80,7 @@ def sync_poses(drive, views, synth):
         pose_rows(views.geom_xpos, views.geom_xmat, drive.dyn_geoms, drive.dyn_obj, synth.pos, synth.R)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def impact_sides(drive, impacts, k, missing):
     """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, budget, n,
     n_missing)``, per side the synthesizer object index, world point [m], impulse on that side
@@ -121,7 +121,7 @@ def impact_sides(drive, impacts, k, missing):
     return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n, nm
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def queue_impacts(drive, synth, buf, k, t_ev):
     """The substep's impacts ``buf.impacts[:k]`` into the synthesizer's queue at synth time
     ``t_ev`` [s] (:func:`mjsound.synth.kernels.impacts_to_queue`). Returns 0, ``-m`` when
@@ -138,7 +138,7 @@ def queue_impacts(drive, synth, buf, k, t_ev):
     return 0
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def missing_streams(drive, synth, buf, ns, k1):
     """Before driving the sustained rows ``buf.sustained[:ns]`` up to synth sample ``k1``: the
     (row, side) pairs that sound but have no stream yet go to ``buf.missing``; returns
@@ -166,7 +166,7 @@ def missing_streams(drive, synth, buf, ns, k1):
     return nm, 0
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def drive_sustained(drive, synth, buf, ns, k0, k1):
     """Drive the stream of every sounding side of the sustained rows ``buf.sustained[:ns]`` on
     synth samples ``[k0, k1)`` (:func:`missing_streams` found none missing and the rings long

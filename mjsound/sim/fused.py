@@ -43,7 +43,7 @@ from llvmlite import ir
 from numba import carray, types
 from numba.extending import intrinsic
 
-from ..jit import njit
+from ..jit import njit_inner
 from .records import MJ
 
 __all__ = ["mj_function_address", "mjdata_layout", "mj_link", "struct_layout", "gather_contacts", "data_ncon",
@@ -215,7 +215,7 @@ _i32_at = _pointer_cast(types.int32)
 _u64_at = _pointer_cast(types.uint64)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def gather_contacts(mj, buf, ncon):
     """Copy the fields the reader needs of the mjData's first ``ncon`` contacts (read from
     the struct at ``mj.data`` with the offsets of :func:`mj_link`) into the buffers ``buf``."""
@@ -239,21 +239,21 @@ def gather_contacts(mj, buf, ncon):
         adr[c] = i[(c * size + L.c_efc_address) // 4]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def data_ncon(mj):
     """``mjData.ncon`` read from the struct."""
     L = mj[0]
     return carray(_i32_at(L.data + L.ncon), 1)[0]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def data_time(mj):
     """``mjData.time`` read from the struct [s]."""
     L = mj[0]
     return carray(_f64_at(L.data + L.time), 1)[0]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def data_efc_force(mj):
     """``mjData.efc_force`` (nefc,) read from the struct (a view of MuJoCo's array)."""
     L = mj[0]
@@ -261,14 +261,14 @@ def data_efc_force(mj):
     return carray(_f64_at(carray(_u64_at(L.data + L.efc_force), 1)[0]), max(nefc, 0))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def mj_step_now(mj):
     """``mj_step(model, data)`` through its C address."""
     L = mj[0]
     _call2(L.step_fn, L.model, L.data)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def mj_solve_now(mj, x, y, n):
     """``mj_solveM(model, data, x, y, n)``: ``x = M^-1 y`` for ``n`` rows (C-contiguous
     (n, nv) float64 arrays), through its C address."""

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 
 __all__ = ["normal_jacobians", "restitution_of", "pinv_psd", "impulse_kernel", "event_impulses", "write_records"]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def normal_jacobians(reader, hits, k, cdof, scom, jn):
     """``jn[r] = n_r . (J_geom2(p_r) - J_geom1(p_r))`` (k, nv) for the hits ``r < k`` (world
     point ``p_r`` and normal ``n_r``; the world body adds nothing).
@@ -69,7 +69,7 @@ def restitution_of(geoms, g1, g2):
     return 0.5
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def pinv_psd(S, rcond):
     """Pseudo-inverse of a symmetric ``(k, k)`` matrix ``S``, as ``numpy.linalg.pinv(S, rcond)``.
 
@@ -135,7 +135,7 @@ def pinv_psd(S, rcond):
     return P
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def impulse_kernel(Jn, MinvJt, v, e, m1, m2, cap_mass, jmax):
     """Per-contact normal impulses ``lambda = A^+ (1 + e) v`` with ``A = Jn M^-1 Jn^T``
     (contact-space inverse inertia), or the body-mass fallback when ``A`` is degenerate; the
@@ -209,7 +209,7 @@ def impulse_kernel(Jn, MinvJt, v, e, m1, m2, cap_mass, jmax):
     return lam, clamped
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def event_impulses(reader, buf, n_onset, jn, minv_jt):
     """:func:`impulse_kernel` for every impact event of a substep: hits
     ``onsets[q].first : onsets[q + 1].first`` are event ``q`` (one geom pair). Writes the
@@ -253,7 +253,7 @@ def event_impulses(reader, buf, n_onset, jn, minv_jt):
     return n, stats
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def write_records(reader, buf, n_onset, stats, t0):
     """An impact record row per event into ``buf.records`` (after the ``n_records`` waiting):
     time, geoms, largest approach speed, predicted impulse, restitution, slot, clamped, then

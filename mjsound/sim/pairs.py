@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from ..synth.sorting import stable_argsort
 
 __all__ = ["contact_quantities", "group_pairs", "slot_of", "rehash", "update_pairs", "read_pairs"]
@@ -123,7 +123,7 @@ def contact_quantities(buf, ncon, efc, reader, views):
     return fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def group_pairs(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm):
     """Group contacts by geom pair: per pair its contacts, largest approach speed, total normal
     force and the force-weighted slip speed, rolling speed, point and normal.
@@ -218,7 +218,7 @@ def rehash(keys, vals, size):
     return hk, hv
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1):
     """The per-pair state machine for one step ``[t0, t1)`` (the rules are in
     :mod:`mjsound.sim.contacts`): finds or makes each pair's slot, decides impact onsets,
@@ -294,7 +294,7 @@ def update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1):
     return slot, onset_out, kind, speed
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def read_pairs(reader, buf, views, ncon, efc, t0, t1):
     """Stage 1 of a substep: the ``ncon`` contacts in ``buf`` (their constraint forces in
     ``efc``) -> :func:`contact_quantities` -> :func:`group_pairs` -> :func:`update_pairs`, and

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from ..synth.kernels import render_streams
 from .click_kernels import pulse_room, queue_pulses
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
@@ -61,7 +61,7 @@ STAGE_STEP, STAGE_READ, STAGE_IMPULSES, STAGE_QUEUE, STAGE_LOG, STAGE_DRIVE = ra
 LOG_IMPACT, LOG_SLIDE, LOG_ROLL = 0, 1, 2
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _substep_times(clock, rn, mj):
     """Set ``rn``'s times and samples of the next step from the clock; False when
     ``data.time`` (read from the struct) does not match it within a quarter step."""
@@ -79,7 +79,7 @@ def _substep_times(clock, rn, mj):
     return True
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _has_room(reader, buf, synth, rn, ncon):
     """Whether every buffer holds a substep of ``ncon`` contacts (impacts on two sides at every
     microphone; log entries while the log is not full)."""
@@ -99,7 +99,7 @@ def _has_room(reader, buf, synth, rn, ncon):
     return True
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _log(buf, rn, t, kind, g1, g2, value):
     if rn.n_log < rn.log_limit:
         e = buf.log[rn.n_log]
@@ -111,7 +111,7 @@ def _log(buf, rn, t, kind, g1, g2, value):
         rn.n_log += 1
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _render_block(synth, target, rn, ck, out):
     """Render the pending block ``out`` (mics, n) (``run.render``): the synthesizer's samples
     ``[rendered, rendered + n)``, which must end where the last substep ends (else nothing is

@@ -39,7 +39,7 @@ import math
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from .dispatch import EntryPoint
 from .interrupt import interruptible
 from .pulse import half_sine
@@ -102,7 +102,7 @@ def fft_inplace(x, inverse):
             x[i] = x[i] / n
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def lowpass(f_over_fs):
     """The band limit ``G`` at ``f / fs`` (see the module docstring), for ``f >= 0``."""
     if f_over_fs <= PASS_FRACTION:
@@ -113,13 +113,13 @@ def lowpass(f_over_fs):
     return 0.5 * (1.0 + math.cos(math.pi * x))
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def transfer(s, b0, b1, d1, d2):
     """``(b0 + b1 s) / (1 + d1 s + d2 s^2)`` at complex ``s``."""
     return (b0 + b1 * s) / (1.0 + d1 * s + d2 * s * s)
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _slowest_time_constant(d1, d2):
     """Longest time constant [s] of the poles of ``1 + d1 s + d2 s^2`` (0: no pole)."""
     if d2 == 0.0:
@@ -133,7 +133,7 @@ def _slowest_time_constant(d1, d2):
     return -2.0 * d2 / slow
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def pulse_window(tau, d1, d2, fs):
     """Window length ``N`` [samples] (a power of two) for a pulse, or 0 when it would exceed
     :data:`MAX_PULSE_SAMPLES` (a pulse longer than about a second at the sample rate, or a
@@ -149,7 +149,7 @@ def pulse_window(tau, d1, d2, fs):
     return n if n <= MAX_PULSE_SAMPLES else 0
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _usable(p, fs):
     """Whether pulse record ``p`` has finite fields and a time whose sample fits int64."""
     ok = np.isfinite(p.time_s) and np.isfinite(p.tau_s) and np.isfinite(p.b0) and np.isfinite(p.b1)
@@ -206,7 +206,7 @@ def render_pulse(pulse, dv, fs, work, out):
     return first, n
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def mix_pulse(acc, start, channel, first, samples):
     """Add ``samples`` (absolute sample ``first`` onwards) into row ``channel`` of the ring
     accumulator ``acc`` (channels, capacity a power of two) whose oldest kept sample is

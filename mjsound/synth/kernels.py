@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from .pulse import half_sine
 from .queue import take_due
 from .records import AIR, EventRows, SourceRows
@@ -74,7 +74,7 @@ def bank_free(work, na, out, o0, n, zero):
         out[s] += acc
 
 
-@njit(cache=True, fastmath=True)
+@njit_inner(cache=True, fastmath=True)
 def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
     """Like :func:`bank_free` with forcing: ``z_i += sum_q g_{q,i} F[q, s]`` before output.
 
@@ -144,7 +144,7 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
         out[s] += acc
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _gather(voice, gr, gi, work, gwr, gwi, idx, span):
     """The active modes of ``voice`` (state, poles) and their source gains into the compact
     work arrays, and each source's span of gathered modes with a non-zero gain
@@ -168,7 +168,7 @@ def _gather(voice, gr, gi, work, gwr, gwi, idx, span):
     return k
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def source_spans(gwr, gwi, na, span):
     """``span[0, q] .. span[1, q]``: the first and one past the last of the ``na`` gathered
     modes where source q's gain is non-zero (an empty span when it has none)."""
@@ -183,14 +183,14 @@ def source_spans(gwr, gwi, na, span):
         span[1, q] = hi
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def _scatter(zr, zi, wr, wi, idx, na):
     for k in range(na):
         zr[idx[k]] = wr[k]
         zi[idx[k]] = wi[k]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def render_voice(voice, ev, src, start, n, consts, out, zero):
     """Render samples ``[start, start + n)`` of one bank of modes into ``out[:n]`` (added).
 

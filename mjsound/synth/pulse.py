@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 
 __all__ = ["hertz_contact_time", "hertz_coefficient", "compliance", "contact_time", "half_sine_spectrum", "half_sine", "effective",
            "TAU_MIN_S", "TAU_MAX_S"]
@@ -148,7 +148,7 @@ def half_sine_spectrum(omega, tau) -> np.ndarray:
     return _half_sine_many(x.ravel()).reshape(x.shape)[()]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def half_sine(x):
     """:func:`half_sine_spectrum` at one ``x = w tau`` (numba: the synthesizer's kernels call it)."""
     u = x - np.pi

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit_inner
 
 __all__ = ["stable_argsort"]
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def stable_argsort(keys):
     """Indices that sort ``keys`` (n,) int64 ascending, equal keys in their original order
     (bottom-up merge sort, O(n log n))."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from .records import AIR
 
 __all__ = ["stream_seed", "nearest_sorted", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
@@ -65,7 +65,7 @@ def mic_distance(mics, m, pos, rmin):
     return r if r >= rmin else rmin
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def nearest_sorted(pts, index, axis, x, y, z):
     """The nearest surface sample for rows ``pts`` (p, 3) sorted ascending along column
     ``axis``: the sample index (``index`` of the row) of the row nearest to ``(x, y, z)``, the
@@ -120,7 +120,7 @@ def nearest_sorted(pts, index, axis, x, y, z):
     return bi if bi >= 0 else 0
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def stream_gains(synth, j, o):
     """Per-microphone complex gain ``gr + j gi`` and integer delay ``D`` of stream ``j`` on
     object ``o``: a force along the stream's world direction ``n`` at its world point ``p``,
@@ -202,7 +202,7 @@ def stream_gains(synth, j, o):
             gi[m, k] = 0.0
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def stream_generate(streams, s, k0, k1, amp, alpha):
     """Drive stream ``s`` on source samples ``[k0, k1)``: its noise (force [N]) is generated now
     into the ring, so several drives may precede one render. Samples between the last drive
@@ -243,7 +243,7 @@ def stream_generate(streams, s, k0, k1, amp, alpha):
         st.last = k1
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def ring_need(streams, consts, s, k1):
     """Ring length stream ``s`` needs to be driven up to sample ``k1``: its largest delay plus
     the samples not rendered yet plus the slack."""
@@ -255,7 +255,7 @@ def ring_need(streams, consts, s, k1):
     return dmax + (k1 - consts[0].rendered) + consts[0].slack
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def stream_drive(streams, consts, s, k0, k1, amp, alpha, p, nrm, regain):
     """Drive stream ``s`` (see :func:`stream_generate`) at world point ``p`` along unit ``nrm``;
     marks its gains due every ``regain`` samples. Returns 0, or the ring length needed first
