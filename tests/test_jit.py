@@ -118,3 +118,17 @@ def test_an_entry_points_first_call_compiles_under_the_kernels_lock(monkeypatch)
     assert call((np.ones(2),), 1.0) == 2.0
     assert call((np.ones(2),), 2.0) == 3.0
     assert taken == [kernel]
+
+
+def test_an_inner_kernel_refuses_python_and_runs_through_call_inner():
+    """A kernel compiled without numba's Python entry (jit.njit_inner) raises a TypeError that
+    names the way in, instead of running the missing entry; jit.call_inner runs it."""
+    import numpy as np
+    import pytest
+
+    from mjsound.sim.impulses import pinv_psd
+
+    with pytest.raises(TypeError, match="call_inner"):
+        pinv_psd(np.eye(2), 1e-4)
+    np.testing.assert_allclose(jit.call_inner(pinv_psd, 2.0 * np.eye(2), 1e-4), 0.5 * np.eye(2))
+    assert isinstance(pinv_psd, CPUDispatcher) and pinv_psd.targetoptions["no_cpython_wrapper"]
