@@ -24,11 +24,12 @@ import os
 
 import numba
 from numba.core import caching
+from numba.core.registry import CPUDispatcher
 
 from .io import file_lock
 from .io import sources_digest as files_digest
 
-__all__ = ["njit", "njit_inner", "call_inner", "KERNEL_GROUPS", "kernel_group", "sources_digest", "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
+__all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest", "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -43,18 +44,13 @@ KERNEL_GROUPS = {
 njit = numba.njit
 
 
-class _InnerEntry:
-    """Mixed into an inner kernel's dispatcher class: a call from Python raises instead of
-    running the missing entry (which would crash the interpreter)."""
+class InnerDispatcher(CPUDispatcher):
+    """The dispatcher of an inner kernel (:func:`njit_inner`): a call from Python raises
+    instead of running the missing entry (which would crash the interpreter)."""
 
     def __call__(self, *args, **kwargs):
         raise TypeError(f"mjsound: {self.py_func.__qualname__} is an inner kernel (njit_inner): other kernels "
                         "call it; from Python use mjsound.jit.call_inner(kernel, *args)")
-
-
-@functools.lru_cache(maxsize=None)
-def _inner_class(cls):
-    return type("Inner" + cls.__name__, (_InnerEntry, cls), {})
 
 
 def njit_inner(fn=None, **options):
@@ -65,7 +61,8 @@ def njit_inner(fn=None, **options):
     Called from Python the kernel raises ``TypeError``."""
     def wrap(f):
         d = numba.njit(no_cpython_wrapper=True, no_cfunc_wrapper=True, **options)(f)
-        d.__class__ = _inner_class(type(d))
+        if type(d) is CPUDispatcher:  # (numba's usual class: the guard has its layout)
+            d.__class__ = InnerDispatcher
         return d
 
     return wrap if fn is None else wrap(fn)
