@@ -11,6 +11,11 @@ Importing this module registers the group-stamped cache locators with numba (in 
 numba's own, for mjsound's files only); kernel modules take ``njit`` from here so that the
 registration always precedes their decorators.
 
+A kernel that only other kernels call is declared with :func:`njit_inner`: compiled without
+the entries numba makes for calls from Python and C, which for kernels taking the state
+records are a large part of a cold cache's compilation (:func:`call_inner` calls one from
+Python, for tests).
+
 Processes that start together on a machine whose cache is empty (the workers of a vectorised
 env) would each compile the same kernels at once: :func:`compile_lock` lets one of them
 compile a kernel while the others wait and then load it from the cache.
@@ -29,7 +34,8 @@ from numba.core.registry import CPUDispatcher
 from .io import file_lock
 from .io import sources_digest as files_digest
 
-__all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest", "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
+__all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest",
+           "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
