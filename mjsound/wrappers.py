@@ -233,8 +233,7 @@ class EnvAudio:
                 mujoco.mj_forward(model, d0)
                 self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
-        self._audible = audible_geoms(model, self.scene, self.sim)
-        self._audible_list = self._audible.tolist()  # (indexed per impact: plain bools)
+        self._audible = audible_geoms(model, self.scene, self.sim).tolist()  # (indexed per impact: plain bools)
         self._rng = None
         self._reader_impacts = 0
 
@@ -262,7 +261,7 @@ class EnvAudio:
         geoms = r.newest_geoms(new)
         if geoms is None:
             return int(new)  # (more than the reader keeps: counted as audible)
-        aud = self._audible_list
+        aud = self._audible
         return sum(1 for g1, g2 in geoms if aud[g1] or aud[g2])
 
     def end_step(self) -> tuple[np.ndarray, dict]:

@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..synth.dispatch import EntryPoint
-from ..synth.records import CHANNEL, SYNTH_CONSTS, Bank, BankLayout, ObjectTable, RenderTarget, SynthState
+from ..synth.objects import build_layout
+from ..synth.records import CHANNEL, SYNTH_CONSTS, ObjectTable, RenderTarget, SynthState
 from ..synth.queue import EventQueue
 from ..synth.stream_table import StreamTable
 from .clicks import silent_pulse_state
@@ -44,13 +45,11 @@ def silent_synth_state(dtype="float32") -> SynthState:
 
 
 def silent_render_target(dtype="float32") -> RenderTarget:
-    """A :class:`mjsound.synth.records.RenderTarget` without banks (the types of a
-    synthesizer's, for :func:`silent_synth_state`)."""
-    z = np.zeros
-    i8 = np.int64
-    bank = Bank(z(0), z(0), z(0), z(0, np.bool_), z(0, dtype), z(0, dtype), z(0), z(0), z(0, i8), z(0, i8), z(0, i8),
-                z(0, np.bool_))
-    return RenderTarget(bank, BankLayout(z(0, i8), z(0, i8), z(0, i8), z(0, i8), 0), z(1, dtype), z((0, 0), dtype))
+    """A :class:`mjsound.synth.records.RenderTarget` without banks (laid out by the
+    synthesizer's own :func:`mjsound.synth.objects.build_layout` for no object and no
+    microphone: the same types, for :func:`silent_synth_state`)."""
+    lay = build_layout([], 0, 0, dtype)
+    return RenderTarget(lay.bank, lay.layout, np.zeros(1, dtype), np.zeros((0, 0), dtype))
 
 
 class StepKernel:

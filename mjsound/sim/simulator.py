@@ -244,9 +244,6 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.seconds_contacts = 0.0
         self.seconds_synth = 0.0
         self.seconds_fused = 0.0  # substeps run in numba (mj_step included)
-        # clock re-anchors and resets so far (never decreases: substeps counts a call's
-        # substeps in one go when none happened during it)
-        self._clock_jumps = getattr(self, "_clock_jumps", 0) + 1
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
         self._ready = None  # a block substeps(render=True) rendered, returned by the next flush
@@ -270,7 +267,6 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         step (the step just taken ends at ``data.time``). Backwards in time is a reset the
         simulator was not told about: the ringing is cleared (the samples counted so far are
         rendered first and come out with the next block)."""
-        self._clock_jumps += 1
         c = self.clock
         dt = float(self._opt.timestep)
         t_new = float(self.data.time) - dt
@@ -393,17 +389,15 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         synth.poses_current = False
         n0 = c.sample_at(k0)
         n1 = c.sample_at(k0 + nstep)
-        self._seg = (k0, n0)
-        jumps = self._clock_jumps
+        seg = self._seg = (k0, n0)
         block = None
         if render and nstep > 0 and self._ready is None and not self._held and synth.renders_in_kernel:
             block = synth.new_block(self._pending + n1 - n0)
         tc = _time.perf_counter()
         self._call(nstep, call_step=True, block=block)
         self.seconds_fused += _time.perf_counter() - tc
-        if self._clock_jumps == jumps:  # (the usual case: every substep counted in one go)
+        if self._seg is seg:  # (no clock jump counted a segment during the call: all in one go)
             self._count(n0, n1, nstep)
-            self._seg = (k0 + nstep, n1)
         else:
             self._count_segment()
         f = self._kernel.f

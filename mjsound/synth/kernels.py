@@ -87,8 +87,8 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
     The last one or two acting sources are folded into the oscillator loop (their gains laid
     out full width, zero outside their spans: one pass over the modes per sample instead of a
     pass per source, whose short stores the next pass had to wait for; 2-3x faster with one
-    or two sources); any before them are added first over their spans only. Every mode sees the same operations in the same order
-    either way (``z += g_q F_q[s]`` for q in ``act`` order, then the pole; a zero gain adds
+    or two sources); any before them are added first over their spans only. Every mode sees
+    the same operations in the same order either way (``z += g_q F_q[s]`` for q in ``act`` order, then the pole; a zero gain adds
     nothing), so the sound does not depend on how many are folded."""
     wr, wi, pr, pi = work
     # (a bank of fewer than 16 modes keeps the plain loop: its sum is not vectorised, and a
@@ -134,7 +134,8 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
                 acc += b
                 wr[k] = a * pr[k] - b * pi[k]
                 wi[k] = a * pi[k] + b * pr[k]
-        else:
+        else:  # (bank_free's loop, written out: calling bank_free per sample here was 25-30 %
+            # slower on banks of 4-15 modes, same audio)
             for k in range(na):
                 a = wr[k]
                 b = wi[k]
