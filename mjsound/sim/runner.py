@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..synth.dispatch import EntryPoint
+from ..synth.dispatch import PackedEntry
 from ..synth.objects import build_layout
 from ..synth.records import CHANNEL, SYNTH_CONSTS, ObjectTable, RenderTarget, SynthState
 from ..synth.queue import EventQueue
@@ -19,7 +19,7 @@ from ..synth.stream_table import StreamTable
 from .clicks import silent_pulse_state
 from .fused import mj_link
 from .records import DRIVE_PARAMS, NOT_RENDERED, RUN, SOUND, DataViews, DriveState
-from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance
+from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance_packed
 
 __all__ = ["StepKernel", "silent_drive", "silent_synth_state", "silent_render_target"]
 
@@ -86,7 +86,7 @@ class StepKernel:
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
         self.clock = clock
-        self._advance_call = EntryPoint(advance)
+        self._advance_call = PackedEntry(advance_packed)
         self._silent = None  # (silent_render_target, made on first use)
 
     @property
@@ -101,10 +101,9 @@ class StepKernel:
         run["ncon"], run["nefc"] = self.reader.copy_contacts(self.data)
 
     def _advance(self, state, block) -> None:
-        """``advance(*state, block)`` through its compiled entry point
-        (:class:`mjsound.synth.dispatch.EntryPoint`: numba's dispatch computes the types of
-        tuples in Python, microseconds per call; ``state`` keeps its objects between calls,
-        ``block`` is a new array of the same type)."""
+        """``advance(*state, block)`` through :class:`mjsound.synth.dispatch.PackedEntry`
+        (the state crosses as one table, packed again when one of its objects is replaced;
+        ``block`` is a new array of the same type each call)."""
         self._advance_call(state, block)
 
     def _silent_target(self) -> RenderTarget:

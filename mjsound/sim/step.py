@@ -36,6 +36,7 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from ..synth.kernels import render_streams
+from ..synth.packing import unpack
 from .click_kernels import pulse_room, queue_pulses
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
 from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
@@ -43,7 +44,7 @@ from .impulses import event_impulses, normal_jacobians, write_records
 from .pairs import read_pairs
 from .records import NOT_RENDERED
 
-__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
+__all__ = ["advance", "advance_packed", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
            "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
 
 #: ``run.reason``: every substep done; ``data.time`` is not where the clock expects it (a
@@ -134,7 +135,7 @@ def _render_block(synth, target, rn, ck, out):
     rn.render = 0
 
 
-@njit(cache=True)
+@njit_inner(cache=True)
 def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
     """Run the substeps of ``run`` (see the module docstring): ``mj`` (1,) MJ, ``views``
     DataViews of the mjData, ``reader`` ReaderState, ``buf`` StepBuffers, ``clock`` (1,)
@@ -250,3 +251,12 @@ def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
     rn.poses_current = 1
     if rn.render:
         _render_block(synth, target, rn, ck, out)
+
+
+@njit(cache=True)
+def advance_packed(table, layout, out):
+    """:func:`advance` of the state ``(mj, views, reader, buf, clock, drive, synth, run,
+    target)`` packed into ``table`` (:func:`mjsound.synth.packing.pack`; called through
+    :class:`mjsound.synth.dispatch.PackedEntry`), rendering into ``out``."""
+    mj, views, reader, buf, clock, drive, synth, run, target = unpack(table, layout)
+    advance(mj, views, reader, buf, clock, drive, synth, run, target, out)
