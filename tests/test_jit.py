@@ -99,11 +99,11 @@ def test_an_entry_points_first_call_compiles_under_the_kernels_lock(monkeypatch)
 
     import mjsound.synth.dispatch as dispatch
     from mjsound.jit import compile_lock
-    from mjsound.sim.step import advance_packed as advance
+    from mjsound.sim.step import advance
 
     with compile_lock(advance):
         pass
-    assert os.path.exists(os.path.join(advance._cache._cache_path, "advance_packed.compile.lock"))
+    assert os.path.exists(os.path.join(advance._cache._cache_path, "advance.compile.lock"))
     assert isinstance(compile_lock(jit.njit(lambda x: x)), contextlib.nullcontext)  # (no disk cache: no lock)
     taken = []
 

@@ -75,7 +75,7 @@ def test_kernels_cached_follows_the_sources(monkeypatch):
     """``kernels_cached`` is true once the step kernel of these sources is in numba's cache,
     and false when the cache's stamp is another one (after an edit or a ``git pull``): the
     first-compile notice then says so instead of a silent half-minute."""
-    from mjsound.sim.step import advance_packed as advance
+    from mjsound.sim.step import advance
     from mjsound.sim.warmup import kernel_cache_dir, kernels_cached, warmup
 
     warmup(verbose=False, once=True)

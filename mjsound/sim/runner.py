@@ -19,7 +19,7 @@ from ..synth.stream_table import StreamTable
 from .clicks import silent_pulse_state
 from .fused import mj_link
 from .records import DRIVE_PARAMS, NOT_RENDERED, RUN, SOUND, DataViews, DriveState
-from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance_packed
+from .step import DONE, REASONS, ROOM, SOLVE, STAGE_READ, STAGE_STEP, advance
 
 __all__ = ["StepKernel", "silent_drive", "silent_synth_state", "silent_render_target"]
 
@@ -86,7 +86,7 @@ class StepKernel:
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
         self.clock = clock
-        self._advance_call = PackedEntry(advance_packed)
+        self._advance_call = PackedEntry(advance)
         self._silent = None  # (silent_render_target, made on first use)
 
     @property

@@ -23,8 +23,10 @@ named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, 
 says where the substep resumes when Python calls again, and nothing of a stage is changed
 before it can finish, so the resumed substep is the same as one that never stopped.
 
-Every argument is a named record or a :class:`typing.NamedTuple` of them
-(:mod:`.records`, :mod:`mjsound.synth.records`). The kernel returns nothing (outputs are in
+The state is a tuple of named records and :class:`typing.NamedTuple` s of them
+(:mod:`.records`, :mod:`mjsound.synth.records`), packed into one table for the call
+(:mod:`mjsound.synth.packing`: numba unboxes three arguments instead of about a hundred
+arrays) and rebuilt by name in the kernel. The kernel returns nothing (outputs are in
 the records), so that an interrupt (Ctrl-C) during the call reaches the caller as
 ``KeyboardInterrupt``: numba's boxing of a returned array runs Python code that would swallow
 a pending signal into ``SystemError``.
@@ -44,7 +46,7 @@ from .impulses import event_impulses, normal_jacobians, write_records
 from .pairs import read_pairs
 from .records import NOT_RENDERED
 
-__all__ = ["advance", "advance_packed", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
+__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
            "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
 
 #: ``run.reason``: every substep done; ``data.time`` is not where the clock expects it (a
@@ -135,13 +137,16 @@ def _render_block(synth, target, rn, ck, out):
     rn.render = 0
 
 
-@njit_inner(cache=True)
-def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
-    """Run the substeps of ``run`` (see the module docstring): ``mj`` (1,) MJ, ``views``
-    DataViews of the mjData, ``reader`` ReaderState, ``buf`` StepBuffers, ``clock`` (1,)
-    CLOCK, ``drive`` DriveState, ``synth`` SynthState, ``run`` (1,) RUN (inputs and outputs);
-    then, when ``run.render`` is set, the pending block into ``out`` (mics, n) (the bank dtype,
-    zeroed) with ``target`` (RenderTarget)."""
+@njit(cache=True)
+def advance(table, layout, out):
+    """Run the substeps of ``run`` (see the module docstring) on the state packed in
+    ``table`` (:func:`mjsound.synth.packing.pack`; called through
+    :class:`mjsound.synth.dispatch.PackedEntry`): ``mj`` (1,) MJ, ``views`` DataViews of the
+    mjData, ``reader`` ReaderState, ``buf`` StepBuffers, ``clock`` (1,) CLOCK, ``drive``
+    DriveState, ``synth`` SynthState, ``run`` (1,) RUN (inputs and outputs), ``target``
+    RenderTarget; then, when ``run.render`` is set, renders the pending block into ``out``
+    (mics, n) (the bank dtype, zeroed)."""
+    mj, views, reader, buf, clock, drive, synth, run, target = unpack(table, layout)
     rn = run[0]
     cnt = reader.counts[0]
     ck = clock[0]
@@ -252,11 +257,3 @@ def advance(mj, views, reader, buf, clock, drive, synth, run, target, out):
     if rn.render:
         _render_block(synth, target, rn, ck, out)
 
-
-@njit(cache=True)
-def advance_packed(table, layout, out):
-    """:func:`advance` of the state ``(mj, views, reader, buf, clock, drive, synth, run,
-    target)`` packed into ``table`` (:func:`mjsound.synth.packing.pack`; called through
-    :class:`mjsound.synth.dispatch.PackedEntry`), rendering into ``out``."""
-    mj, views, reader, buf, clock, drive, synth, run, target = unpack(table, layout)
-    advance(mj, views, reader, buf, clock, drive, synth, run, target, out)

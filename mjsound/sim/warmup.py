@@ -31,7 +31,7 @@ def kernels_cached() -> bool:
     """Whether numba's disk cache holds the step kernel of the current sources already (then
     a process starts in about a second; after an edit or a ``git pull`` of a kernel module it
     does not: the index is stamped with its group's sources, :mod:`mjsound.jit`)."""
-    from .step import advance_packed as advance
+    from .step import advance
 
     try:
         return bool(advance._cache._cache_file._load_index())
@@ -43,7 +43,7 @@ def kernel_cache_dir() -> str:
     """The folder of numba's on-disk cache that mjsound's kernels use (``$NUMBA_CACHE_DIR``
     when set, else ``__pycache__`` next to the sources or the user-wide cache)."""
     from ..jit import cache_folder
-    from .step import advance_packed as advance
+    from .step import advance
 
     return cache_folder(advance) or os.environ.get("NUMBA_CACHE_DIR", "numba's default cache")
 
