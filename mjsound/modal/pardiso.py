@@ -9,7 +9,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-__all__ = ["factorize", "factorize_indefinite", "count_below", "backend_name", "PARDISO_MIN_DOFS"]
+from .banded import band_count
+
+__all__ = ["factorize", "factorize_indefinite", "count_below", "backend_name", "superlu", "PARDISO_MIN_DOFS"]
 
 
 def _import_pypardiso():
@@ -61,9 +63,36 @@ def factorize(A: sp.spmatrix, backend: str | None = None, definite: bool = False
     A = sp.csr_matrix(A)
     if backend == "pardiso":
         return _pardiso_solver(A, definite)
-    lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                   options={"SymmetricMode": True})
-    return lu.solve
+    return superlu(A).solve
+
+
+#: SuperLU keeps a matrix's own order when the lower envelope (row ``i`` from its first
+#: stored column to the diagonal), which a factorization in that order fills, holds at most
+#: this many times the matrix's lower entries: a bar numbered along its length (the beam,
+#: 3123 dofs: 1.8 x, L + U 599k entries against 585k after minimum degree, whose ``A + A^T``
+#: and ordering cost 1.3k page faults and 5 ms more); a compact solid numbered the same way
+#: has a far wider envelope and gets the minimum-degree order.
+NATURAL_ENVELOPE = 2.0
+
+
+def superlu(A: sp.spmatrix):
+    """SuperLU's ``L U`` of the symmetric ``A`` with diagonal pivots (an ``L D L^T`` when no
+    row was exchanged): minimum degree on ``A + A^T``, or the matrix's own order when its
+    envelope is narrow (:data:`NATURAL_ENVELOPE`). ``A``'s CSR arrays are handed over as
+    those of its CSC (``A = A^T``: no transposed copy)."""
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.sorted_indices()
+    n = A.shape[0]
+    order = "MMD_AT_PLUS_A"
+    rows = np.diff(A.indptr)
+    if n and np.all(rows > 0):
+        first = A.indices[A.indptr[:-1]]
+        envelope = float(np.sum(np.maximum(np.arange(n) - first, 0)))
+        if envelope <= NATURAL_ENVELOPE * 0.5 * (A.nnz + n):
+            order = "NATURAL"
+    C = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
+    return spla.splu(C, permc_spec=order, diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
 class _Pardiso:
@@ -251,29 +280,36 @@ def _pardiso_inertia(A: sp.spmatrix):
     return out
 
 
-def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float, backend: str | None = None) -> int | None:
+def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float, backend: str | None = None, shift=None) -> int | None:
     """Number of eigenvalues of ``K phi = lambda M phi`` below ``lam`` (Sylvester inertia).
 
     Any ``L D L^T`` factorization of ``K - lam M`` with a symmetric permutation has as many
     negative pivots as there are eigenvalues below ``lam``. PARDISO (symmetric
     indefinite, Bunch-Kaufman pivots; ``backend=None`` uses it from
     :data:`PARDISO_MIN_DOFS` dofs when installed) reports that count; its answer is taken
-    only when no pivot was perturbed and no pivot is zero, otherwise SuperLU with a
-    symmetric ordering and no row pivoting factors ``K - lam M = L D L^T`` (``U = D L^T``)
+    only when no pivot was perturbed and no pivot is zero. Otherwise a narrow band is
+    factored in band storage (:func:`.banded.band_count`), anything else by SuperLU with
+    a symmetric ordering and no row pivoting, ``K - lam M = L D L^T`` (``U = D L^T``),
     and the count is the number of negative entries of ``D``. Returns None if that
-    factorization pivoted too (then the count is not an inertia).
+    factorization pivoted too (then the count is not an inertia). ``shift(sigma)``: ``K -
+    sigma M`` (:class:`.pencil.Pencil`), default scipy's sum.
     """
-    A = K - lam * M
-    n = A.shape[0]
+    n = K.shape[0]
     if backend is None:
         backend = backend_name() if n >= PARDISO_MIN_DOFS else "superlu"
+    A = None
     if backend == "pardiso":
+        A = K - lam * M if shift is None else shift(lam)
         inertia = _pardiso_inertia(A)
         if inertia is not None and inertia[2] == 0 and inertia[0] + inertia[1] == n:
             return inertia[0]
+    counted = band_count(K, M, lam)  # a narrow band: no sparse factorization
+    if counted is not None:
+        return counted
+    if A is None:
+        A = K - lam * M if shift is None else shift(lam)
     try:
-        lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        lu = superlu(A)
     except RuntimeError:  # exactly singular: lam is an eigenvalue
         return None
     if not np.array_equal(lu.perm_r, lu.perm_c):
