@@ -133,7 +133,7 @@ def _solve(disc: Discretization, f_max: float, progress: bool, max_modes=None):
             bar.refresh()
 
     try:
-        return solve_band(disc.K, disc.M, lam_min, lam_max, progress=cb, max_modes=max_modes)
+        return solve_band(disc.K, disc.M, lam_min, lam_max, progress=cb, max_modes=max_modes, node_mass=disc.node_mass)
     finally:
         if bar is not None:
             bar.close()

@@ -51,9 +51,14 @@ BAND_MAX_FLOPS = 3e8
 PIVOT_TOL = 1e-12
 
 
+def _csr(A):
+    """``A`` itself when it is CSR already (scipy keeps its sorted-indices flag per object)."""
+    return A if sp.isspmatrix_csr(A) else sp.csr_matrix(A)
+
+
 def half_bandwidth(A: sp.spmatrix) -> int:
     """Largest ``i - j`` over the stored entries ``A[i, j]`` with ``j <= i`` (A symmetric)."""
-    A = sp.csr_matrix(A)
+    A = _csr(A)
     rows = np.flatnonzero(np.diff(A.indptr))
     if len(rows) == 0:
         return 0
@@ -128,7 +133,7 @@ def _ldlt_solve(B, X):
             X[k, c] -= acc * f0
 
 
-def band_ldlt(K: sp.spmatrix, M: sp.spmatrix | None = None, sigma: float = 0.0):
+def band_ldlt(K: sp.spmatrix, M: sp.spmatrix | None = None, sigma: float = 0.0, out: np.ndarray | None = None):
     """``(B, negatives)``: the band ``L D L^T`` of ``K - sigma M`` (module docstring) and
     its negative pivots, or None when the band does not apply (:func:`band_width`) or a
     pivot is too small (:data:`PIVOT_TOL`).
@@ -138,18 +143,25 @@ def band_ldlt(K: sp.spmatrix, M: sp.spmatrix | None = None, sigma: float = 0.0):
     K, M : (n, n) sparse symmetric (M optional: ``K`` alone).
     sigma : float
         The shift [rad^2/s^2].
+    out : (n, w + 1) float array, optional
+        Storage to factor in (another factorization's band of the same pencil, no longer
+        needed): no fresh memory.
     """
-    K = sp.csr_matrix(K)
+    K = _csr(K)
     n = K.shape[0]
     if n == 0:
         return np.zeros((0, 1)), 0
     w = band_width(K, M)
     if w is None:
         return None
-    B = np.zeros((n, w + 1))
+    if out is not None and out.shape == (n, w + 1) and out.dtype == np.float64 and out.flags.c_contiguous:
+        B = out
+        B[:] = 0.0
+    else:
+        B = np.zeros((n, w + 1))
     _band_fill(K.indptr, K.indices, K.data.astype(np.float64, copy=False), 1.0, B)
     if M is not None and sigma != 0.0:
-        M = sp.csr_matrix(M)
+        M = _csr(M)
         _band_fill(M.indptr, M.indices, M.data.astype(np.float64, copy=False), -float(sigma), B)
     negatives = _ldlt(B, B[:, 0].copy(), PIVOT_TOL)
     return None if negatives < 0 else (B, int(negatives))
@@ -158,7 +170,7 @@ def band_ldlt(K: sp.spmatrix, M: sp.spmatrix | None = None, sigma: float = 0.0):
 def band_width(K: sp.spmatrix, M: sp.spmatrix | None = None) -> int | None:
     """Half-bandwidth ``w`` of ``K - sigma M`` when the band applies (:data:`BAND_MAX_FILL`,
     :data:`BAND_MAX_FLOPS`), else None."""
-    K = sp.csr_matrix(K)
+    K = _csr(K)
     n = K.shape[0]
     w = half_bandwidth(K) if M is None else max(half_bandwidth(K), half_bandwidth(M))
     if n * (w + 1.0) > BAND_MAX_FILL * 0.5 * (K.nnz + n) or n * float(w) ** 2 > BAND_MAX_FLOPS:
@@ -173,10 +185,10 @@ def band_count(K: sp.spmatrix, M: sp.spmatrix, lam: float) -> int | None:
     return None if got is None else got[1]
 
 
-def band_solver(K: sp.spmatrix, M: sp.spmatrix | None = None, sigma: float = 0.0):
+def band_solver(K: sp.spmatrix, M: sp.spmatrix | None = None, sigma: float = 0.0, out: np.ndarray | None = None):
     """``solve(Y)`` = ``(K - sigma M)^{-1} Y`` for a vector (n,) or a block (n, m), or None
-    (:func:`band_ldlt` refused)."""
-    got = band_ldlt(K, M, sigma)
+    (:func:`band_ldlt` refused; ``out`` as there)."""
+    got = band_ldlt(K, M, sigma, out)
     if got is None:
         return None
     B = got[0]

@@ -27,6 +27,10 @@ class Discretization:
     dofs_per_node : int
         3 (displacement x, y, z) or 6 (then rotation x, y, z): dof ``k`` of node ``i`` is
         ``dofs_per_node * i + k``, so translations are the dofs with ``k < 3``.
+    node_mass : (n/3, n/3) scipy.sparse.csr_matrix or None
+        The scalar node mass ``m`` with ``M = kron(m, I3)`` when the discretization built
+        ``M`` that way (hex), else None (the eigensolver finds it from ``M``,
+        :func:`.node_mass.node_mass`).
     """
 
     K: sp.csr_matrix
@@ -35,6 +39,7 @@ class Discretization:
     n_rigid: int = 6
     info: dict = field(default_factory=dict)
     dofs_per_node: int = 3
+    node_mass: sp.csr_matrix | None = None
 
     @property
     def dofs(self) -> int:

@@ -63,9 +63,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .banded import band_ldlt, band_solver, band_width
 from .block_lanczos import BLOCK_TOL, PROJECT_SPLIT_MIN, _block_band, _project_out, _SplitSolve  # noqa: F401
+from .node_mass import mass_rows
 from .pardiso import PARDISO_MIN_DOFS, backend_name, count_below, factorize, factorize_indefinite  # noqa: F401
-from .banded import band_solver, band_width
 from .pencil import Pencil
 
 __all__ = ["solve_band", "factorize", "count_below", "BandSolution", "backend_name"]
@@ -104,6 +105,7 @@ def solve_band(
     backend: str | None = None,
     progress=None,
     max_modes: int | None = None,
+    node_mass: sp.spmatrix | None = None,
 ) -> BandSolution:
     """All eigenpairs with ``lam_min <= lambda <= lam_max``.
 
@@ -122,6 +124,9 @@ def solve_band(
     max_modes : int, optional
         Stop after this many modes in the band (a budget); the top of the band is then
         lowered and the result says so through its length.
+    node_mass : (n/3, n/3) sparse, optional
+        ``m`` with ``M = kron(m, I3)`` exactly, when the caller has it (the discretization
+        built ``M`` from it): the mass products use it without finding it from ``M``.
 
     Returns
     -------
@@ -133,7 +138,8 @@ def solve_band(
     # ARPACK's level-2 BLAS on vectors of a few thousand entries is ~10x slower with
     # OpenBLAS threads than without (thread wake-ups dominate): run the solve on one thread.
     with _single_threaded_blas():
-        return _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0)
+        return _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0,
+                           node_mass)
 
 
 def _single_threaded_blas():
@@ -147,7 +153,7 @@ def _single_threaded_blas():
         return contextlib.nullcontext()
 
 
-def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0):
+def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0, node_mass=None):
     n = K.shape[0]
     if n <= dense_max:
         w, V = sla.eigh(K.toarray(), M.toarray(), driver="gvd")
@@ -176,6 +182,9 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
     used = backend or (backend_name() if n >= PARDISO_MIN_DOFS and band_width(K, M) is None else "superlu")
     shift = Pencil(K, M)  # K - sigma M on K's pattern
 
+    def apply_M():
+        return mass_rows(M, None if node_mass is None else sp.csr_matrix(node_mass))
+
     def block_fits(count):
         return count is not None and 0 < count <= BLOCK_MAX_MODES and count < n // 4 and (
             max_modes is None or count <= 2 * max_modes + 12)
@@ -199,7 +208,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             solve0 = None
             if block_fits(n_target):
                 res = _block_band(K, M, INTERIOR_SHIFT * lam_max, lam_max, n_target, interior[0],
-                                  progress=progress, b=_interior_block_size(n_target))
+                                  progress=progress, b=_interior_block_size(n_target), apply_M=apply_M())
         elif used == "pardiso" and n >= SPLIT_MIN_DOFS:
             # Two cores for the whole solve: the worker then factors a second copy, this
             # thread starts block Lanczos at once; the count is waited for only when the
@@ -209,17 +218,24 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             second = pool.submit(factorize, A0, backend, definite=True)
             solve0 = factorize(A0, backend, definite=True)
             res = _block_band(K, M, sigma0, lam_max, counting, _SplitSolve(solve0, pool, second),
-                              fits=block_fits, progress=progress)
+                              fits=block_fits, progress=progress, apply_M=apply_M())
             n_target = counting.result()
         else:
             solve0 = factorize(shift(sigma0), backend, definite=True) if used == "pardiso" else None
-            n_target = counting.result() if used == "pardiso" else count_below(K, M, lam_max, backend, shift)
+            # SuperLU's route: a narrow band is counted in band storage, which the shift's
+            # factorization then reuses
+            counted = band_ldlt(K, M, lam_max) if used != "pardiso" else None
+            if counted is not None:
+                work, n_target = counted
+            else:
+                work = None
+                n_target = counting.result() if used == "pardiso" else count_below(K, M, lam_max, backend, shift)
             if block_fits(n_target):
                 # The whole band from one definite factorization, by block Lanczos (its
                 # solves run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
-                if solve0 is None:  # SuperLU's route: a narrow band is factored as a band
-                    solve0 = band_solver(K, M, sigma0) or factorize(shift(sigma0), backend, definite=True)
-                res = _block_band(K, M, sigma0, lam_max, n_target, solve0, progress=progress)
+                if solve0 is None:
+                    solve0 = band_solver(K, M, sigma0, work) or factorize(shift(sigma0), backend, definite=True)
+                res = _block_band(K, M, sigma0, lam_max, n_target, solve0, progress=progress, apply_M=apply_M())
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)

@@ -503,7 +503,10 @@ def discretize_hex(
         keys.append(key)
         kb.append(Kc)
         mb.append(Mc)
-    key, Kb, Mb = _sum_blocks(np.concatenate(keys), np.concatenate(kb), np.concatenate(mb))
+    if len(keys) == 1:  # one chunk: its keys are unique already
+        key, Kb, Mb = keys[0], kb[0], mb[0]
+    else:
+        key, Kb, Mb = _sum_blocks(np.concatenate(keys), np.concatenate(kb), np.concatenate(mb))
     indptr, bcol = _block_pattern(key, nn)
     K = sp.bsr_matrix((Kb.reshape(-1, 3, 3), bcol, indptr), shape=(ndof, ndof)).tocsr()
     M_node = sp.csr_matrix((Mb[:, 0], bcol, indptr), shape=(nn, nn))
@@ -521,7 +524,7 @@ def discretize_hex(
         "n_nodes": int(len(used)),
         "fill_fraction": float(fill[active].mean()),
     }
-    return Discretization(K=K, M=M, interp=interp, n_rigid=6, info=info)
+    return Discretization(K=K, M=M, interp=interp, n_rigid=6, info=info, node_mass=M_node)
 
 
 def _sum_blocks(key, *data):

@@ -287,27 +287,26 @@ def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float, backend: str | None 
     negative pivots as there are eigenvalues below ``lam``. PARDISO (symmetric
     indefinite, Bunch-Kaufman pivots; ``backend=None`` uses it from
     :data:`PARDISO_MIN_DOFS` dofs when installed) reports that count; its answer is taken
-    only when no pivot was perturbed and no pivot is zero. Otherwise a narrow band is
-    factored in band storage (:func:`.banded.band_count`), anything else by SuperLU with
-    a symmetric ordering and no row pivoting, ``K - lam M = L D L^T`` (``U = D L^T``),
+    only when no pivot was perturbed and no pivot is zero. A narrow band is factored in
+    band storage first (:func:`.banded.band_count`; unless ``backend="pardiso"``), anything
+    else by SuperLU with a symmetric ordering and no row pivoting, ``K - lam M = L D L^T``
+    (``U = D L^T``),
     and the count is the number of negative entries of ``D``. Returns None if that
     factorization pivoted too (then the count is not an inertia). ``shift(sigma)``: ``K -
     sigma M`` (:class:`.pencil.Pencil`), default scipy's sum.
     """
     n = K.shape[0]
+    if backend != "pardiso":  # a narrow band: no sparse factorization
+        counted = band_count(K, M, lam)
+        if counted is not None:
+            return counted
     if backend is None:
         backend = backend_name() if n >= PARDISO_MIN_DOFS else "superlu"
-    A = None
+    A = K - lam * M if shift is None else shift(lam)
     if backend == "pardiso":
-        A = K - lam * M if shift is None else shift(lam)
         inertia = _pardiso_inertia(A)
         if inertia is not None and inertia[2] == 0 and inertia[0] + inertia[1] == n:
             return inertia[0]
-    counted = band_count(K, M, lam)  # a narrow band: no sparse factorization
-    if counted is not None:
-        return counted
-    if A is None:
-        A = K - lam * M if shift is None else shift(lam)
     try:
         lu = superlu(A)
     except RuntimeError:  # exactly singular: lam is an eigenvalue

@@ -61,12 +61,20 @@ class Pencil:
     """
 
     def __init__(self, K: sp.spmatrix, M: sp.spmatrix):
-        self.K, self.M = self._canonical(K), self._canonical(M)
-        self.pos = None
-        if self.K.shape == self.M.shape:
-            pos = np.empty(self.M.nnz, np.int64)
-            if _pattern_positions(self.K.indptr, self.K.indices, self.M.indptr, self.M.indices, pos):
-                self.pos = pos
+        self._K, self._M, self._pos = K, M, False  # the pattern is matched on the first call
+
+    @property
+    def pos(self):
+        """Places of ``M``'s entries among ``K``'s (int64, (nnz(M),)), or None when ``M``
+        has an entry ``K`` does not store."""
+        if self._pos is False:
+            self.K, self.M = self._canonical(self._K), self._canonical(self._M)
+            self._pos = None
+            if self.K.shape == self.M.shape:
+                pos = np.empty(self.M.nnz, np.int64)
+                if _pattern_positions(self.K.indptr, self.K.indices, self.M.indptr, self.M.indices, pos):
+                    self._pos = pos
+        return self._pos
 
     @staticmethod
     def _canonical(A):
@@ -76,7 +84,7 @@ class Pencil:
         return A
 
     def __call__(self, sigma: float) -> sp.csr_matrix:
-        if self.pos is None:
+        if self.pos is None:  # (matches the pattern first)
             return sp.csr_matrix(self.K - sigma * self.M)
         data = np.empty_like(self.K.data, dtype=np.float64)
         _shifted_values(self.K.data.astype(np.float64, copy=False), self.M.data.astype(np.float64, copy=False),

@@ -57,7 +57,7 @@ def quadratic_forms(A: sp.spmatrix, Y: np.ndarray, threads: int = 1, columns: bo
     0.24..0.28 s on one thread (three timings of this function alone, 2-core machine)."""
     A = sp.csr_matrix(A)
     Y = np.asarray(Y, dtype=np.float64)
-    indptr, indices = A.indptr.astype(np.int64), A.indices.astype(np.int64)
+    indptr, indices = A.indptr, A.indices  # int32 or int64 as scipy has them (a cast wrote 2.8 MB for the beam)
     data, Yt = np.ascontiguousarray(A.data, dtype=np.float64), np.ascontiguousarray(Y if columns else Y.T)
     n = A.shape[0]
     threads = int(max(1, min(threads, n // 1000)))
