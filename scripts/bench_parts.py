@@ -12,7 +12,7 @@ per call) and prints microseconds per physics step (demo scene) or per env step 
   env: ``frame_skip`` steps per env step);
 * ``call_in_step`` / ``call_back_to_back`` (env): one step-kernel call that steps and renders
   nothing, made after every env step of a run / in a tight loop: the fixed cost of a call
-  (unboxing its ~95 state arrays, the pose sync), which a run pays with cold caches.
+  (unboxing its packed state, the pose sync), which a run pays with cold caches.
 
 The demo is also run with ``sustained=False`` (no sliding / rolling sound), which shows what
 the streams cost. Clicks and contact microphones are off (their cost: ``bench_scene.py``).
@@ -119,7 +119,7 @@ def env_parts(env_id: str, steps: int) -> dict:
 
 def empty_call_cost(env, acts) -> tuple[float, float]:
     """Microseconds of one step-kernel call that runs no substep and renders nothing (its
-    arguments' unboxing and the end-of-call pose sync): between env steps, as in a run (the
+    packed state's unboxing and unpacking and the end-of-call pose sync): between env steps, as in a run (the
     caches hold the physics' and gymnasium's data then), and back to back."""
     sim = env.core.sim
     k = sim._kernel
