@@ -71,3 +71,28 @@ def test_stream_rows_read_the_rings_through_the_delays():
         np.testing.assert_array_equal(rgi[j], g_i)
         np.testing.assert_array_equal(F[j], f)
     assert F[0].any() and not F[0][-20:].any()  # (stream 0: its last samples come after gen)
+
+
+def test_stream_seed_is_splitmix_of_seed_object_and_key():
+    """A new stream's generator state is splitmix64 twice (numpy's wrapping uint64 arithmetic
+    as the reference), its bits as the int64 the STREAM record holds: the same state the
+    stream generator's own splitmix (numba) would make, for seeds and keys of any size."""
+    from mjsound.synth.streams import stream_seed
+
+    def splitmix(x):
+        with np.errstate(over="ignore"):
+            x = x + np.uint64(0x9E3779B97F4A7C15)
+            z = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+            z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+    low63 = 0x7FFFFFFFFFFFFFFF
+    rng = np.random.default_rng(3)
+    cases = [(0, 0, 0), (2**64 - 1, 5, 2**32 - 1), (-1, 0, 7)] + [tuple(int(v) for v in rng.integers(0, 2**63, 3))
+                                                                  for _ in range(50)]
+    for seed, obj, key in cases:
+        a = splitmix(np.uint64(seed & low63) ^ np.uint64(obj & low63))
+        want = splitmix(a ^ np.uint64(key & low63))
+        got = stream_seed(seed, obj, key)
+        assert -(2**63) <= got < 2**63
+        assert np.array([got], np.int64).view(np.uint64)[0] == want

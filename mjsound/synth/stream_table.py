@@ -93,8 +93,7 @@ class StreamTable:
         row = st.table[j]
         row["live"] = 1
         row["obj"] = obj
-        seed = stream_seed(seed, obj, zlib.crc32(repr(key).encode()))  # not hash(): varies by process
-        row["rng"] = np.array([seed], np.uint64).view(np.int64)[0]
+        row["rng"] = stream_seed(seed, obj, zlib.crc32(repr(key).encode()))  # (not hash(): varies by process)
         row["gen"] = rendered
         return j
 

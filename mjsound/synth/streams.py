@@ -46,13 +46,26 @@ def _splitmix(state):
     return state, z
 
 
-@njit(cache=True)
-def stream_seed(seed, obj, key):
-    """Initial generator state of a stream from (synthesizer seed, object index, stream key)."""
-    s = np.uint64(seed & 0x7FFFFFFFFFFFFFFF)
-    s, a = _splitmix(s ^ np.uint64(obj & 0x7FFFFFFFFFFFFFFF))
-    s, b = _splitmix(a ^ np.uint64(key & 0x7FFFFFFFFFFFFFFF))
-    return b
+_MASK64 = (1 << 64) - 1
+
+
+def _splitmix_int(state: int) -> tuple[int, int]:
+    """:func:`_splitmix` on Python integers (modulo 2^64)."""
+    state = (state + 0x9E3779B97F4A7C15) & _MASK64
+    z = ((state ^ (state >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return state, z ^ (z >> 31)
+
+
+def stream_seed(seed: int, obj: int, key: int) -> int:
+    """Initial generator state of a stream from (synthesizer seed, object index, stream key):
+    the uint64 ``splitmix(splitmix(seed ^ obj) ^ key)`` (each input's low 63 bits), as the
+    int64 of the same bits that the stream record's ``rng`` field holds. Plain Python: it
+    runs once per new stream, in Python, where a numba call would cost more than the mix."""
+    s = seed & 0x7FFFFFFFFFFFFFFF
+    _, a = _splitmix_int(s ^ (obj & 0x7FFFFFFFFFFFFFFF))
+    _, b = _splitmix_int(a ^ (key & 0x7FFFFFFFFFFFFFFF))
+    return b - (1 << 64) if b >> 63 else b
 
 
 @njit(cache=True, inline="always")
