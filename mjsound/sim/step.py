@@ -256,4 +256,3 @@ def advance(table, layout, out):
     rn.poses_current = 1
     if rn.render:
         _render_block(synth, target, rn, ck, out)
-

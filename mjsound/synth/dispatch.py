@@ -4,7 +4,8 @@ numba's dispatcher finds the compiled version of a kernel from the types of its 
 every call; for tuples and structured arrays it does so in Python (a structured dtype's
 record type is rebuilt each time: about half a millisecond per array). The per-step and render
 kernels take their state as named records, so they are called through :class:`EntryPoint`:
-the types are computed only when one of the state objects is replaced.
+the types are computed only when one of the state objects is replaced. The step kernel's
+state, about a hundred arrays, crosses packed into one table (:class:`PackedEntry`).
 """
 
 from __future__ import annotations
@@ -48,34 +49,27 @@ class EntryPoint:
         return out
 
 
+
 class PackedEntry:
     """``fn(table, layout, *args)`` for a numba dispatcher ``fn`` whose state crosses as one
     table (:func:`mjsound.synth.packing.pack`; ``fn`` rebuilds it with
-    :func:`~mjsound.synth.packing.unpack`): called as ``entry(state, *args)``, it packs
-    ``state`` again only when an object of it is not the one packed last, and keeps the
-    packed objects alive while their table is in use. ``args`` as for :class:`EntryPoint`.
-    One call unboxes three arguments instead of every array of the state."""
+    :func:`~mjsound.synth.packing.unpack`), called as ``entry(state, *args)`` through an
+    :class:`EntryPoint`: ``state`` is packed again only when one of its objects is not the one
+    packed last, and the packed objects are kept alive while their table is in use. ``args``
+    as for :class:`EntryPoint`. A call unboxes the table, not every array of the state."""
 
-    __slots__ = ("fn", "_key", "_entry", "_keep", "_table", "_layout")
+    __slots__ = ("_call", "_key", "_keep", "_packed")
 
     def __init__(self, fn):
-        self.fn = fn
+        self._call = EntryPoint(fn)
         self._key = None
-        self._entry = self._keep = self._table = self._layout = None
+        self._keep = self._packed = None
 
     def __call__(self, state: tuple, *args):
         key = tuple(map(id, state))
-        if key == self._key:
-            return self._entry(self._table, self._layout, *args)
-        self._key = None
-        self._keep = state  # (its arrays' memory is what the table describes)
-        self._table, self._layout = pack(state)
-        call = (self._table, self._layout, *args)
-        if self.fn.overloads:
-            out = self.fn(*call)
-        else:  # (its first call here: compiled once by one of the processes starting together)
-            with compile_lock(self.fn):
-                out = self.fn(*call)
-        self._entry = self.fn.overloads[tuple(typeof(a) for a in call)].entry_point
-        self._key = key  # (last: an interrupt before it leaves no stale key)
-        return out
+        if key != self._key:
+            self._key = None
+            self._keep = state  # (its arrays' memory is what the table describes)
+            self._packed = pack(state)  # (table, layout)
+            self._key = key  # (last: an interrupt before it leaves no stale key)
+        return self._call(self._packed, *args)
