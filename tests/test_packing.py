@@ -95,3 +95,13 @@ def test_pack_refuses_what_it_cannot_describe():
         pack((np.zeros((1,) * (MAX_NDIM + 1)),))
     with pytest.raises(TypeError, match=r"state\.1 is a bool"):
         pack((np.zeros(1), True))
+
+
+def test_unpack_refuses_a_table_of_another_layout():
+    """A table that does not describe the layout (another number of leaves) raises instead of
+    reading past its end; a table of another dtype does not type."""
+    table, layout = pack(_state())
+    with pytest.raises(ValueError, match="5 leaves"):
+        _touch(table[:4], layout, 1.0)
+    with pytest.raises(numba.core.errors.TypingError):
+        _touch(np.zeros(5), layout, 1.0)

@@ -35,7 +35,7 @@ Example
 from __future__ import annotations
 
 import numpy as np
-from numba import typeof, types
+from numba import from_dtype, typeof, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
@@ -89,6 +89,7 @@ def pack(state: tuple) -> tuple[np.ndarray, types.Type]:
 
 
 _OFFSET = {name: PACKED.fields[name][1] // 8 for name in ("addr", "value", "shape", "strides")}
+_PACKED_TYPE = from_dtype(PACKED)
 _ROW = PACKED.itemsize // 8
 
 
@@ -97,14 +98,20 @@ def unpack(typingctx, table, layout):
     """``unpack(table, layout)`` in a kernel: the state :func:`pack` described, rebuilt as
     the nested tuples of ``layout`` whose arrays view the packed arrays' memory (no memory
     record: numba does not count references to them)."""
-    if not (isinstance(table, types.Array) and table.ndim == 1 and isinstance(layout, types.TypeRef)):
+    if not (isinstance(table, types.Array) and table.ndim == 1 and table.dtype == _PACKED_TYPE
+            and isinstance(layout, types.TypeRef)):
         return None
     ty = layout.instance_type
+    n_leaves = sum(1 for _ in _leaf_types(ty))
 
     def codegen(context, builder, sig, args):
+        tab = make_array(sig.args[0])(context, builder, value=args[0])
+        rows = builder.extract_value(tab.shape, 0)
+        with cgutils.if_unlikely(builder, builder.icmp_signed("!=", rows, context.get_constant(types.intp, n_leaves))):
+            context.call_conv.return_user_exc(builder, ValueError, (
+                f"unpack: the table has another number of rows than the {n_leaves} leaves of its layout",))
         # (the table read as int64 words: row r's field f at r * _ROW + _OFFSET[f])
-        words = builder.bitcast(make_array(sig.args[0])(context, builder, value=args[0]).data,
-                                context.get_value_type(types.int64).as_pointer())
+        words = builder.bitcast(tab.data, context.get_value_type(types.int64).as_pointer())
         intp = context.get_value_type(types.intp)
         row = [0]
 
