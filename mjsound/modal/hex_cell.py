@@ -254,18 +254,19 @@ class CellSum:
     def __call__(self, w: np.ndarray) -> np.ndarray:
         k = w.shape[1] if self._n_occ is None else self._n_occ
         full = np.all(w[:, :k] == 1.0, axis=1) & np.all(w[:, k:] == 0.0, axis=1)
-        out = np.empty((len(w), len(self._iu)))
+        out = np.empty((len(w), len(self.pos)))  # written once, row by row: no upper-triangle copy
         part = np.flatnonzero(~full)
         if len(part):
             k = self._n_occ
             if k is None or k == w.shape[1]:
-                out[part] = w[part] @ self.Au
+                upper = w[part] @ self.Au
             else:  # first-moment weights: nonzero only in partly filled children (sparse)
                 import scipy.sparse as sp
 
-                out[part] = w[part, :k] @ self.Au[:k] + sp.csr_matrix(w[part, k:]) @ self.Au[k:]
+                upper = w[part, :k] @ self.Au[:k] + sp.csr_matrix(w[part, k:]) @ self.Au[k:]
+            out[part] = upper[:, self.pos]
         if full.any():
             if self.full is None:
                 self.Au  # noqa: B018 (builds the table and its full-cell sum)
-            out[full] = self.full
-        return out[:, self.pos]
+            out[full] = self.full[self.pos]
+        return out
