@@ -77,6 +77,36 @@ def test_curved_surfaces_get_finer_voxels():
     assert hex_refine(sphere, 0.002, None, "high") < QUALITY["high"]["curved_refine"]
 
 
+def test_a_box_keeps_the_quality_refine_with_the_same_model():
+    """A box's fine voxels are all full at any refinement: the thin-wall raise (12 for the
+    beam: wall 5 mm, cells 14.7 mm) would change nothing but the work. A plate thinner than
+    half a fine voxel at the quality's refine keeps the raise (its slab logic depends on it),
+    and so does anything that is not one box."""
+    import trimesh
+
+    from mjsound.modal.analyze import analyze
+    from mjsound.modal.plan import fills_bounding_box
+
+    beam, plate = load_mesh("box:0.5,0.01,0.01"), load_mesh("box:0.3,0.3,0.002")
+    assert fills_bounding_box(beam) and fills_bounding_box(plate)
+    assert not fills_bounding_box(load_mesh("sphere:0.1"))
+    # two boxes stacked into their bounding box (its volume, every face along an axis) and
+    # two boxes apart: not one box
+    a = trimesh.creation.box((0.2, 0.02, 0.01))
+    stacked = trimesh.util.concatenate([a, a.copy().apply_translation((0, 0, 0.01))])
+    apart = trimesh.util.concatenate([a, a.copy().apply_translation((0, 0, 0.05))])
+    assert stacked.is_watertight and abs(stacked.volume - np.prod(stacked.extents)) < 1e-12
+    assert not fills_bounding_box(stacked) and not fills_bounding_box(apart)
+    assert hex_refine(stacked, 0.0147, None, "default") > QUALITY["default"]["refine"]
+    assert hex_refine(beam, 0.0147, None, "default") == QUALITY["default"]["refine"]
+    assert hex_refine(plate, 0.0136, None, "default") == 16
+    kw = dict(method="hex", f_max=3000, resolution=12, cache=False, error_estimate=False)
+    kept = analyze("box:0.2,0.01,0.01", AL, **kw)
+    raised = analyze("box:0.2,0.01,0.01", AL, refine=12, **kw)
+    assert kept.info["refine"] == QUALITY["default"]["refine"] and raised.info["refine"] == 12
+    assert np.array_equal(kept.frequencies_hz, raised.frequencies_hz)
+
+
 def test_timoshenko_reference_against_the_square_beam_and_a_rectangle():
     """The rod's bending reference model (Timoshenko's beam, mjsound.report.timoshenko) is
     within 0.5 cent of the square beam's converged 3D values, and its section helper gives a

@@ -55,7 +55,7 @@ from .surface import face_components
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
            "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine", "hex_moments",
-           "mode_count_inputs", "frequency_of_mode", "solid_modes", "axis_aligned_fraction"]
+           "mode_count_inputs", "frequency_of_mode", "solid_modes", "axis_aligned_fraction", "fills_bounding_box"]
 
 MEMORY_PER_DOF = 20e3  # bytes per dof at 1e5 dofs (factor, matrices, assembly)
 QUADRATIC_SIZE = 1.5  # a quadratic element spans this many linear ones (measured on plate and bowl)
@@ -446,11 +446,18 @@ def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality
     A curved closed surface (less than :data:`ALIGNED_CURVED` of its area facing along an
     axis) gets at least ``curved_refine``: its staircase, not the element size, limits the
     accuracy there (the 0.1 m sphere: 6.5 cents at refine 3, 1.5 at 6, 0.6 at 10, same
-    dofs), as long as the fine grid stays under :data:`MAX_FINE_VOXELS`."""
+    dofs), as long as the fine grid stays under :data:`MAX_FINE_VOXELS`.
+
+    A box (:func:`fills_bounding_box`) no thinner than half a fine voxel of the quality's
+    ``refine`` keeps that ``refine``: the cells tile its bounding box, so every fine voxel is
+    full at any refinement and no wall is smeared (the beam's model is the same bit for bit
+    at 3 as at the 12 the raise gave, and its analysis 10 % faster)."""
     q = quality_preset(quality)
     r = q["refine"]
     t = thin_wall(mesh, thickness)
     if np.isfinite(t) and t > 0 and mesh.is_watertight:
+        if float(np.min(mesh.extents)) >= 0.5 * h / r and fills_bounding_box(mesh):
+            return r
         r = int(np.clip(np.ceil(4 * h / t), r, MAX_REFINE))
         if axis_aligned_fraction(mesh) < ALIGNED_CURVED:
             if hex_moments(mesh, h, thickness, quality, order) if moments is None else moments:
@@ -460,6 +467,17 @@ def hex_refine(mesh: trimesh.Trimesh, h: float, thickness: float | None, quality
             cells = float(np.prod(np.maximum(1.0, np.ceil(np.asarray(mesh.extents, float) / h))))
             r = max(r, min(q["curved_refine"], int((MAX_FINE_VOXELS / cells) ** (1.0 / 3.0))))
     return r
+
+
+def fills_bounding_box(mesh: trimesh.Trimesh) -> bool:
+    """Whether a mesh is its own axis-aligned bounding box: one watertight piece, every face
+    along an axis, and the box's volume (to 1e-9)."""
+    if not mesh.is_watertight or axis_aligned_fraction(mesh) < 1.0:
+        return False
+    box = float(np.prod(mesh.extents))
+    if box <= 0.0 or abs(abs(float(mesh.volume)) - box) > 1e-9 * box:
+        return False
+    return face_components(mesh)[0] == 1
 
 
 def memory_gb(dofs: float, modes: float, extra_bytes: float = 0.0) -> float:
