@@ -6,13 +6,65 @@ from __future__ import annotations
 
 from functools import partial
 
+import numba as nb
 import numpy as np
 import scipy.linalg as sla
 
+from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 from .node_mass import mass_rows
 from .quadratic_forms import quadratic_forms
 
 __all__ = []
+
+#: below this many dofs the basis products (:func:`_project_small`, :func:`_combine_small`)
+#: are numba kernels and the eigensolver leaves BLAS's threads alone (:func:`.eigen.solve_band`)
+SERIAL_PRODUCTS_DOFS = 20000
+#: floating-point liberties of the product kernels: reassociation (vectorised sums) and
+#: fused multiply-adds
+_FAST = {"reassoc", "contract", "nsz", "arcp"}
+
+
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
+def _project_small(F, MF, Q, C):
+    """``C = Q MF^T`` (k, b) and ``F -= C^T Q`` for rows ``Q`` (k, n), ``F``, ``MF`` (b, n):
+    :func:`_project_out` without BLAS."""
+    k, n = Q.shape
+    b = F.shape[0]
+    for i in range(k):
+        for j in range(b):
+            acc = 0.0
+            for t in range(n):
+                acc += Q[i, t] * MF[j, t]
+            C[i, j] = acc
+    for j in range(b):
+        for i in range(k):
+            c = C[i, j]
+            for t in range(n):
+                F[j, t] -= c * Q[i, t]
+
+
+@nb.njit(cache=True, nogil=True, fastmath=_FAST)
+def _combine_small(Q, S, V):
+    """``V = Q^T S`` (n, m) for rows ``Q`` (k, n) and ``S`` (k, m), without BLAS."""
+    k, n = Q.shape
+    m = S.shape[1]
+    for t in range(n):
+        for c in range(m):
+            V[t, c] = 0.0
+    for i in range(k):
+        for t in range(n):
+            q = Q[i, t]
+            for c in range(m):
+                V[t, c] += q * S[i, c]
+
+
+def _project(F, MF, Q, both):
+    """:func:`_project_out`, or its kernel below :data:`SERIAL_PRODUCTS_DOFS` dofs."""
+    if Q.shape[1] >= SERIAL_PRODUCTS_DOFS:
+        return _project_out(F, MF, Q, both)
+    C = np.empty((Q.shape[0], F.shape[0]))
+    _project_small(F, np.ascontiguousarray(MF), np.ascontiguousarray(Q), C)
+    return C
 
 
 class _SplitSolve:
@@ -246,7 +298,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         F = P - C.T @ Q[dl:d]
         MF = MP - C[:len(MW_prev)].T @ MW_prev
         MF -= C[len(MW_prev):].T @ MW
-        C2 = _project_out(F, MF, Q[lo:d], both)
+        C2 = _project(F, MF, Q[lo:d], both)
         C2[dl - lo:d - lo] += C
         Hjj = C2[d0 - lo:d - lo]
         H[d0:d, d0:d] = 0.5 * (Hjj + Hjj.T)
@@ -259,8 +311,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         # orthogonal only to ~eps |T W| / |F|: then once more.
         left = np.einsum("ij,ij->i", F, MF) / np.maximum(np.einsum("ij,ij->j", C2, C2) + np.einsum("ij,ij->i", F, MF), 1e-300)
         if left.size and left.min() < 1e-8:
-            C3 = Q[:d] @ MW.T
-            W -= C3.T @ Q[:d]
+            _project(W, MW, Q[:d], both)
             W, MW, R2 = orthonormal(W, apply_M(W))
             R = R2 @ R
         # block tridiagonal, as in Lanczos: T W = W H_jj + W_prev H_(j-1)j + W_next R (what
@@ -272,7 +323,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         if W.shape[0] < bb:  # the Krylov space closed up (or nearly): restart with fresh directions
             Z = rng.standard_normal((bb - W.shape[0], n))
             for _ in range(2):
-                Z -= (Q[:d] @ apply_M(Z).T).T @ Q[:d]
+                _project(Z, apply_M(Z), Q[:d], both)
                 if W.shape[0]:
                     Z -= (Z @ MW.T) @ W
             Z, MZ, _ = orthonormal(Z, apply_M(Z))
@@ -310,7 +361,10 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
                 S = np.ascontiguousarray(S[:, np.argsort(sigma + 1.0 / mu)])
                 V = np.empty((n, S.shape[1]))
                 h = n // 2
-                both(partial(np.matmul, Q[:d, :h].T, S, out=V[:h]), partial(np.matmul, Q[:d, h:].T, S, out=V[h:]))
+                if n < SERIAL_PRODUCTS_DOFS:
+                    _combine_small(Q[:d], S, V)
+                else:
+                    both(partial(np.matmul, Q[:d, :h].T, S, out=V[:h]), partial(np.matmul, Q[:d, h:].T, S, out=V[h:]))
                 # Eigenvalues as Rayleigh quotients of the vectors (error ~ residual^2): the
                 # Ritz values sigma + 1/mu carry rounding of order eps * mu_max / mu, and
                 # mu_max (rigid modes, 1/|sigma|) is ~1e6 x the mu at the top of the band:
