@@ -125,3 +125,31 @@ def test_superlu_natural_and_minimum_degree_orders_solve(bar):
     C = sp.csr_matrix(G @ G.T + 50 * np.eye(50))
     lu = superlu(C)
     assert np.allclose(C @ lu.solve(y[:50]), y[:50], atol=1e-9)
+
+
+def test_small_product_kernels_match_numpy():
+    from mjsound.modal.block_lanczos import _combine_small, _project_small
+
+    rng = np.random.default_rng(4)
+    Q, F, MF, S = (rng.standard_normal(s) for s in ((9, 40), (3, 40), (3, 40), (9, 5)))
+    C = np.empty((9, 3))
+    G = F.copy()
+    _project_small(G, MF, Q, C)
+    assert np.allclose(C, Q @ MF.T, rtol=1e-13, atol=1e-13)
+    assert np.allclose(G, F - (Q @ MF.T).T @ Q, rtol=1e-13, atol=1e-13)
+    V = np.full((40, 5), np.nan)
+    _combine_small(Q, S, V)
+    assert np.allclose(V, Q.T @ S, rtol=1e-13, atol=1e-13)
+
+
+def test_block_band_small_products_and_blas_agree(bar, monkeypatch):
+    """The bar's band with the numba products and with BLAS's (SMALL_PRODUCTS = 0)."""
+    from mjsound.modal import block_lanczos as BL
+
+    d, w = bar
+    lo, hi = (2 * np.pi * 20) ** 2, _cut(w, 30)[0]
+    small = E.solve_band(d.K, d.M, lo, hi, dense_max=10)
+    monkeypatch.setattr(BL, "SMALL_PRODUCTS", 0.0)
+    blas = E.solve_band(d.K, d.M, lo, hi, dense_max=10)
+    assert len(small.eigenvalues) == len(blas.eigenvalues)
+    assert np.allclose(small.eigenvalues, blas.eigenvalues, rtol=1e-10)

@@ -16,9 +16,13 @@ from .quadratic_forms import quadratic_forms
 
 __all__ = []
 
-#: below this many dofs the basis products (:func:`_project_small`, :func:`_combine_small`)
-#: are numba kernels and the eigensolver leaves BLAS's threads alone (:func:`.eigen.solve_band`)
-SERIAL_PRODUCTS_DOFS = 20000
+#: below this many dofs the eigensolver leaves BLAS's threads alone (:func:`.eigen.solve_band`;
+#: from here on the solves split over two cores, :data:`.eigen.SPLIT_MIN_DOFS`), and the
+#: basis products of at most :data:`SMALL_PRODUCTS` multiply-adds are numba kernels
+#: (:func:`_project_small`, :func:`_combine_small`), which start no BLAS thread
+SERIAL_PRODUCTS_DOFS = 10000
+#: the beam's largest (56 basis vectors x 3123 dofs x 23 Ritz vectors): 4e6
+SMALL_PRODUCTS = 8e6
 #: floating-point liberties of the product kernels: reassociation (vectorised sums) and
 #: fused multiply-adds
 _FAST = {"reassoc", "contract", "nsz", "arcp"}
@@ -58,9 +62,14 @@ def _combine_small(Q, S, V):
                 V[t, c] += q * S[i, c]
 
 
+def _small(k: int, n: int, m: int) -> bool:
+    """Whether a product of ``k x n`` by ``n x m`` goes to a numba kernel (:data:`SMALL_PRODUCTS`)."""
+    return n < SERIAL_PRODUCTS_DOFS and float(k) * n * m <= SMALL_PRODUCTS
+
+
 def _project(F, MF, Q, both):
-    """:func:`_project_out`, or its kernel below :data:`SERIAL_PRODUCTS_DOFS` dofs."""
-    if Q.shape[1] >= SERIAL_PRODUCTS_DOFS:
+    """:func:`_project_out`, or its kernel for a small product (:func:`_small`)."""
+    if not _small(Q.shape[0], Q.shape[1], F.shape[0]):
         return _project_out(F, MF, Q, both)
     C = np.empty((Q.shape[0], F.shape[0]))
     _project_small(F, np.ascontiguousarray(MF), np.ascontiguousarray(Q), C)
@@ -361,7 +370,7 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
                 S = np.ascontiguousarray(S[:, np.argsort(sigma + 1.0 / mu)])
                 V = np.empty((n, S.shape[1]))
                 h = n // 2
-                if n < SERIAL_PRODUCTS_DOFS:
+                if _small(d, n, S.shape[1]):
                     _combine_small(Q[:d], S, V)
                 else:
                     both(partial(np.matmul, Q[:d, :h].T, S, out=V[:h]), partial(np.matmul, Q[:d, h:].T, S, out=V[h:]))

@@ -139,8 +139,8 @@ def solve_band(
     M = sp.csr_matrix(M)
     # ARPACK's level-2 BLAS on vectors of a few thousand entries is ~10x slower with
     # OpenBLAS threads than without (thread wake-ups dominate): run the solve on one thread.
-    # Below SERIAL_PRODUCTS_DOFS the block solve's products are numba kernels instead and
-    # BLAS's threads are left alone (only ARPACK's slices take the limit): in a process just
+    # Below SERIAL_PRODUCTS_DOFS BLAS's threads are left alone (only ARPACK's slices take the
+    # limit) and the block solve's small products are numba kernels: in a process just
     # forked, setting OpenBLAS's thread count starts its thread pool afresh, whose threads
     # then spin for ~0.1 s beside the solve (the beam's whole analysis 0.15 s against 0.09 s).
     with contextlib.nullcontext() if K.shape[0] < SERIAL_PRODUCTS_DOFS else _single_threaded_blas():
