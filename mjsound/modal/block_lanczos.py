@@ -4,6 +4,7 @@ with its two-core helpers (:class:`_SplitSolve`, :func:`_project_out`); used by
 
 from __future__ import annotations
 
+import contextlib
 from functools import partial
 
 import numba as nb
@@ -207,8 +208,40 @@ def _full_pass(step: int) -> bool:
     return step % 2 == 0
 
 
-def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
-                both=None, fits=None, progress=None, b=None):
+def single_threaded_blas():
+    """A context with BLAS on one thread. threadpoolctl's controller (the loaded libraries,
+    found by scanning the process: 2..7 ms, a third of a small analysis's solve) is made
+    once per process, when a solve first needs it (one BLAS loaded later is not limited:
+    only speed is at stake)."""
+    global _BLAS_CONTROLLER
+    try:
+        if _BLAS_CONTROLLER is None:
+            from threadpoolctl import ThreadpoolController
+
+            _BLAS_CONTROLLER = ThreadpoolController()
+        return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
+    except ImportError:  # optional: only speed is lost
+        return contextlib.nullcontext()
+
+
+_BLAS_CONTROLLER = None
+#: from this basis size on, LAPACK's eigensolver of the projection (multithreaded in
+#: OpenBLAS from about here: 36 calls of d = 100..200 took 1.5 s on two threads) runs with
+#: BLAS on one thread (below :data:`SERIAL_PRODUCTS_DOFS` dofs, where the solve leaves
+#: BLAS's threads alone until then)
+SERIAL_EIGH_DIM = 64
+
+
+def _block_band(K, M, sigma, lam_max, n_target, solve, **options):
+    """:func:`_block_lanczos` (its parameters), with BLAS on one thread once the basis
+    outgrows :data:`SERIAL_EIGH_DIM` (below :data:`SERIAL_PRODUCTS_DOFS` dofs; above, the
+    caller has limited it already)."""
+    with contextlib.ExitStack() as limits:
+        return _block_lanczos(K, M, sigma, lam_max, n_target, solve, limits=limits, **options)
+
+
+def _block_lanczos(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_dim=None, apply_M=None,
+                   both=None, fits=None, progress=None, b=None, limits=None):
     """Every eigenpair with ``lambda <= lam_max``, ``n_target`` of them (Sylvester count).
 
     Block Lanczos for ``T = (K - sigma M)^{-1} M`` (self-adjoint in the M inner product)
@@ -354,6 +387,9 @@ def _block_band(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, max_
         # the count first, from the eigenvalues alone (LAPACK syev without vectors: 10 ms
         # at d = 372 against 47 for selected pairs by syevr); the pairs (syevd, 22 ms) only
         # when the count is complete
+        if limits is not None and d > SERIAL_EIGH_DIM and n < SERIAL_PRODUCTS_DOFS:
+            limits.enter_context(single_threaded_blas())
+            limits = None  # (entered once)
         mu = sla.eigh(H[:d, :d], eigvals_only=True, driver="ev")
         ok = np.sum((mu > mu_cut) | (mu < 0)) == count
         if ok:

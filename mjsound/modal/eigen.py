@@ -66,7 +66,7 @@ import scipy.sparse.linalg as spla
 
 from .banded import band_ldlt, band_solver, band_width
 from .block_lanczos import (BLOCK_TOL, PROJECT_SPLIT_MIN, SERIAL_PRODUCTS_DOFS, _block_band, _project_out,  # noqa: F401
-                            _SplitSolve)
+                            _SplitSolve, single_threaded_blas)
 from .node_mass import mass_rows
 from .pardiso import PARDISO_MIN_DOFS, backend_name, count_below, factorize, factorize_indefinite  # noqa: F401
 from .pencil import Pencil
@@ -149,28 +149,15 @@ def solve_band(
 
 
 def _single_threaded_blas():
-    """A context with BLAS on one thread. threadpoolctl's controller (the loaded libraries,
-    found by scanning the process: 2..7 ms, a third of a small analysis's solve) is made
-    once per process, when a solve first needs it (one BLAS loaded later is not limited:
-    only speed is at stake)."""
-    global _BLAS_CONTROLLER
-    try:
-        if _BLAS_CONTROLLER is None:
-            from threadpoolctl import ThreadpoolController
-
-            _BLAS_CONTROLLER = ThreadpoolController()
-        return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
-    except ImportError:  # optional: only speed is lost
-        return contextlib.nullcontext()
-
-
-_BLAS_CONTROLLER = None
+    """BLAS on one thread (:func:`.block_lanczos.single_threaded_blas`)."""
+    return single_threaded_blas()
 
 
 def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0, node_mass=None):
     n = K.shape[0]
     if n <= dense_max:
-        w, V = sla.eigh(K.toarray(), M.toarray(), driver="gvd")
+        with _single_threaded_blas() if n < SERIAL_PRODUCTS_DOFS else contextlib.nullcontext():
+            w, V = sla.eigh(K.toarray(), M.toarray(), driver="gvd")
         n_below = int(np.sum(w < lam_min))
         sel = (w >= lam_min) & (w <= lam_max)
         w, V = w[sel], V[:, sel]
