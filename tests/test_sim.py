@@ -483,6 +483,7 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
     from mjsound.jit import call_inner
     from mjsound.sim.impulses import write_records
     from mjsound.sim.pairs import update_pairs
+    from mjsound.sim.records import pair_scratch
 
     model = mujoco.MjModel.from_xml_string(drop_xml())
     reader = ContactReader(model)
@@ -492,7 +493,7 @@ def test_impact_record_closed_by_a_new_onset_keeps_its_own_sums():
     def step(k, vmax, f):
         reader.counts[0]["step"] = k
         slot, onset, kind, speed = call_inner(update_pairs, reader.state(), key, np.array([vmax]), np.array([f]), zeros, zeros,
-                                                0.01 * (k - 1), 0.01 * k)
+                                                0.01 * (k - 1), 0.01 * k, pair_scratch(1)[1])
         return bool(onset[0]), int(slot[0])
 
     onset, j = step(1, 1.0, 100.0)  # impact

@@ -67,7 +67,7 @@ import numpy as np
 from .impulses import restitution_of
 from .pairs import contact_quantities, rehash
 from .records import (BODY, GEOM, HIT, IMPACT, LOG, MISSING, ONSET, PAIR, PAIR_ROW, READER_COUNTS, READER_PARAMS,
-                      RECORD, ReaderState, StepBuffers)
+                      RECORD, ReaderState, StepBuffers, contact_quantities_of, pair_scratch)
 
 __all__ = ["ContactReader", "ContactFrame", "ImpactEvent", "ContactEvent", "ImpactRecord"]
 
@@ -350,6 +350,7 @@ class ContactReader:
             return
         cap = max(cap, 2 * ncon if ncon > cap else cap, 8)
         rcap = max(rcap, 64, 2 * (nrec + ncon))
+        groups, steps = pair_scratch(cap)
         new = StepBuffers(
             geom=np.zeros((cap, 2), np.int32), pos=np.zeros((cap, 3)), frame=np.zeros((cap, 9)),
             efc_address=np.zeros(cap, np.int32), dim=np.zeros(cap, np.int32),
@@ -357,10 +358,11 @@ class ContactReader:
             sustained=np.zeros(cap, PAIR_ROW), hits=np.zeros(cap, HIT), onsets=np.zeros(cap + 1, ONSET),
             impacts=np.zeros(cap, IMPACT), jn=np.zeros((cap, nv)), minv_jt=np.zeros((cap, nv)),
             records=np.zeros(rcap, RECORD), missing=np.zeros(2 * cap, MISSING),
-            log=np.zeros(0, LOG) if b is None else b.log)
+            log=np.zeros(0, LOG) if b is None else b.log, quantities=contact_quantities_of(cap),
+            groups=groups, steps=steps)
         if b is not None:
             for old, arr in zip(b, new):
-                if arr is not old:
+                if arr is not old and isinstance(arr, np.ndarray):  # (the working tuples start afresh)
                     k = min(len(old), len(arr))
                     arr[:k] = old[:k]
         self.buffers = new
@@ -483,8 +485,9 @@ class ContactReader:
         b = self.buffers
         con = data.contact
         views = self._kernel(data)[0].views
-        fn, normal, vel_rel, vapp, v_slip, v_roll, nbad, nhuge = contact_quantities(
-            b, n, np.ascontiguousarray(data.efc_force), self.state(), views)
+        q = contact_quantities_of(n)  # (the frame's own arrays)
+        nbad, nhuge = contact_quantities(b, n, np.ascontiguousarray(data.efc_force), self.state(), views, q)
+        fn, normal, vel_rel, vapp, v_slip, v_roll = q.fn, q.nrm, q.vrel, q.vapp, q.vslip, q.vroll
         if nbad or nhuge:
             self.counts[0]["n_bad"] += nbad
             self.counts[0]["n_huge"] += nhuge

@@ -12,37 +12,32 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit, njit_inner
-from ..synth.sorting import stable_argsort
+from ..synth.sorting import stable_argsort_into
 
 __all__ = ["contact_quantities", "group_pairs", "slot_of", "rehash", "update_pairs", "read_pairs"]
 
 
 @njit(cache=True)
-def contact_quantities(buf, ncon, efc, reader, views):
-    """Per contact ``i < ncon`` of ``buf`` (world frame): normal force [N] (summed pyramid
-    facets; non-finite forces are 0, huge ones clamped to ``max_force``), unit normal, relative
+def contact_quantities(buf, ncon, efc, reader, views, out):
+    """Per contact ``i < ncon`` of ``buf`` (world frame), into the rows ``< ncon`` of ``out``
+    (:class:`.records.ContactQuantities`): normal force [N] (summed pyramid facets;
+    non-finite forces are 0, huge ones clamped to ``max_force``), unit normal, relative
     velocity of geom2's material point minus geom1's [m/s] (from ``cvel`` about each body's
     subtree com), approach speed ``-(v_rel . n)``, slip speed ``|v_rel,t|`` and rolling speed
     ``|omega_rel,t| r`` (r: distance to the nearer non-plane geom centre). Contacts with
     non-finite data are silenced (force 0, normal +z) and non-finite points set to 0.
-    Returns ``(fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge)``."""
+    Returns ``(nbad, nhuge)``: contacts silenced, forces clamped."""
     geom, pos, frame, adr, dim = buf.geom, buf.pos, buf.frame, buf.efc_address, buf.dim
     prm = reader.prm[0]
     pyramidal, fmax = prm.pyramidal, prm.max_force
     geoms, bodies = reader.geoms, reader.bodies
     cvel, scom, gxpos = views.cvel, views.subtree_com, views.geom_xpos
     n = ncon
-    fn = np.zeros(n)
-    nrm = np.empty((n, 3))
-    vrel = np.empty((n, 3))
-    vapp = np.empty(n)
-    vslip = np.empty(n)
-    vroll = np.empty(n)
+    fn, nrm, vrel, vapp, vslip, vroll = out.fn, out.nrm, out.vrel, out.vapp, out.vslip, out.vroll
     nbad = 0
     nhuge = 0
-    v = np.zeros((2, 3))  # per contact side: point velocity and angular velocity (reused)
-    w = np.zeros((2, 3))
-    wr = np.empty(3)
+    # per contact side: point velocity v and angular velocity w, and their difference wr
+    v, w, wr = out.sides[0:2], out.sides[2:4], out.sides[4]
     for i in range(n):
         a = adr[i]
         f = 0.0
@@ -120,35 +115,36 @@ def contact_quantities(buf, ncon, efc, reader, views):
         if not np.isfinite(rad):
             rad = 0.0
         vroll[i] = np.sqrt(wt) * rad
-    return fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge
+    return nbad, nhuge
 
 
 @njit_inner(cache=True)
-def group_pairs(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm):
-    """Group contacts by geom pair: per pair its contacts, largest approach speed, total normal
-    force and the force-weighted slip speed, rolling speed, point and normal.
-    Returns ``(order, starts, key, vmax, ftot, slip, roll, point, normal)``: pair ``p``'s
-    contacts are ``order[starts[p]:starts[p + 1]]``."""
+def group_pairs(geom, ngeom, fn, vapp, vslip, vroll, pos, nrm, out):
+    """Group the contacts (``fn`` and the other per-contact arrays: their first n rows) by geom
+    pair, in ``out`` (:class:`.records.PairGroups`): per pair its contacts, largest approach
+    speed, total normal force and the force-weighted slip speed, rolling speed, point and
+    normal. Returns ``(order, starts, key, vmax, ftot, slip, roll, point, normal)`` (views of
+    ``out``): pair ``p``'s contacts are ``order[starts[p]:starts[p + 1]]``."""
     n = fn.shape[0]
-    keys = np.empty(n, np.int64)
+    keys = out.keys[:n]
     for i in range(n):
         a, b = geom[i, 0], geom[i, 1]
         keys[i] = min(a, b) * ngeom + max(a, b)
-    order = stable_argsort(keys)
-    starts = np.empty(n + 1, np.int64)
+    order = stable_argsort_into(keys, out.order, out.order_b)
+    starts = out.starts
     P = 0
     for j in range(n):
         if j == 0 or keys[order[j]] != keys[order[j - 1]]:
             starts[P] = j
             P += 1
     starts[P] = n
-    pkey = np.empty(P, np.int64)
-    vmax = np.empty(P)
-    ftot = np.zeros(P)
-    slip = np.zeros(P)
-    roll = np.zeros(P)
-    point = np.zeros((P, 3))
-    normal = np.zeros((P, 3))
+    pkey, vmax = out.pkey[:P], out.vmax[:P]
+    ftot, slip, roll, point, normal = out.ftot[:P], out.slip[:P], out.roll[:P], out.point[:P], out.normal[:P]
+    ftot[:] = 0.0
+    slip[:] = 0.0
+    roll[:] = 0.0
+    point[:] = 0.0
+    normal[:] = 0.0
     for p in range(P):
         i0 = order[starts[p]]
         pkey[p] = keys[i0]
@@ -219,12 +215,13 @@ def rehash(keys, vals, size):
 
 
 @njit_inner(cache=True)
-def update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1):
+def update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1, out):
     """The per-pair state machine for one step ``[t0, t1)`` (the rules are in
     :mod:`mjsound.sim.contacts`): finds or makes each pair's slot, decides impact onsets,
     accumulates the open records' ``sum F dt`` and classifies sustained contact. Returns per
-    pair its slot, onset (an impact starts), kind (0 none, 1 slide, 2 roll) and speed. Pairs
-    seen before but not in this step close their open impact record."""
+    pair its slot, onset (an impact starts), kind (0 none, 1 slide, 2 roll) and speed (views
+    of ``out``, :class:`.records.PairSteps`). Pairs seen before but not in this step close
+    their open impact record."""
     prm = reader.prm[0]
     cnt = reader.counts[0]
     S = reader.pairs
@@ -234,10 +231,10 @@ def update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1):
     nslots = cnt.nslots
     dt = t1 - t0
     P = pkey.shape[0]
-    slot = np.empty(P, np.int64)
-    onset_out = np.zeros(P, np.bool_)
-    kind = np.zeros(P, np.int64)
-    speed = np.zeros(P)
+    slot, onset_out, kind, speed = out.slot[:P], out.onset[:P], out.kind[:P], out.speed[:P]
+    onset_out[:] = False
+    kind[:] = 0
+    speed[:] = 0.0
     for p in range(P):
         j, new = slot_of(reader.hkeys, reader.hvals, pkey[p], nslots)
         s = S[j]
@@ -305,13 +302,15 @@ def read_pairs(reader, buf, views, ncon, efc, t0, t1):
     counter must already count this step. Returns ``(pairs, n_sustained, n_hits, n_onset)``."""
     prm = reader.prm[0]
     cnt = reader.counts[0]
-    fn, nrm, vrel, vapp, vslip, vroll, nbad, nhuge = contact_quantities(buf, ncon, efc, reader, views)
+    q = buf.quantities
+    nbad, nhuge = contact_quantities(buf, ncon, efc, reader, views, q)
     cnt.n_bad += nbad
     cnt.n_huge += nhuge
     geom, pos = buf.geom, buf.pos
+    fn, nrm, vapp = q.fn[:ncon], q.nrm[:ncon], q.vapp[:ncon]
     order, starts, pkey, vmax, ftot, slip, roll, point, normal = group_pairs(
-        geom, reader.geoms.shape[0], fn, vapp, vslip, vroll, pos, nrm)
-    slot, onset, kind, speed = update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1)
+        geom, reader.geoms.shape[0], fn, vapp, q.vslip[:ncon], q.vroll[:ncon], pos, nrm, buf.groups)
+    slot, onset, kind, speed = update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1, buf.steps)
     rows = buf.rows
     P = pkey.shape[0]
     n_onset = 0

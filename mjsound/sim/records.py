@@ -20,7 +20,8 @@ import numpy as np
 __all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
            "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "NOT_RENDERED", "CLICK_PARAMS",
            "CLICK_BODY", "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState",
-           "ClickModel", "PulseState", "record"]
+           "ClickModel", "PulseState", "record", "ContactQuantities", "PairGroups", "PairSteps", "contact_quantities_of",
+           "pair_scratch"]
 
 i8, f8 = np.int64, np.float64
 
@@ -191,8 +192,62 @@ class ReaderState(NamedTuple):
     pairs: np.ndarray  # (slots,) PAIR
 
 
+class ContactQuantities(NamedTuple):
+    """Per contact of a substep (:func:`mjsound.sim.pairs.contact_quantities`; rows ``< ncon``)."""
+
+    fn: np.ndarray  # (cap,) normal force [N]
+    nrm: np.ndarray  # (cap, 3) unit normal
+    vrel: np.ndarray  # (cap, 3) relative velocity [m/s]
+    vapp: np.ndarray  # (cap,) approach speed [m/s]
+    vslip: np.ndarray  # (cap,) slip speed [m/s]
+    vroll: np.ndarray  # (cap,) rolling speed [m/s]
+    sides: np.ndarray  # (5, 3) scratch: each side's point and angular velocity, their difference
+
+
+class PairGroups(NamedTuple):
+    """The substep's contacts grouped by geom pair (:func:`mjsound.sim.pairs.group_pairs`;
+    pair ``p``'s contacts are ``order[starts[p]:starts[p + 1]]``)."""
+
+    keys: np.ndarray  # (cap,) int64 pair key of each contact
+    order: np.ndarray  # (cap,) int64 contacts sorted by key
+    order_b: np.ndarray  # (cap,) int64 the sort's second buffer
+    starts: np.ndarray  # (cap + 1,) int64
+    pkey: np.ndarray  # (cap,) int64 pair key of each pair
+    vmax: np.ndarray  # (cap,) largest approach speed [m/s]
+    ftot: np.ndarray  # (cap,) total normal force [N]
+    slip: np.ndarray  # (cap,) force-weighted slip speed [m/s]
+    roll: np.ndarray  # (cap,) force-weighted rolling speed [m/s]
+    point: np.ndarray  # (cap, 3) force-weighted point [m]
+    normal: np.ndarray  # (cap, 3) force-weighted unit normal
+
+
+class PairSteps(NamedTuple):
+    """What the pair state machine decided per pair (:func:`mjsound.sim.pairs.update_pairs`)."""
+
+    slot: np.ndarray  # (cap,) int64 pair slot
+    onset: np.ndarray  # (cap,) bool: an impact starts
+    kind: np.ndarray  # (cap,) int64: 0 none, 1 slide, 2 roll
+    speed: np.ndarray  # (cap,) its sliding or rolling speed [m/s]
+
+
+def contact_quantities_of(cap: int) -> ContactQuantities:
+    """Room for the quantities of ``cap`` contacts."""
+    return ContactQuantities(np.zeros(cap), np.zeros((cap, 3)), np.zeros((cap, 3)), np.zeros(cap), np.zeros(cap),
+                             np.zeros(cap), np.zeros((5, 3)))
+
+
+def pair_scratch(cap: int) -> tuple[PairGroups, PairSteps]:
+    """Room for the groups and state-machine results of ``cap`` contacts."""
+    z, zi = np.zeros, (lambda n: np.zeros(n, np.int64))
+    groups = PairGroups(zi(cap), zi(cap), zi(cap), zi(cap + 1), zi(cap), z(cap), z(cap), z(cap), z(cap), z((cap, 3)),
+                        z((cap, 3)))
+    return groups, PairSteps(zi(cap), np.zeros(cap, np.bool_), zi(cap), z(cap))
+
+
 class StepBuffers(NamedTuple):
-    """Buffers of one substep (owner: ContactReader; grown in Python when the kernel asks)."""
+    """Buffers of one substep (owner: ContactReader; grown in Python when the kernel asks).
+    ``quantities``, ``groups`` and ``steps`` are the contact reading's working arrays (no
+    allocation per substep); their contents do not outlive a substep."""
 
     geom: np.ndarray  # (cap, 2) int32: the contacts, copied from the mjData struct
     pos: np.ndarray  # (cap, 3)
@@ -210,6 +265,9 @@ class StepBuffers(NamedTuple):
     records: np.ndarray  # (rcap,) RECORD: impact records not yet taken by Python
     missing: np.ndarray  # (2 cap,) MISSING
     log: np.ndarray  # (lcap,) LOG: event log entries not yet taken by Python
+    quantities: ContactQuantities
+    groups: PairGroups
+    steps: PairSteps
 
 
 class DataViews(NamedTuple):

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..jit import njit_inner
 
-__all__ = ["stable_argsort"]
+__all__ = ["stable_argsort", "stable_argsort_into"]
 
 
 @njit_inner(cache=True)
@@ -15,8 +15,18 @@ def stable_argsort(keys):
     """Indices that sort ``keys`` (n,) int64 ascending, equal keys in their original order
     (bottom-up merge sort, O(n log n))."""
     n = keys.shape[0]
-    a = np.arange(n)
-    b = np.empty(n, np.int64)
+    return stable_argsort_into(keys, np.empty(n, np.int64), np.empty(n, np.int64))
+
+
+@njit_inner(cache=True)
+def stable_argsort_into(keys, a, b):
+    """:func:`stable_argsort` of ``keys`` (n,) in the working arrays ``a`` and ``b`` (each at
+    least n long, int64): returns the first n entries of whichever holds the result."""
+    n = keys.shape[0]
+    a = a[:n]
+    b = b[:n]
+    for i in range(n):
+        a[i] = i
     width = 1
     while width < n:
         for lo in range(0, n, 2 * width):
