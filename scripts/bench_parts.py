@@ -10,6 +10,8 @@ per call) and prints microseconds per physics step (demo scene) or per env step 
 * ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper);
 * ``physics``: ``mj_step`` alone on a copy of the same model (demo: the same number of steps;
   env: ``frame_skip`` steps per env step);
+* ``nrt_allocs`` (env): numba's heap allocations per env step (arrays made inside kernels;
+  resets included), counted by numba (``NUMBA_NRT_STATS``);
 * ``call_in_step`` / ``call_back_to_back`` (env): one step-kernel call that steps and renders
   nothing, made after every env step of a run / in a tight loop: the fixed cost of a call
   (unboxing its packed state, the pose sync), which a run pays with cold caches.
@@ -29,8 +31,10 @@ import sys
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+os.environ.setdefault("NUMBA_NRT_STATS", "1")  # (before numba's import: its allocation counters)
 
 import mujoco  # noqa: E402
+from numba.core.runtime import rtsys  # noqa: E402
 import numpy as np  # noqa: E402
 
 from mjsound import wrappers  # noqa: E402
@@ -104,8 +108,11 @@ def env_parts(env_id: str, steps: int) -> dict:
 
     run()  # warm-up
     TIMES.clear()
+    a0 = rtsys.get_allocation_stats().alloc
     run()
+    allocs = rtsys.get_allocation_stats().alloc - a0
     out = {k: 1e6 * v / steps for k, v in TIMES.items()}
+    out["nrt_allocs"] = allocs / steps  # (resets included)
     out["call_in_step"], out["call_back_to_back"] = empty_call_cost(env, acts)
     m, d = env.unwrapped.model, mujoco.MjData(env.unwrapped.model)
     fs = env.unwrapped.frame_skip
