@@ -65,3 +65,16 @@ def test_quadratic_forms_equal_the_dense_products(monkeypatch):
     B = sp.random(9, 9, density=0.4, random_state=4, format="csr")  # not symmetric
     Z = np.random.default_rng(5).standard_normal((3, 9))
     assert np.allclose(quadratic_forms(B, Z), np.einsum("ij,ji->i", Z, B @ Z.T), rtol=1e-12, atol=1e-14)
+
+
+def test_kron_identity3_is_scipys_kron():
+    from mjsound.modal.node_mass import kron_identity3
+
+    m = sp.random(30, 30, density=0.15, random_state=6, format="csr")
+    m = sp.csr_matrix(m + m.T + sp.identity(30))
+    m.sort_indices()
+    got, ref = kron_identity3(m), sp.kron(m, sp.identity(3), format="csr")
+    ref.sort_indices()
+    assert got.shape == (90, 90) and got.has_sorted_indices
+    assert np.array_equal(got.indptr, ref.indptr) and np.array_equal(got.indices, ref.indices)
+    assert np.array_equal(got.data, ref.data)

@@ -57,6 +57,7 @@ from .hex_cell import (
     hex_strain_integral,
     quadratic_cell_matrices,
 )
+from .node_mass import kron_identity3
 from .surface import cavities, face_components
 from .voxelize import surface_voxels, winding_moments, winding_occupancy
 
@@ -510,7 +511,7 @@ def discretize_hex(
     indptr, bcol = _block_pattern(key, nn)
     K = sp.bsr_matrix((Kb.reshape(-1, 3, 3), bcol, indptr), shape=(ndof, ndof)).tocsr()
     M_node = sp.csr_matrix((Mb[:, 0], bcol, indptr), shape=(nn, nn))
-    M = _kron_identity3(M_node)
+    M = kron_identity3(M_node)
 
     interp = _point_interpolation(points, lo, n, hc, active, node, q, embed)
     info = {
@@ -525,28 +526,6 @@ def discretize_hex(
         "fill_fraction": float(fill[active].mean()),
     }
     return Discretization(K=K, M=M, interp=interp, n_rigid=6, info=info, node_mass=M_node)
-
-
-def _kron_identity3(m: sp.csr_matrix) -> sp.csr_matrix:
-    """``kron(m, I3)`` as CSR, built from ``m``'s arrays (scipy's kron goes through a COO
-    copy): row ``3 i + c`` holds ``m``'s row ``i`` at columns ``3 j + c``."""
-    nn = m.shape[0]
-    counts = np.diff(m.indptr)
-    indptr = np.zeros(3 * nn + 1, dtype=np.int64)
-    indptr[1:] = np.cumsum(np.repeat(counts, 3))
-    rows = np.repeat(np.arange(nn), counts)  # node row of each of m's entries
-    # entries of row 3i + c: m's row i, in order; the three rows of node i follow each other
-    start = indptr[3 * rows] - m.indptr[rows]  # where row 3i's copy of m's row i begins, less m's own start
-    indices = np.empty(3 * m.nnz, dtype=m.indices.dtype)
-    data = np.empty(3 * m.nnz)
-    p = np.arange(m.nnz)
-    for c in range(3):
-        at = start + p + c * counts[rows]
-        indices[at] = 3 * m.indices + c
-        data[at] = m.data
-    M = sp.csr_matrix((data, indices, indptr), shape=(3 * nn, 3 * nn))
-    M.has_sorted_indices = bool(m.has_sorted_indices)
-    return M
 
 
 def _sum_blocks(key, *data):

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 from .. import jit as _jit  # noqa: F401 (registers the kernel cache's stamps before the decorators below)
 from .quadratic_forms import row_combination
 
-__all__ = ["node_mass", "mass_rows"]
+__all__ = ["node_mass", "mass_rows", "kron_identity3"]
 
 
 def node_mass(M: sp.spmatrix) -> sp.csr_matrix | None:
@@ -110,3 +110,25 @@ def mass_rows(M: sp.spmatrix, m: sp.csr_matrix | None = None):
         return out.ravel() if one else out
 
     return apply
+
+
+def kron_identity3(m: sp.csr_matrix) -> sp.csr_matrix:
+    """``kron(m, I3)`` as CSR, built from ``m``'s arrays (scipy's kron goes through a COO
+    copy): row ``3 i + c`` holds ``m``'s row ``i`` at columns ``3 j + c``."""
+    nn = m.shape[0]
+    counts = np.diff(m.indptr)
+    indptr = np.zeros(3 * nn + 1, dtype=np.int64)
+    indptr[1:] = np.cumsum(np.repeat(counts, 3))
+    rows = np.repeat(np.arange(nn), counts)  # node row of each of m's entries
+    # entries of row 3i + c: m's row i, in order; the three rows of node i follow each other
+    start = indptr[3 * rows] - m.indptr[rows]  # where row 3i's copy of m's row i begins, less m's own start
+    indices = np.empty(3 * m.nnz, dtype=m.indices.dtype)
+    data = np.empty(3 * m.nnz)
+    p = np.arange(m.nnz)
+    for c in range(3):
+        at = start + p + c * counts[rows]
+        indices[at] = 3 * m.indices + c
+        data[at] = m.data
+    M = sp.csr_matrix((data, indices, indptr), shape=(3 * nn, 3 * nn))
+    M.has_sorted_indices = bool(m.has_sorted_indices)
+    return M
