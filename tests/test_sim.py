@@ -759,3 +759,27 @@ def test_steps_per_render_and_replay_step_match_stepping():
         n0, n1 = (int(np.ceil(x * fs - 1e-6)) for x in (t, t + model.opt.timestep))
         out.append(replay.replay_step(n0, n1, t, t + model.opt.timestep, origin=0))
     assert np.array_equal(np.concatenate(out, axis=1), ref)
+
+
+def test_contact_frames_keep_their_values_while_the_reader_reads_on():
+    """A ContactFrame owns its arrays: the reader's working arrays (StepBuffers.quantities,
+    reused every substep) never leak into a frame, so reading later steps, through
+    ``read`` or through the step kernel, leaves an earlier frame as it was."""
+    from mjsound.sim.contacts import ContactReader as Reader
+
+    model = mujoco.MjModel.from_xml_string(BOX_XML)
+    data = mujoco.MjData(model)
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+    reader = Reader(model)
+    first = reader.read(data)
+    kept = {k: np.array(getattr(first, k), copy=True) for k in ("force_n", "normal", "vel_rel", "v_approach", "v_slip")}
+    data.qvel[:2] = (0.3, -0.2)  # (sliding: other quantities, still touching)
+    for _ in range(2):
+        mujoco.mj_step(model, data)
+        reader.events(data)  # (the step kernel's reading, in the reader's own buffers)
+        second = reader.read(data)
+    assert second is not None and not np.allclose(second.vel_rel, kept["vel_rel"])
+    for k, v in kept.items():
+        np.testing.assert_array_equal(getattr(first, k), v)
+    assert not any(np.shares_memory(getattr(first, k), a) for k in kept for a in reader.buffers.quantities)
