@@ -143,20 +143,21 @@ def solve_band(
     # limit) and the block solve's small products are numba kernels: in a process just
     # forked, setting OpenBLAS's thread count starts its thread pool afresh, whose threads
     # then spin for ~0.1 s beside the solve (the beam's whole analysis 0.15 s against 0.09 s).
-    with contextlib.nullcontext() if K.shape[0] < SERIAL_PRODUCTS_DOFS else _single_threaded_blas():
+    with contextlib.nullcontext() if K.shape[0] < SERIAL_PRODUCTS_DOFS else single_threaded_blas():
         return _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0,
                            node_mass)
 
 
-def _single_threaded_blas():
-    """BLAS on one thread (:func:`.block_lanczos.single_threaded_blas`)."""
-    return single_threaded_blas()
+def _one_thread_if_small(n: int):
+    """BLAS on one thread for a solve of ``n < SERIAL_PRODUCTS_DOFS`` dofs (the dense path,
+    ARPACK's slices), where :func:`solve_band` left its threads alone; else nothing."""
+    return single_threaded_blas() if n < SERIAL_PRODUCTS_DOFS else contextlib.nullcontext()
 
 
 def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0, node_mass=None):
     n = K.shape[0]
     if n <= dense_max:
-        with _single_threaded_blas() if n < SERIAL_PRODUCTS_DOFS else contextlib.nullcontext():
+        with _one_thread_if_small(n):
             w, V = sla.eigh(K.toarray(), M.toarray(), driver="gvd")
         n_below = int(np.sum(w < lam_min))
         sel = (w >= lam_min) & (w <= lam_max)
@@ -230,7 +231,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
                 work, n_target = counted
             else:
                 work = None
-                n_target = counting.result() if used == "pardiso" else count_below(K, M, lam_max, backend, shift)
+                n_target = counting.result() if used == "pardiso" else count_below(K, M, lam_max, backend, shift, band=False)
             if block_fits(n_target):
                 # The whole band from one definite factorization, by block Lanczos (its
                 # solves run as BLAS-3 on blocks of vectors), complete by the Sylvester count.
@@ -250,7 +251,7 @@ def _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progres
             progress(1.0)
         return BandSolution(w, V, n_below, time.perf_counter() - t0, 1, f"block-lanczos+{used}")
     # ARPACK's level-2 BLAS on vectors of a few thousand entries: one thread (solve_band)
-    with _single_threaded_blas() if n < SERIAL_PRODUCTS_DOFS else contextlib.nullcontext():
+    with _one_thread_if_small(n):
         return _slice_band(K, M, lam_min, lam_max, slice_modes, backend, progress, max_modes, t0, used, n_target,
                            solve0, sigma0, shift)
 

@@ -280,7 +280,8 @@ def _pardiso_inertia(A: sp.spmatrix):
     return out
 
 
-def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float, backend: str | None = None, shift=None) -> int | None:
+def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float, backend: str | None = None, shift=None,
+                band: bool = True) -> int | None:
     """Number of eigenvalues of ``K phi = lambda M phi`` below ``lam`` (Sylvester inertia).
 
     Any ``L D L^T`` factorization of ``K - lam M`` with a symmetric permutation has as many
@@ -293,10 +294,11 @@ def count_below(K: sp.spmatrix, M: sp.spmatrix, lam: float, backend: str | None 
     (``U = D L^T``),
     and the count is the number of negative entries of ``D``. Returns None if that
     factorization pivoted too (then the count is not an inertia). ``shift(sigma)``: ``K -
-    sigma M`` (:class:`.pencil.Pencil`), default scipy's sum.
+    sigma M`` (:class:`.pencil.Pencil`), default scipy's sum; ``band=False``: the caller
+    tried the band already (:func:`.banded.band_ldlt`).
     """
     n = K.shape[0]
-    if backend != "pardiso":  # a narrow band: no sparse factorization
+    if band and backend != "pardiso":  # a narrow band: no sparse factorization
         counted = band_count(K, M, lam)
         if counted is not None:
             return counted

@@ -131,9 +131,7 @@ def unpack(typingctx, table, layout):
                                strides=cgutils.pack_array(builder, [word(r, "strides", i) for i in range(t.ndim)], ty=intp),
                                itemsize=context.get_constant(types.intp, context.get_abi_sizeof(data_t)), meminfo=None)
                 return ary._getvalue()
-            if isinstance(t, types.Integer):
-                return context.cast(builder, word(r, "value"), types.int64, t)
-            raise TypeError(f"unpack: cannot build a {t} (a packed state holds arrays and integers only)")
+            return context.cast(builder, word(r, "value"), types.int64, t)  # (an Integer: typing checked)
 
         return build(ty)
 
