@@ -469,38 +469,41 @@ def test_many_objects_keep_their_poses_and_delays():
     assert first == int(np.ceil(20.0 / C * FS - 1e-9))
 
 
-@pytest.mark.parametrize("na,nact", [(12, 3), (20, 1), (20, 2), (24, 3), (24, 4)])
+@pytest.mark.parametrize("na,nact", [(12, 3), (20, 1), (20, 2), (24, 3), (24, 4), (24, 5)])
 def test_forced_bank_visits_only_each_sources_span(na, nact):
     """``bank_forced`` with each source's span of non-zero gains (``source_spans``) is the
     plain recursion ``z += sum_q g_q F_q[s]; out[s] += Im z; z *= p`` over every mode (numpy,
     float64), and the spans are the first and one past the last non-zero gain (empty: 0, 0).
-    Banks of 16 modes or more fold the last one or two acting sources into the oscillator
-    loop, smaller ones do not: one, two, three and four acting sources, an acting source
-    without any gain, sources acting in another order than their rows."""
+    Banks of 16 modes or more fold the last one to three acting sources with a gain into the
+    oscillator loop (a fourth is added over its span first), smaller ones do not: one, two,
+    three and four acting sources, an acting source without any gain (skipped), sources
+    acting in another order than their rows."""
     from mjsound.jit import call_inner
     from mjsound.synth.kernels import bank_forced, source_spans
 
     rng = np.random.default_rng(3)
-    nsrc, n = 4, 40
+    nsrc, n, o0 = 5, 40, 3
     gwr, gwi = np.zeros((nsrc, na)), np.zeros((nsrc, na))
     gwr[0, 2:5], gwi[0, 3:6] = rng.standard_normal(3), rng.standard_normal(3)  # source 0: modes 2..5
     gwr[1, 9:12] = rng.standard_normal(3)  # source 1: modes 9..11; source 2: no gain at all
     gwr[3, 4:na], gwi[3, 4:na] = rng.standard_normal(na - 4), rng.standard_normal(na - 4)  # overlaps 0 and 1
+    gwi[4, 0:7] = rng.standard_normal(7)  # source 4: modes 0..6
     span = np.full((2, nsrc), -7, np.int64)
     call_inner(source_spans, gwr, gwi, na, span)
-    assert span.tolist() == [[2, 9, 0, 4], [6, 12, 0, na]]
+    assert span.tolist() == [[2, 9, 0, 4, 0], [6, 12, 0, na, 7]]
     p = 0.99 * np.exp(1j * rng.uniform(0.1, 3.0, na))
     z0 = rng.standard_normal(na) + 1j * rng.standard_normal(na)
-    F = rng.standard_normal((nsrc, n))
-    act = np.array([3, 0, 2, 1], np.int64)[:nact]
+    F = rng.standard_normal((nsrc, o0 + n))  # (the segment starts at sample o0 of the block)
+    act = np.array([3, 0, 2, 4, 1], np.int64)[:nact]
     work = (z0.real.copy(), z0.imag.copy(), p.real.copy(), p.imag.copy())
-    out = np.zeros(n)
-    call_inner(bank_forced, work, na, out, 0, n, 0.0, gwr, gwi, F, act, nact, span)
+    out = np.zeros(o0 + n)
+    call_inner(bank_forced, work, na, out, o0, n, 0.0, gwr, gwi, F, act, nact, span)
+    assert not out[:o0].any()
     z, ref = z0.copy(), np.zeros(n)
     g = (gwr + 1j * gwi)[act]
     for s in range(n):
-        z = z + g.T @ F[act, s]
+        z = z + g.T @ F[act, o0 + s]
         ref[s] = z.imag.sum()
         z = z * p
-    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(out[o0:], ref, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(work[0] + 1j * work[1], z, rtol=1e-12, atol=1e-12)
