@@ -302,27 +302,30 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                 m2 = nr * nr + ni * ni
                 if m2 > peak2[i]:
                     peak2[i] = m2
-                driven = False
-                for qq in range(nact):
-                    if gwr[act[qq], k] != 0.0 or gwi[act[qq], k] != 0.0:
-                        driven = True
-                        break
-                if (not driven) and (m2 < peak2[i] * cull2 or m2 < floor2):
-                    active[i] = False
-                    zr[i] = 0.0
-                    zi[i] = 0.0
-                    continue
+                if m2 < peak2[i] * cull2 or m2 < floor2:
+                    driven = False
+                    for qq in range(nact):
+                        if gwr[act[qq], k] != 0.0 or gwi[act[qq], k] != 0.0:
+                            driven = True
+                            break
+                    if not driven:
+                        active[i] = False
+                        zr[i] = 0.0
+                        zi[i] = 0.0
+                        continue
                 wr[w] = nr
                 wi[w] = ni
-                wpr[w] = wpr[k]
-                wpi[w] = wpi[k]
-                idx[w] = i
-                for q in range(nsrc):
-                    gwr[q, w] = gwr[q, k]
-                    gwi[q, w] = gwi[q, k]
+                if w != k:  # (a mode before this one was culled: move it down)
+                    wpr[w] = wpr[k]
+                    wpi[w] = wpi[k]
+                    idx[w] = i
+                    for q in range(nsrc):
+                        gwr[q, w] = gwr[q, k]
+                        gwi[q, w] = gwi[q, k]
                 w += 1
-            na = w
-            source_spans(gwr, gwi, na, span)
+            if w != na:  # (the spans change only when a mode was culled)
+                na = w
+                source_spans(gwr, gwi, na, span)
         # ---- events at this sample
         if e < ne and ev_n[e] <= pos:
             _scatter(zr, zi, wr, wi, idx, na)
