@@ -55,7 +55,7 @@ def test_stream_rows_read_the_rings_through_the_delays():
     ring = rng.standard_normal((8, cap))
     counts = np.zeros(1, STREAMS)
     counts[0]["n"] = S
-    st = StreamState(table, D, gr, gi, ring, counts)
+    st = StreamState(table, D, gr, gi, ring, counts, np.full((8, n_mics), np.nan), np.zeros((8, n_mics, 3, nmax)))
     # two objects (3 and 2 modes) at two microphones: voices object-major, banks microphone-major
     layout = BankLayout(np.array([0, 2], np.int64), np.array([0, 0, 3, 3], np.int64), np.array([3, 3, 2, 2], np.int64),
                         np.array([0, 1, 0, 1], np.int64), 5)
@@ -96,3 +96,46 @@ def test_stream_seed_is_splitmix_of_seed_object_and_key():
         got = stream_seed(seed, obj, key)
         assert -(2**63) <= got < 2**63
         assert np.array([got], np.int64).view(np.uint64)[0] == want
+
+
+def test_stream_gains_keep_their_delay_factors_only_while_the_delay_stays():
+    """``stream_gains`` keeps each microphone's factors ``e^{lam dts}`` of a stream and reuses
+    them while the sub-sample delay ``dts`` is the same: the gains equal, bit for bit, those
+    made with every factor computed again, before and after the object moves (a move makes
+    them again: the gains at the new pose are not the old ones)."""
+    from mjsound import ModalModel, get_material
+    from mjsound.synth.streams import streams_gains
+    from mjsound.synth.synthesizer import Synthesizer
+
+    rng = np.random.default_rng(2)
+    n, n_points = 12, 15
+    f = np.geomspace(300.0, 6000.0, n)
+    pts = rng.normal(size=(n_points, 3)) * 0.05
+    model = ModalModel(f, np.full(n, 5.0), pts, pts / np.linalg.norm(pts, axis=1, keepdims=True),
+                       rng.normal(size=(n_points, 3, n)), np.full(n, 0.01), get_material("steel"), mass_kg=0.3)
+    syn = Synthesizer(sample_rate=16000, microphones=[[1.0, 0.2, 0.0], [-0.3, 2.0, 0.5]])
+    syn.add_object("o", model, position=(0.0, 0.0, 0.1))
+    j = syn.stream(("side", 0), "o")
+
+    def gains(scratch):
+        ks = syn.kernel_state()
+        st = ks.streams
+        st.table[j]["p"] = (0.01, -0.02, 0.12)
+        st.table[j]["n"] = (0.0, 0.6, 0.8)
+        st.table[j]["live"] = 1
+        st.table[j]["due"] = 1
+        if scratch:
+            st.dts[j] = np.nan
+        streams_gains(ks)
+        assert np.isfinite(st.dts[j]).all()
+        return st.gr[j].copy(), st.gi[j].copy(), st.D[j].copy()
+
+    first = gains(True)
+    assert np.abs(first[0]).max() > 0
+    for a, b in zip(gains(False), first):  # the kept factors
+        np.testing.assert_array_equal(a, b)
+    syn.set_pose("o", (0.3, -0.1, 0.2), np.eye(3))
+    moved = gains(False)
+    assert not np.array_equal(moved[0], first[0])
+    for a, b in zip(moved, gains(True)):
+        np.testing.assert_array_equal(a, b)

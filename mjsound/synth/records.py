@@ -85,7 +85,9 @@ class QueueState(NamedTuple):
 
 
 class StreamState(NamedTuple):
-    """The persistent streams (owner: Synthesizer)."""
+    """The persistent streams (owner: Synthesizer). ``dts`` and ``dfac`` keep the
+    transcendental factors of each stream's last gains (:func:`.streams.stream_gains`), reused
+    while its sub-sample delay to a microphone stays the same (an object at rest)."""
 
     table: np.ndarray  # (cap,) STREAM
     D: np.ndarray  # (cap, mics) int64: integer delay to each microphone [samples]
@@ -93,6 +95,8 @@ class StreamState(NamedTuple):
     gi: np.ndarray  # (cap, mics, nmax) imaginary part
     ring: np.ndarray  # (cap, L) force [N] of source sample k at ring[s, k & (L - 1)]
     counts: np.ndarray  # (1,) STREAMS
+    dts: np.ndarray  # (cap, mics) float64 sub-sample delay [s] the delay factors were made for (NaN: none)
+    dfac: np.ndarray  # (cap, mics, 3, nmax) float64 delay factors per mode: e^{Re lam dts}, cos, sin of Im lam dts
 
 
 class SynthState(NamedTuple):

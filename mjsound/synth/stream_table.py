@@ -54,7 +54,8 @@ class StreamTable:
         table["gupd"] = -(2**62)
         M = self.n_mics
         return StreamState(table, np.zeros((cap, M), np.int64), np.zeros((cap, M, nmax), self.dtype),
-                           np.zeros((cap, M, nmax), self.dtype), np.zeros((cap, ring)), self.counts)
+                           np.zeros((cap, M, nmax), self.dtype), np.zeros((cap, ring)), self.counts,
+                           np.full((cap, M), np.nan), np.zeros((cap, M, 3, nmax)))
 
     def _alloc(self, cap, nmax, ring) -> None:
         """Room for ``cap`` streams of up to ``nmax`` modes with rings of ``ring`` samples
@@ -67,6 +68,9 @@ class StreamTable:
             new.D[:n] = old.D[:n]
             new.gr[:n, :, : old.gr.shape[2]] = old.gr[:n]
             new.gi[:n, :, : old.gi.shape[2]] = old.gi[:n]
+            if new.dfac.shape[3] == old.dfac.shape[3]:  # (else the new NaN delays make them again)
+                new.dts[:n] = old.dts[:n]
+                new.dfac[:n] = old.dfac[:n]
             ro = old.ring.shape[1]
             for j in range(n):
                 g = int(old.table[j]["gen"])
@@ -110,6 +114,7 @@ class StreamTable:
             st.gr[:] = 0
             st.gi[:] = 0
             st.ring[:] = 0
+            st.dts[:] = np.nan
 
     def grow_ring(self, need: int) -> None:
         """Rings of at least ``need`` samples (the next power of two)."""

@@ -199,14 +199,22 @@ def stream_gains(synth, j, o):
             Dm = 0
         D[m] = Dm
         dts = Dm / fs - ta
+        # (the delay factors depend on dts alone: an object at rest keeps them)
+        fresh = not (st.dts[j, m] == dts)
+        st.dts[j, m] = dts
+        fac = st.dfac[j, m]
         for k in range(n):
             G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
             a = G / (fs * ob.wd[m0 + k]) * ob.w[m0 + k] / r
-            lam = ob.lam[m0 + k]
-            e = np.exp(lam.real * dts)
-            ph = lam.imag * dts
-            gr[m, k] = a * e * np.cos(ph)
-            gi[m, k] = a * e * np.sin(ph)
+            if fresh:
+                lam = ob.lam[m0 + k]
+                ph = lam.imag * dts
+                fac[0, k] = np.exp(lam.real * dts)
+                fac[1, k] = np.cos(ph)
+                fac[2, k] = np.sin(ph)
+            e = fac[0, k]
+            gr[m, k] = a * e * fac[1, k]
+            gi[m, k] = a * e * fac[2, k]
             if not (np.isfinite(gr[m, k]) and np.isfinite(gi[m, k])):
                 gr[m, k] = 0.0  # a bad pose or point: silence, never NaN audio
                 gi[m, k] = 0.0
