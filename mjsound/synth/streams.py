@@ -387,9 +387,10 @@ def streams_bank_rows(streams, layout, start, end, zero):
             # source samples ks = u - Dm still in the ring (gen - cap <= ks < gen); the rest stay 0
             u0 = max(start, gen - cap + Dm)
             u1 = min(sb[j], gen + Dm)
-            Fj = F[j]
-            rs = ring[s]
-            for u in range(u0, u1):
-                Fj[u - start] = rs[(u - Dm) & mask]
+            if u1 > u0:  # (at most cap samples: two contiguous runs of the ring, around its wrap)
+                r0 = (u0 - Dm) & mask
+                n0 = min(u1 - u0, cap - r0)
+                F[j, u0 - start:u0 - start + n0] = ring[s, r0:r0 + n0]
+                F[j, u0 - start + n0:u1 - start] = ring[s, : u1 - u0 - n0]
             j += 1
     return ptr, sa, sb, gr, gi, F  # (the fields of SourceRows: a NamedTuple is not boxed safely on Ctrl-C)
