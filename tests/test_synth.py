@@ -469,6 +469,44 @@ def test_many_objects_keep_their_poses_and_delays():
     assert first == int(np.ceil(20.0 / C * FS - 1e-9))
 
 
+def test_gather_takes_the_active_modes_and_their_gains_within_each_sources_modes():
+    """``_gather`` against numpy: the active modes' state and poles in order, every source's
+    gains at them (zero elsewhere, whatever an earlier gather left in the arrays), each
+    source's span of gathered modes with a non-zero gain as ``source_spans`` finds it; a
+    source visits only its modes ``cols`` (a gain outside them is not taken)."""
+    from mjsound.jit import call_inner
+    from mjsound.synth.kernels import Voice, _gather, source_spans
+
+    rng = np.random.default_rng(7)
+    m, nsrc = 30, 4
+    zr, zi, pr, pi = (rng.standard_normal(m) for _ in range(4))
+    active = rng.uniform(size=m) < 0.6
+    active[[2, 3, 4, 20]] = True, True, False, True
+    voice = Voice(zr, zi, np.zeros(m), active, pr, pi, np.ones(m), np.zeros(m))
+    gr, gi = np.zeros((nsrc, m)), np.zeros((nsrc, m))
+    gr[0, 3:9], gi[0, 5:12] = rng.standard_normal(6), rng.standard_normal(7)  # source 0: modes 3..11
+    gr[1, 4] = 1.0  # source 1: only an inactive mode; source 2: no gains
+    gr[3, 15:m] = rng.standard_normal(m - 15)
+    cols = np.array([[3, 4, m, 15], [12, 5, m, m]], np.int64)
+    gr[3, 2] = 5.0  # (outside source 3's modes: not taken)
+    work = tuple(np.full(m, np.nan) for _ in range(4))
+    gwr, gwi = np.full((nsrc, m), 9.0), np.full((nsrc, m), 9.0)  # (an earlier gather's leftovers)
+    idx, kof, span = np.zeros(m, np.int64), np.zeros(m, np.int64), np.full((2, nsrc), -1, np.int64)
+    na = call_inner(_gather, voice, gr, gi, cols, work, (gwr, gwi), idx, kof, span)
+    on = np.flatnonzero(active)
+    assert na == len(on) and idx[:na].tolist() == on.tolist()
+    for w, ref in zip(work, (zr, zi, pr, pi)):
+        np.testing.assert_array_equal(w[:na], ref[on])
+    gr[3, 2] = 0.0
+    np.testing.assert_array_equal(gwr[:, :na], gr[:, on])
+    np.testing.assert_array_equal(gwi[:, :na], gi[:, on])
+    assert not gwr[:, na:].any() and not gwi[:, na:].any()
+    ref_span = np.full((2, nsrc), -1, np.int64)
+    call_inner(source_spans, gr[:, on].copy(), gi[:, on].copy(), na, ref_span)
+    assert span.tolist() == ref_span.tolist()
+    assert span[:, 1].tolist() == [0, 0] and span[:, 2].tolist() == [0, 0]
+
+
 @pytest.mark.parametrize("na,nact", [(12, 3), (20, 1), (20, 2), (24, 3), (24, 4), (24, 5)])
 def test_forced_bank_visits_only_each_sources_span(na, nact):
     """``bank_forced`` with each source's span of non-zero gains (``source_spans``) is the

@@ -177,26 +177,46 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
 
 
 @njit_inner(cache=True)
-def _gather(voice, gr, gi, work, gwr, gwi, idx, span):
+def _gather(voice, gr, gi, cols, work, gains, idx, kof, span):
     """The active modes of ``voice`` (state, poles) and their source gains into the compact
-    work arrays, and each source's span of gathered modes with a non-zero gain
-    (:func:`source_spans`); returns how many modes."""
+    work arrays, and each source's span of gathered modes with a non-zero gain (as
+    :func:`source_spans` finds it); returns how many modes.
+
+    cols : (2, n_src) int64   the bank modes ``cols[0, q] <= i < cols[1, q]`` outside which
+                              source q's gains ``gr, gi`` are zero (only those are visited)
+    gains : (gwr, gwi)        (n_src, m) gathered gains, zero outside each source's modes
+    kof : (m,) int64          work: the gathered index of each active mode
+    """
     zr, zi, active, pr, pi = voice.zr, voice.zi, voice.active, voice.pr, voice.pi
     wr, wi, wpr, wpi = work
+    gwr, gwi = gains
     k = np.int64(0)  # (not a literal 0: the callee it reaches would compile twice)
-    nsrc = gr.shape[0]
     for i in range(zr.shape[0]):
         if active[i]:
             idx[k] = i
+            kof[i] = k
             wr[k] = zr[i]
             wi[k] = zi[i]
             wpr[k] = pr[i]
             wpi[k] = pi[i]
-            for q in range(nsrc):
-                gwr[q, k] = gr[q, i]
-                gwi[q, k] = gi[q, i]
             k += 1
-    source_spans(gwr, gwi, k, span)
+    gwr[:, :] = 0.0  # (an earlier gather's gains, wherever they were)
+    gwi[:, :] = 0.0
+    for q in range(gr.shape[0]):
+        lo, hi = k, 0
+        for i in range(cols[0, q], cols[1, q]):
+            if active[i]:
+                j = kof[i]
+                a = gr[q, i]
+                b = gi[q, i]
+                gwr[q, j] = a
+                gwi[q, j] = b
+                if a != 0.0 or b != 0.0:
+                    if j < lo:
+                        lo = j
+                    hi = j + 1
+        span[0, q] = lo if lo < hi else 0
+        span[1, q] = hi
     return k
 
 
@@ -263,20 +283,34 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
     gwr = np.empty((nsrc, m), pr.dtype)
     gwi = np.empty((nsrc, m), pr.dtype)
     idx = np.empty(m, np.int64)
+    kof = np.empty(m, np.int64)
     act = np.empty(max(nsrc, 1), np.int64)
     span = np.zeros((2, nsrc), np.int64)
+    cols = np.empty((2, nsrc), np.int64)
     work = (wr, wi, wpr, wpi)
-    # a source already acting at the block start drives its modes from here on (a no-op for
-    # sources whose start event activated them earlier: they cannot be culled while acting)
+    gains = (gwr, gwi)
     for q in range(nsrc):
+        # the bank modes of source q's first and last non-zero gain (a stream's row has gains
+        # on its object's modes only)
+        lo = 0
+        while lo < m and gr[q, lo] == 0.0 and gi[q, lo] == 0.0:
+            lo += 1
+        hi = m
+        while hi > lo and gr[q, hi - 1] == 0.0 and gi[q, hi - 1] == 0.0:
+            hi -= 1
+        cols[0, q] = lo
+        cols[1, q] = hi
+        # a source already acting at the block start drives its modes from here on (a no-op
+        # for sources whose start event activated them earlier: they cannot be culled while
+        # acting)
         if src_a[q] <= start and start < src_b[q]:
-            for i in range(m):
+            for i in range(lo, hi):
                 if (gr[q, i] != 0.0 or gi[q, i] != 0.0) and not active[i]:
                     active[i] = True
                     zr[i] = 0.0
                     zi[i] = 0.0
                     peak2[i] = 0.0
-    na = _gather(voice, gr, gi, work, gwr, gwi, idx, span)
+    na = _gather(voice, gr, gi, cols, work, gains, idx, kof, span)
     # forcing sources must not be culled while they act
     pos = start
     end = start + n
@@ -354,7 +388,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                                 zi[i] = 0.0
                                 peak2[i] = 0.0
                 e += 1
-            na = _gather(voice, gr, gi, work, gwr, gwi, idx, span)
+            na = _gather(voice, gr, gi, cols, work, gains, idx, kof, span)
         # ---- run to the next grid point / event / source boundary / block end
         stop = end
         g = (pos // grid + 1) * grid
@@ -606,7 +640,10 @@ def render_streams(synth, bank, layout, start, n, may_regain, out, zero):
     src = SourceRows(*streams_bank_rows(st, layout, start, end, zero))
     render_all(bank, synth.consts, ev, src, start, n, out, zero)
     for c in range(out.shape[0]):
+        bad = 0
         for k in range(out.shape[1]):
-            if not np.isfinite(out[c, k]):
-                return RENDERED_NONFINITE
+            v = out[c, k]
+            bad += (v - v) != 0.0  # (NaN for a NaN or an infinity: a count the loop can vectorise)
+        if bad:
+            return RENDERED_NONFINITE
     return RENDERED
