@@ -82,12 +82,29 @@ class StepKernel:
         #: the fields of :attr:`run` as one-element arrays (fast to use in Python)
         self.f = {name: self.run[name] for name in RUN.names}
         self.f["from_struct"][0] = self.from_struct
+        self._run_bytes = self.run.view(np.uint8)
+        self._fresh = {}  # (nstep, call_step, log_limit, render) -> a fresh call's RUN record, as bytes
         if clock is None:  # (calls with explicit times only; fs 1 keeps the event time finite)
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
         self.clock = clock
         self._advance_call = PackedEntry(advance)
         self._silent = None  # (silent_render_target, made on first use)
+
+    def _fresh_run(self, nstep: int, call_step: bool, log_limit: int, render: bool) -> np.ndarray:
+        """The :data:`.records.RUN` record a call starts from, as bytes: its inputs set (steps,
+        whether the kernel steps, log room, whether it renders), where a substep starts, and
+        every output and working field zero (``render_code``: :data:`NOT_RENDERED`). The kernel
+        sets each working field before it reads it, so a call needs nothing of the last one."""
+        r = np.zeros(1, RUN)
+        r0 = r[0]
+        r0["nstep"], r0["call_step"], r0["from_struct"] = nstep, call_step, self.from_struct
+        r0["stage"] = STAGE_STEP if call_step else STAGE_READ
+        r0["log_limit"], r0["render"], r0["render_code"] = log_limit, render, NOT_RENDERED
+        if len(self._fresh) >= 64:  # (a caller varying the log room every call: keep a few)
+            self._fresh.clear()
+        fresh = self._fresh[(nstep, call_step, log_limit, render)] = r.view(np.uint8)
+        return fresh
 
     @property
     def can_step(self) -> bool:
@@ -124,15 +141,14 @@ class StepKernel:
         samples after the last substep (``run.render_code`` says whether it did; None: no
         render)."""
         f = self.f  # (plain one-element views of the record's fields: fast to set in Python)
-        f["nstep"][0], f["done"][0], f["call_step"][0] = nstep, 0, call_step
-        f["stage"][0] = STAGE_STEP if call_step else STAGE_READ
-        f["log_limit"][0], f["n_log"][0], f["n_impacts"][0], f["solved"][0], f["poses_current"][0] = log_limit, 0, 0, 0, 0
-        f["render"][0], f["render_code"][0] = block is not None, NOT_RENDERED
+        key = (nstep, call_step, log_limit, block is not None)
+        fresh = self._fresh.get(key)
+        if fresh is None:
+            fresh = self._fresh_run(*key)
+        self._run_bytes[:] = fresh  # (one copy of the whole record, its fields named in _fresh_run)
         if explicit is not None:
             f["explicit"][0] = 1
             f["t0"][0], f["t1"][0], f["n0"][0], f["n1"][0] = explicit
-        else:
-            f["explicit"][0] = 0
         if not self.from_struct:
             if call_step or nstep != 1:
                 raise ValueError("StepKernel.call: stepping needs MuJoCo's C functions and struct layout")

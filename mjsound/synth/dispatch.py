@@ -58,18 +58,20 @@ class PackedEntry:
     packed last, and the packed objects are kept alive while their table is in use. ``args``
     as for :class:`EntryPoint`. A call unboxes the table, not every array of the state."""
 
-    __slots__ = ("_call", "_key", "_keep", "_packed")
+    __slots__ = ("_call", "_key", "_keep", "_packed", "_entry")
 
     def __init__(self, fn):
         self._call = EntryPoint(fn)
         self._key = None
-        self._keep = self._packed = None
+        self._keep = self._packed = self._entry = None
 
     def __call__(self, state: tuple, *args):
-        key = tuple(map(id, state))
-        if key != self._key:
-            self._key = None
-            self._keep = state  # (its arrays' memory is what the table describes)
-            self._packed = pack(state)  # (table, layout)
-            self._key = key  # (last: an interrupt before it leaves no stale key)
-        return self._call(self._packed, *args)
+        if tuple(map(id, state)) == self._key:  # (the packed table is current: its entry point directly)
+            return self._entry(*self._packed, *args)
+        self._key = None
+        self._keep = state  # (its arrays' memory is what the table describes)
+        self._packed = pack(state)  # (table, layout)
+        out = self._call(self._packed, *args)
+        self._entry = self._call._entry
+        self._key = tuple(map(id, state))  # (last: an interrupt before it leaves no stale key)
+        return out
