@@ -172,14 +172,20 @@ def stream_gains(synth, j, o):
     gi = st.gi[j]
     D = st.D[j]
     chans = synth.channels
+    # per mode, the same at every microphone: G / (fs w_d) and G / (fs w_d) w
+    gq = np.empty(n)
+    gw = np.empty(n)
+    for k in range(n):
+        G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
+        gq[k] = G / (fs * ob.wd[m0 + k])
+        gw[k] = gq[k] * ob.w[m0 + k]
     for m in range(mics.shape[0]):
         owner = chans[m].owner
         if owner != AIR:  # a contact microphone: its own object only, its weights, no delay
             D[m] = 0
             for k in range(n):
                 if owner == o:
-                    G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
-                    a = G / (fs * ob.wd[m0 + k]) * synth.chan_w[chans[m].w_off + k]
+                    a = gq[k] * synth.chan_w[chans[m].w_off + k]
                     gr[m, k] = a.real
                     gi[m, k] = a.imag
                     if not (np.isfinite(gr[m, k]) and np.isfinite(gi[m, k])):
@@ -204,8 +210,7 @@ def stream_gains(synth, j, o):
         st.dts[j, m] = dts
         fac = st.dfac[j, m]
         for k in range(n):
-            G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
-            a = G / (fs * ob.wd[m0 + k]) * ob.w[m0 + k] / r
+            a = gw[k] / r
             if fresh:
                 lam = ob.lam[m0 + k]
                 ph = lam.imag * dts
