@@ -228,7 +228,7 @@ def stream_gains(synth, j, o):
             gi[m, k] = 0.0
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every stream array)
 def stream_generate(streams, s, k0, k1, amp, alpha):
     """Drive stream ``s`` on source samples ``[k0, k1)``: its noise (force [N]) is generated now
     into the ring, so several drives may precede one render. Samples between the last drive
@@ -269,7 +269,7 @@ def stream_generate(streams, s, k0, k1, amp, alpha):
         st.last = k1
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every stream array)
 def ring_need(streams, consts, s, k1):
     """Ring length stream ``s`` needs to be driven up to sample ``k1``: its largest delay plus
     the samples not rendered yet plus the slack."""
