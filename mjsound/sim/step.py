@@ -82,24 +82,26 @@ def _substep_times(clock, rn, mj):
     return True
 
 
-@njit_inner(cache=True, inline="always")
-def _has_room(reader, buf, synth, rn, ncon):
+@njit_inner(cache=True)
+def _has_room(counts, pairs, geom, records, efc, log, rn, consts, queue, ncon):
     """Whether every buffer holds a substep of ``ncon`` contacts (impacts on two sides at every
-    microphone; log entries while the log is not full). Inlined into :func:`advance` (numba
-    IR): a call would reference-count every array of the four records it is handed, about 150
-    calls of ``NRT_incref`` / ``NRT_decref`` per substep for a few comparisons."""
-    cnt = reader.counts[0]
-    if ncon > buf.geom.shape[0] or cnt.nslots + ncon > reader.pairs.shape[0]:
+    microphone; log entries while the log is not full): the reader's ``counts`` and ``pairs``,
+    the step buffers' ``geom``, ``records``, ``efc`` and ``log``, the synthesizer's ``consts``
+    and event ``queue``. (The arrays it reads, not their owners' records: a call reference-counts
+    every array it is handed, about 150 ``NRT_incref`` / ``NRT_decref`` calls per substep for
+    the whole records.)"""
+    cnt = counts[0]
+    if ncon > geom.shape[0] or cnt.nslots + ncon > pairs.shape[0]:
         return False
-    if cnt.n_records + ncon > buf.records.shape[0]:
+    if cnt.n_records + ncon > records.shape[0]:
         return False
-    if not rn.from_struct and rn.nefc > buf.efc.shape[0]:
+    if not rn.from_struct and rn.nefc > efc.shape[0]:
         return False
-    if rn.n_log < rn.log_limit and rn.n_log + 2 * ncon > buf.log.shape[0]:
+    if rn.n_log < rn.log_limit and rn.n_log + 2 * ncon > log.shape[0]:
         return False
-    cst, q = synth.consts[0], synth.queue
+    cst = consts[0]
     rows = 2 * cst.n_mics * ncon
-    if q.counts[0].count + rows > q.events.shape[0] or q.counts[0].pool_used + rows * cst.nmax > q.re.shape[0]:
+    if queue.counts[0].count + rows > queue.events.shape[0] or queue.counts[0].pool_used + rows * cst.nmax > queue.re.shape[0]:
         return False
     return True
 
@@ -175,7 +177,8 @@ def advance(table, layout, out):
                     cnt.any_open = 0
                 rn.stage = STAGE_DRIVE
             else:
-                if not _has_room(reader, buf, synth, rn, ncon):
+                if not _has_room(reader.counts, reader.pairs, buf.geom, buf.records, buf.efc, buf.log, rn, synth.consts,
+                                 synth.queue, ncon):
                     rn.reason = ROOM
                     rn.need = ncon
                     return

@@ -110,8 +110,9 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
     # loop with more work per mode could be, which would round it differently)
     nfold = 0 if na < 16 else min(nu, MAX_FOLD)
     first = nu - nfold  # the sources added over their spans before the folded ones
-    G = np.zeros((2 * MAX_FOLD, na), wr.dtype)
-    Ff = np.empty((MAX_FOLD, n), wr.dtype)
+    nf = np.int64(MAX_FOLD)  # (not a literal: np.zeros and np.empty of the types render_voice uses)
+    G = np.zeros((2 * nf, na), wr.dtype)
+    Ff = np.empty((nf, n), wr.dtype)
     for i in range(nfold):
         j = use[first + i]
         for k in range(span[0, j], span[1, j]):
@@ -200,8 +201,10 @@ def _gather(voice, gr, gi, cols, work, gains, idx, kof, span):
             wpr[k] = pr[i]
             wpi[k] = pi[i]
             k += 1
-    gwr[:, :] = 0.0  # (an earlier gather's gains, wherever they were)
-    gwi[:, :] = 0.0
+    for q in range(gwr.shape[0]):  # (an earlier gather's gains, wherever they were)
+        for j in range(gwr.shape[1]):
+            gwr[q, j] = 0.0
+            gwi[q, j] = 0.0
     for q in range(gr.shape[0]):
         lo, hi = k, 0
         for i in range(cols[0, q], cols[1, q]):
@@ -286,7 +289,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
     kof = np.empty(m, np.int64)
     act = np.empty(max(nsrc, 1), np.int64)
     span = np.zeros((2, nsrc), np.int64)
-    cols = np.empty((2, nsrc), np.int64)
+    cols = np.zeros((2, nsrc), np.int64)
     work = (wr, wi, wpr, wpi)
     gains = (gwr, gwi)
     for q in range(nsrc):

@@ -395,7 +395,10 @@ def streams_bank_rows(streams, layout, start, end, zero):
             if u1 > u0:  # (at most cap samples: two contiguous runs of the ring, around its wrap)
                 r0 = (u0 - Dm) & mask
                 n0 = min(u1 - u0, cap - r0)
-                F[j, u0 - start:u0 - start + n0] = ring[s, r0:r0 + n0]
-                F[j, u0 - start + n0:u1 - start] = ring[s, : u1 - u0 - n0]
+                o = u0 - start
+                for x in range(n0):
+                    F[j, o + x] = ring[s, r0 + x]
+                for x in range(n0, u1 - u0):
+                    F[j, o + x] = ring[s, x - n0]
             j += 1
     return ptr, sa, sb, gr, gi, F  # (the fields of SourceRows: a NamedTuple is not boxed safely on Ctrl-C)
