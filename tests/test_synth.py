@@ -517,7 +517,8 @@ def test_forced_bank_visits_only_each_sources_span(na, nact):
     three and four acting sources, an acting source without any gain (skipped), sources
     acting in another order than their rows."""
     from mjsound.jit import call_inner
-    from mjsound.synth.kernels import bank_forced, source_spans
+    from mjsound.synth.bank_loops import bank_forced
+    from mjsound.synth.kernels import source_spans
 
     rng = np.random.default_rng(3)
     nsrc, n, o0 = 5, 40, 3

@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit, njit_inner
+from .bank_loops import bank_forced, bank_free
 from .pulse import half_sine
 from .queue import take_due
 from .records import AIR, EventRows, SourceRows
@@ -51,130 +52,6 @@ class Voice(NamedTuple):
     pi: np.ndarray
     corr_r: np.ndarray
     corr_i: np.ndarray
-
-
-@njit(cache=True, fastmath=True)
-def bank_free(work, na, out, o0, n, zero):
-    """Advance ``na`` oscillators ``n`` samples, adding ``sum Im z`` to ``out[o0:o0+n]``.
-
-    work   : (wr, wi, pr, pi), each (>=na,) dtype: real / imaginary state (updated in
-             place) and real / imaginary pole
-    out    : (N,) dtype      output (pressure, Pa)
-    zero   : dtype scalar    0 of the bank's dtype (fixes the accumulator type)
-    """
-    wr, wi, pr, pi = work
-    for s in range(o0, o0 + n):
-        acc = zero
-        for k in range(na):
-            a = wr[k]
-            b = wi[k]
-            acc += b
-            wr[k] = a * pr[k] - b * pi[k]
-            wi[k] = a * pi[k] + b * pr[k]
-        out[s] += acc
-
-
-#: Most acting sources :func:`bank_forced` folds into its oscillator loop (a fourth made
-#: LLVM vectorise the loop another way, which sums the modes in another order: other last bits).
-MAX_FOLD = 3
-
-
-@njit_inner(cache=True, fastmath=True)
-def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
-    """Like :func:`bank_free` with forcing: ``z_i += sum_q g_{q,i} F[q, s]`` before output.
-
-    gwr, gwi : (n_src, >=na) dtype  complex per-mode gain of each source (gathered)
-    F        : (n_src, N) dtype     per-sample force values [N] of each source on this block
-    act      : (nact,) int64        indices of the sources active on this segment (nact >= 1)
-    span     : (2, n_src) int64     gathered modes ``span[0, q] <= k < span[1, q]`` outside
-                                    which source q's gains are zero (:func:`_gather`)
-
-    Acting sources with an empty span (no gathered mode has a gain of theirs, e.g. a source
-    on another object at a contact microphone) are skipped. The last :data:`MAX_FOLD` of the
-    others are folded into the oscillator loop (their gains laid out full width, zero outside
-    their spans, their forces in contiguous rows: one pass over the modes per sample instead
-    of a pass per source, whose short stores the next pass had to wait for; 2-3x faster with
-    one or two sources); any before them are added first over their spans only. Every mode
-    sees the same operations in the same order either way (``z += g_q F_q[s]`` for q in
-    ``act`` order, then the pole; a zero gain adds nothing), so the sound does not depend on
-    how many are folded."""
-    wr, wi, pr, pi = work
-    use = np.empty(nact, np.int64)  # the acting sources that drive a gathered mode, in act order
-    nu = 0
-    for i in range(nact):
-        j = act[i]
-        if span[1, j] > span[0, j]:
-            use[nu] = j
-            nu += 1
-    # (a bank of fewer than 16 modes keeps the plain loop: its sum is not vectorised, and a
-    # loop with more work per mode could be, which would round it differently)
-    nfold = 0 if na < 16 else min(nu, MAX_FOLD)
-    first = nu - nfold  # the sources added over their spans before the folded ones
-    nf = np.int64(MAX_FOLD)  # (not a literal: np.zeros and np.empty of the types render_voice uses)
-    G = np.zeros((2 * nf, na), wr.dtype)
-    Ff = np.empty((nf, n), wr.dtype)
-    for i in range(nfold):
-        j = use[first + i]
-        for k in range(span[0, j], span[1, j]):
-            G[2 * i, k] = gwr[j, k]
-            G[2 * i + 1, k] = gwi[j, k]
-        for s in range(n):
-            Ff[i, s] = F[j, o0 + s]
-    g1r, g1i, g2r, g2i, g3r, g3i = G[0], G[1], G[2], G[3], G[4], G[5]
-    for s in range(n):
-        for q in range(first):
-            j = use[q]
-            fv = F[j, o0 + s]
-            lo = span[0, j]
-            hi = span[1, j]
-            # (views from the span's start: indices from 0 need no wraparound check)
-            vr, vi, ur, ui = wr[lo:hi], wi[lo:hi], gwr[j, lo:hi], gwi[j, lo:hi]
-            for k in range(hi - lo):
-                vr[k] += ur[k] * fv
-                vi[k] += ui[k] * fv
-        acc = zero
-        if nfold == 3:
-            f1 = Ff[0, s]
-            f2 = Ff[1, s]
-            f3 = Ff[2, s]
-            for k in range(na):
-                a = wr[k] + g1r[k] * f1
-                b = wi[k] + g1i[k] * f1
-                a += g2r[k] * f2
-                b += g2i[k] * f2
-                a += g3r[k] * f3
-                b += g3i[k] * f3
-                acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
-        elif nfold == 2:
-            f1 = Ff[0, s]
-            f2 = Ff[1, s]
-            for k in range(na):
-                a = wr[k] + g1r[k] * f1
-                b = wi[k] + g1i[k] * f1
-                a += g2r[k] * f2
-                b += g2i[k] * f2
-                acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
-        elif nfold == 1:
-            f1 = Ff[0, s]
-            for k in range(na):
-                a = wr[k] + g1r[k] * f1
-                b = wi[k] + g1i[k] * f1
-                acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
-        else:  # (bank_free's loop, written out: calling bank_free per sample here was 25-30 %
-            # slower on banks of 4-15 modes, same audio)
-            for k in range(na):
-                a = wr[k]
-                b = wi[k]
-                acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
-        out[o0 + s] += acc
 
 
 @njit_inner(cache=True)
