@@ -118,12 +118,14 @@ def _log(buf, rn, t, kind, g1, g2, value):
         rn.n_log += 1
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")
 def _render_block(synth, target, rn, ck, out):
     """Render the pending block ``out`` (mics, n) (``run.render``): the synthesizer's samples
     ``[rendered, rendered + n)``, which must end where the last substep ends (else nothing is
     rendered: ``render_code`` :data:`NOT_RENDERED`). When the stream rings must grow first it
-    sets ``run.reason`` :data:`RING` and leaves ``run.render`` set (the next call renders)."""
+    sets ``run.reason`` :data:`RING` and leaves ``run.render`` set (the next call renders).
+    Inlined into :func:`advance` (numba IR): compiled on its own, its library took another copy
+    of the whole render tree, 1.1-1.7 s of a cold cache's compilation."""
     cst = synth.consts[0]
     start = cst.rendered
     n = out.shape[1]
