@@ -219,8 +219,9 @@ def test_a_mujoco_build_without_the_c_functions_falls_back_to_python(monkeypatch
     np.testing.assert_array_equal(play(model, data, sim, n_env=40), play(ref_model, ref_data, ref, n_env=40))
 
 
-@pytest.mark.parametrize("fused_streams,render", [(True, False), (False, False), (True, True)])
-def test_render_zeroes_non_finite_samples(fused_streams, render):
+@pytest.mark.parametrize("fused_streams,render,bad", [(True, False, np.nan), (False, False, np.nan), (True, True, np.nan),
+                                                       (True, True, np.inf)])
+def test_render_zeroes_non_finite_samples(fused_streams, render, bad):
     """A modal state gone non-finite (what an exploding simulation could leave) never reaches
     the output: those samples are 0, the others are rendered as usual (also when the step
     kernel renders: ``substeps(render=True)``)."""
@@ -228,7 +229,7 @@ def test_render_zeroes_non_finite_samples(fused_streams, render):
     sim.synth.fused_streams = fused_streams
     play(model, data, sim, n_env=40)  # something rolls: streams exist
     assert sim.synth.n_streams > 0
-    sim.synth._bank.zr[:] = np.nan  # (the modal state, as an exploding simulation could leave it)
+    sim.synth._bank.zr[:] = bad  # (the modal state, as an exploding simulation could leave it)
     sim.substeps(5, render)
     block = sim.flush()
     assert block.size and np.isfinite(block).all() and not block.any()
