@@ -121,7 +121,7 @@ def impact_sides(drive, impacts, k, missing):
     return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n, nm
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every array of its records)
 def queue_impacts(drive, synth, buf, k, t_ev):
     """The substep's impacts ``buf.impacts[:k]`` into the synthesizer's queue at synth time
     ``t_ev`` [s] (:func:`mjsound.synth.kernels.impacts_to_queue`). Returns 0, ``-m`` when
@@ -166,7 +166,7 @@ def missing_streams(drive, synth, buf, ns, k1):
     return nm, 0
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every array of its records)
 def drive_sustained(drive, synth, buf, ns, k0, k1):
     """Drive the stream of every sounding side of the sustained rows ``buf.sustained[:ns]`` on
     synth samples ``[k0, k1)`` (:func:`missing_streams` found none missing and the rings long

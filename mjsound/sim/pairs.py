@@ -291,7 +291,7 @@ def update_pairs(reader, pkey, vmax, ftot, slip, roll, t0, t1, out):
     return slot, onset_out, kind, speed
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every array of its records)
 def read_pairs(reader, buf, views, ncon, efc, t0, t1):
     """Stage 1 of a substep: the ``ncon`` contacts in ``buf`` (their constraint forces in
     ``efc``) -> :func:`contact_quantities` -> :func:`group_pairs` -> :func:`update_pairs`, and
