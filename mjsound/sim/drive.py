@@ -68,7 +68,7 @@ def follow_rows(pos, rows, offsets, out):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # (numba IR in the step kernel: no call that reference-counts its records)
 def sync_poses(drive, views, synth):
     """Microphones (``DRIVE_PARAMS.mic_mode``) and every moving sounding object to where they
     are now, before an event needs them."""
