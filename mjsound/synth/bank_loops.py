@@ -4,22 +4,53 @@ between grid points, events and source boundaries).
 
 With ``z_i`` the gathered modes' complex state and ``p_i`` their rounded poles, each sample
 ``s`` adds the acting sources' forces ``g_{q,i} F_q[s]`` to ``z_i``, outputs ``sum_i Im z_i``
-and advances ``z_i *= p_i``. The loops run in the bank's dtype with ``fastmath`` (the sum
-over modes is vectorised), so a mode's operations and their order are part of the sound:
-any rewrite must keep both (``tests/test_synth.py`` checks the loops against the plain
-recursion).
+and advances ``z_i *= p_i``. The loops run in the bank's dtype with the fast-math flags
+:data:`FAST` (the sum over modes is vectorised) and fuse a multiply and an add only where
+they say so (:func:`fma`: ``z_i + g F``, and in ``z_i p_i`` the products with the pole's
+real part: ``Re = fma(a, Re p, -(b Im p))``, ``Im = fma(b, Re p, a Im p)``), so a mode's
+operations and their order are part of the sound and the same in every process, whether it
+compiled the loops or loaded them from numba's cache. Any rewrite must keep both
+(``tests/test_synth.py`` checks the loops against the plain recursion,
+``tests/test_bank_loops.py`` the fusing).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
 
 from ..jit import njit, njit_inner
 
-__all__ = ["bank_free", "bank_forced", "MAX_FOLD"]
+__all__ = ["bank_free", "bank_forced", "MAX_FOLD", "FAST", "fma"]
+
+#: The loops' fast-math flags: every one but ``contract`` (and ``afn``). Reassociation lets
+#: the sum over modes vectorise; a multiply and an add fuse only where the code says so
+#: (:func:`fma`). With ``contract`` LLVM chose where to fuse, and the choice differed between
+#: a process that compiled the kernels and one that loaded them from numba's cache: the same
+#: seeded run then differed in its last bits.
+FAST = {"reassoc", "nsz", "arcp", "nnan", "ninf"}
 
 
-@njit(cache=True, fastmath=True)
+@intrinsic
+def fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (LLVM's ``llvm.fma``), in ``a``'s float type."""
+    if not all(isinstance(t, types.Float) for t in (a, b, c)):
+        return None
+    sig = a(a, b, c)
+
+    def codegen(context, builder, signature, args):
+        ty = signature.return_type
+        vals = [context.cast(builder, v, t, ty) for v, t in zip(args, signature.args)]
+        lt = context.get_value_type(ty)
+        fn = builder.module.declare_intrinsic("llvm.fma", [lt], ir.FunctionType(lt, [lt, lt, lt]))
+        return builder.call(fn, vals)
+
+    return sig, codegen
+
+
+@njit(cache=True, fastmath=FAST)
 def bank_free(work, na, out, o0, n, zero):
     """Advance ``na`` oscillators ``n`` samples, adding ``sum Im z`` to ``out[o0:o0+n]``.
 
@@ -35,8 +66,8 @@ def bank_free(work, na, out, o0, n, zero):
             a = wr[k]
             b = wi[k]
             acc += b
-            wr[k] = a * pr[k] - b * pi[k]
-            wi[k] = a * pi[k] + b * pr[k]
+            wr[k] = fma(a, pr[k], -(b * pi[k]))
+            wi[k] = fma(b, pr[k], a * pi[k])
         out[s] += acc
 
 
@@ -45,7 +76,7 @@ def bank_free(work, na, out, o0, n, zero):
 MAX_FOLD = 3
 
 
-@njit_inner(cache=True, fastmath=True)
+@njit_inner(cache=True, fastmath=FAST)
 def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
     """Like :func:`bank_free` with forcing: ``z_i += sum_q g_{q,i} F[q, s]`` before output.
 
@@ -96,48 +127,48 @@ def bank_forced(work, na, out, o0, n, zero, gwr, gwi, F, act, nact, span):
             # (views from the span's start: indices from 0 need no wraparound check)
             vr, vi, ur, ui = wr[lo:hi], wi[lo:hi], gwr[j, lo:hi], gwi[j, lo:hi]
             for k in range(hi - lo):
-                vr[k] += ur[k] * fv
-                vi[k] += ui[k] * fv
+                vr[k] = fma(ur[k], fv, vr[k])
+                vi[k] = fma(ui[k], fv, vi[k])
         acc = zero
         if nfold == 3:
             f1 = Ff[0, s]
             f2 = Ff[1, s]
             f3 = Ff[2, s]
             for k in range(na):
-                a = wr[k] + g1r[k] * f1
-                b = wi[k] + g1i[k] * f1
-                a += g2r[k] * f2
-                b += g2i[k] * f2
-                a += g3r[k] * f3
-                b += g3i[k] * f3
+                a = fma(g1r[k], f1, wr[k])
+                b = fma(g1i[k], f1, wi[k])
+                a = fma(g2r[k], f2, a)
+                b = fma(g2i[k], f2, b)
+                a = fma(g3r[k], f3, a)
+                b = fma(g3i[k], f3, b)
                 acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
+                wr[k] = fma(a, pr[k], -(b * pi[k]))
+                wi[k] = fma(b, pr[k], a * pi[k])
         elif nfold == 2:
             f1 = Ff[0, s]
             f2 = Ff[1, s]
             for k in range(na):
-                a = wr[k] + g1r[k] * f1
-                b = wi[k] + g1i[k] * f1
-                a += g2r[k] * f2
-                b += g2i[k] * f2
+                a = fma(g1r[k], f1, wr[k])
+                b = fma(g1i[k], f1, wi[k])
+                a = fma(g2r[k], f2, a)
+                b = fma(g2i[k], f2, b)
                 acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
+                wr[k] = fma(a, pr[k], -(b * pi[k]))
+                wi[k] = fma(b, pr[k], a * pi[k])
         elif nfold == 1:
             f1 = Ff[0, s]
             for k in range(na):
-                a = wr[k] + g1r[k] * f1
-                b = wi[k] + g1i[k] * f1
+                a = fma(g1r[k], f1, wr[k])
+                b = fma(g1i[k], f1, wi[k])
                 acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
+                wr[k] = fma(a, pr[k], -(b * pi[k]))
+                wi[k] = fma(b, pr[k], a * pi[k])
         else:  # (bank_free's loop, written out: calling bank_free per sample here was 25-30 %
             # slower on banks of 4-15 modes, same audio)
             for k in range(na):
                 a = wr[k]
                 b = wi[k]
                 acc += b
-                wr[k] = a * pr[k] - b * pi[k]
-                wi[k] = a * pi[k] + b * pr[k]
+                wr[k] = fma(a, pr[k], -(b * pi[k]))
+                wi[k] = fma(b, pr[k], a * pi[k])
         out[o0 + s] += acc
