@@ -83,7 +83,7 @@ class StepKernel:
         self.f = {name: self.run[name] for name in RUN.names}
         self.f["from_struct"][0] = self.from_struct
         self._run_bytes = self.run.view(np.uint8)
-        self._fresh = {}  # (nstep, call_step, log_limit, render) -> a fresh call's RUN record, as bytes
+        self._fresh = {}  # (nstep, call_step, render) -> a fresh call's RUN record, as bytes
         if clock is None:  # (calls with explicit times only; fs 1 keeps the event time finite)
             clock = np.zeros(1, CLOCK)
             clock[0]["fs"] = clock[0]["den"] = 1
@@ -91,19 +91,20 @@ class StepKernel:
         self._advance_call = PackedEntry(advance)
         self._silent = None  # (silent_render_target, made on first use)
 
-    def _fresh_run(self, nstep: int, call_step: bool, log_limit: int, render: bool) -> np.ndarray:
-        """The :data:`.records.RUN` record a call starts from, as bytes: its inputs set (steps,
-        whether the kernel steps, log room, whether it renders), where a substep starts, and
-        every output and working field zero (``render_code``: :data:`NOT_RENDERED`). The kernel
-        sets each working field before it reads it, so a call needs nothing of the last one."""
+    def _fresh_run(self, nstep: int, call_step: bool, render: bool) -> np.ndarray:
+        """The :data:`.records.RUN` record a call starts from, as bytes: the inputs a caller
+        keeps from call to call set (steps, whether the kernel steps, whether it renders), where
+        a substep starts, and every other field zero (``render_code``: :data:`NOT_RENDERED`;
+        the log room and explicit times are written after the copy). The kernel sets each
+        working field before it reads it, so a call needs nothing of the last one."""
         r = np.zeros(1, RUN)
         r0 = r[0]
         r0["nstep"], r0["call_step"], r0["from_struct"] = nstep, call_step, self.from_struct
         r0["stage"] = STAGE_STEP if call_step else STAGE_READ
-        r0["log_limit"], r0["render"], r0["render_code"] = log_limit, render, NOT_RENDERED
-        if len(self._fresh) >= 64:  # (a caller varying the log room every call: keep a few)
+        r0["render"], r0["render_code"] = render, NOT_RENDERED
+        if len(self._fresh) >= 64:  # (a caller varying the number of steps every call: keep a few)
             self._fresh.clear()
-        fresh = self._fresh[(nstep, call_step, log_limit, render)] = r.view(np.uint8)
+        fresh = self._fresh[(nstep, call_step, render)] = r.view(np.uint8)
         return fresh
 
     @property
@@ -141,11 +142,13 @@ class StepKernel:
         samples after the last substep (``run.render_code`` says whether it did; None: no
         render)."""
         f = self.f  # (plain one-element views of the record's fields: fast to set in Python)
-        key = (nstep, call_step, log_limit, block is not None)
+        key = (nstep, call_step, block is not None)
         fresh = self._fresh.get(key)
         if fresh is None:
             fresh = self._fresh_run(*key)
         self._run_bytes[:] = fresh  # (one copy of the whole record, its fields named in _fresh_run)
+        if log_limit:  # (the log room shrinks as a simulator with an event log logs)
+            f["log_limit"][0] = log_limit
         if explicit is not None:
             f["explicit"][0] = 1
             f["t0"][0], f["t1"][0], f["n0"][0], f["n1"][0] = explicit
