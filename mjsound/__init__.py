@@ -4,6 +4,7 @@ Pipeline (one way): mesh + material -> :func:`analyze` -> :class:`ModalModel`
 -> synthesis driven by contacts -> audio.
 """
 
+from . import jit as _jit  # (first: numba's CPU target and cache, before any kernel is declared)
 from .materials import MATERIALS, Material, get_material, parse_material
 from .modal.model import ModalModel
 
@@ -35,3 +36,6 @@ def __getattr__(name):
 
         return getattr(sim, name)
     raise AttributeError(f"module 'mjsound' has no attribute {name!r}")
+
+
+_jit.seed_shipped_kernels()  # (last: numba's indexes name types of the modules above)

@@ -9,7 +9,9 @@ Here each kernel is stamped with the digest of every source of its group
 
 Importing this module registers the group-stamped cache locators with numba (in front of
 numba's own, for mjsound's files only); kernel modules take ``njit`` from here so that the
-registration always precedes their decorators.
+registration always precedes their decorators. It also decides whether this process loads
+the kernels shipped with mjsound (:mod:`mjsound.kernel_bundle`, :data:`SHIPPED`): before any
+kernel is declared, which is why ``mjsound/__init__`` imports this module first.
 
 A kernel that only other kernels call is declared with :func:`njit_inner`: compiled without
 the entries numba makes for calls from Python and C, which for kernels taking the state
@@ -35,7 +37,7 @@ from .io import file_lock
 from .io import sources_digest as files_digest
 
 __all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest",
-           "cache_folder", "compile_lock", "COMPILE_WAIT_S"]
+           "cache_folder", "cache_path_of", "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -72,18 +74,6 @@ def njit_inner(fn=None, **options):
         return d
 
     return wrap if fn is None else wrap(fn)
-
-
-@numba.njit
-def _trampoline(kernel, args):
-    return kernel(*args)
-
-
-def call_inner(kernel, *args):
-    """Call the inner kernel ``kernel`` (:func:`njit_inner`) from Python: through a compiled
-    trampoline, itself compiled (not cached) for each kernel and argument types. For tests of
-    a kernel against a plain reference and for one-off use, not for a hot loop."""
-    return _trampoline(kernel, args)
 
 
 def kernel_group(py_file: str, root: str = _ROOT) -> str | None:
@@ -133,6 +123,61 @@ def _register() -> None:
 
 
 _register()
+
+
+def cache_path_of(py_file: str) -> str | None:
+    """numba's cache folder for the kernels of the source file ``py_file``: that of the first
+    locator that takes the file, in numba's order (:data:`caching.CacheImpl._locator_classes`,
+    the group-stamped ones first), or None when none does."""
+    def probe():
+        pass
+
+    for cls in caching.CacheImpl._locator_classes:
+        locator = cls.from_function(probe, py_file)
+        if locator is not None:
+            return locator.get_cache_path()
+    return None
+
+
+def _folder_file(folder: str) -> str:
+    return os.path.normpath(os.path.join(_ROOT, folder, "__init__.py"))
+
+
+def _choose_shipped_kernels():
+    """:func:`mjsound.kernel_bundle.activate` with this package's kernel sources; before any
+    kernel is declared (numba fixes its CPU target with the first)."""
+    from . import kernel_bundle
+
+    try:
+        return kernel_bundle.activate({g: sources_digest(g).hex() for g in KERNEL_GROUPS})
+    except Exception as e:  # (never fail an import over a cache: compile instead)
+        kernel_bundle.STATUS.used, kernel_bundle.STATUS.reason = False, f"shipped kernels not used ({e!r})"
+        return kernel_bundle.STATUS
+
+
+def seed_shipped_kernels():
+    """Copy the chosen shipped kernels into numba's cache folders of this package
+    (:func:`mjsound.kernel_bundle.seed_cache`); ``mjsound/__init__`` calls it last."""
+    from . import kernel_bundle
+
+    return kernel_bundle.seed_cache(locate=lambda folder: cache_path_of(_folder_file(folder)),
+                                    stamp_of=lambda folder: sources_digest(kernel_group(_folder_file(folder))))
+
+
+#: Whether this process loads mjsound's shipped kernels (:mod:`mjsound.kernel_bundle`), and why not.
+SHIPPED = _choose_shipped_kernels()
+
+
+@numba.njit
+def _trampoline(kernel, args):
+    return kernel(*args)
+
+
+def call_inner(kernel, *args):
+    """Call the inner kernel ``kernel`` (:func:`njit_inner`) from Python: through a compiled
+    trampoline, itself compiled (not cached) for each kernel and argument types. For tests of
+    a kernel against a plain reference and for one-off use, not for a hot loop."""
+    return _trampoline(kernel, args)
 
 #: Longest wait for another process's compilation of the same kernel [s]; then this one compiles too.
 COMPILE_WAIT_S = 600.0

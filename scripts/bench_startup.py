@@ -5,7 +5,9 @@ Each case runs in a child process (``python -c``), timed from before ``import mj
 the first audio block: the demo scene (``AudioSimulator`` on ``assets/demo_scene.xml``, its
 modal models from the on-disk model cache, 10 ms simulated) and a wrapped Ant-v5 (reset and
 one ``env.step``). "cold": ``NUMBA_CACHE_DIR`` is a new empty directory, so every kernel is
-compiled; "warm": the same directory again, so every kernel is loaded. Wall seconds of the
+compiled, or, with mjsound's shipped kernels (``mjsound/kernel_bundle/``, used unless
+``--no-shipped``), copied from them into the cache and loaded; "warm": the same directory
+again, so every kernel is loaded. Wall seconds of the
 child from its start to the first audio (interpreter start-up included, exit not; the machine
 is shared: the median of ``--rounds`` rounds), and the CPU seconds the child spent until then
 (``time.process_time``, less sensitive to other load). Goals (issue 18): cold <= 8 s, warm <= 1 s (the
@@ -19,7 +21,7 @@ With ``--compile-profile`` each cold child also records where its compilation we
 functions compiled, and the functions with the most compile time of their own (their callees'
 compilation excluded).
 
-Usage: python scripts/bench_startup.py [--rounds 1] [--json] [--compile-profile]
+Usage: python scripts/bench_startup.py [--rounds 1] [--json] [--compile-profile] [--no-shipped]
 """
 
 from __future__ import annotations
@@ -94,8 +96,11 @@ atexit.register(lambda: print("COMPILE_PROFILE " + json.dumps({"llvm_s": _llvm[0
 """
 
 
-def run_case(code: str, cache_dir: str, profile: bool = False) -> dict:
+def run_case(code: str, cache_dir: str, profile: bool = False, shipped: bool = True) -> dict:
     env = dict(os.environ, PYTHONPATH=ROOT)
+    env.pop("MJSOUND_SHIPPED_KERNELS", None)
+    if not shipped:
+        env["MJSOUND_SHIPPED_KERNELS"] = "0"
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # (as a user has it: Python keeps compiled modules)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = cache_dir
@@ -120,6 +125,8 @@ def main(argv=None) -> int:
     p.add_argument("--cases", nargs="+", default=list(CASES))
     p.add_argument("--json", action="store_true")
     p.add_argument("--warm-only", action="store_true", help="use numba's usual cache; no cold runs")
+    p.add_argument("--no-shipped", action="store_true",
+                   help="without mjsound's shipped kernels (MJSOUND_SHIPPED_KERNELS=0): a cold run compiles them")
     p.add_argument("--compile-profile", action="store_true",
                    help="cold runs: where the compilation went (LLVM seconds, functions, the largest self times)")
     args = p.parse_args(argv)
@@ -128,11 +135,11 @@ def main(argv=None) -> int:
         rows = {"warm": []} if args.warm_only else {"cold": [], "warm": []}
         for _ in range(args.rounds):
             if args.warm_only:
-                rows["warm"].append(run_case(CASES[name], None))
+                rows["warm"].append(run_case(CASES[name], None, shipped=not args.no_shipped))
                 continue
             with tempfile.TemporaryDirectory(prefix="mjsound-numba-") as d:
-                rows["cold"].append(run_case(CASES[name], d, profile=args.compile_profile))
-                rows["warm"].append(run_case(CASES[name], d))
+                rows["cold"].append(run_case(CASES[name], d, profile=args.compile_profile, shipped=not args.no_shipped))
+                rows["warm"].append(run_case(CASES[name], d, shipped=not args.no_shipped))
         res[name] = {k: sorted(v, key=lambda r: r["to_audio_s"])[len(v) // 2] for k, v in rows.items()}
     if args.json:
         print(json.dumps(res))

@@ -23,7 +23,9 @@ def register(sub) -> None:
             "Compile (or load, when cached) every numba kernel mjsound runs: the per-step and "
             "render kernels, the gymnasium wrapper's and the modal analysis's, so that later "
             "processes on this machine start in about a second. The cache is numba's: "
-            "$NUMBA_CACHE_DIR when set, else __pycache__ next to the sources."
+            "$NUMBA_CACHE_DIR when set, else __pycache__ next to the sources. Where mjsound's "
+            "shipped kernels fit (x86-64 with AVX2, the numba they were built with) they are "
+            "loaded instead of compiled; MJSOUND_SHIPPED_KERNELS=0 compiles for this host."
         ),
     )
     p.set_defaults(func=run)
@@ -71,11 +73,13 @@ def warm_kernels(progress=None) -> dict:
 
 def run(args) -> int:
     """Handler of ``mjsound warmup``."""
+    from ..jit import SHIPPED
     from ..sim.warmup import kernel_cache_dir, kernels_cached
 
     cold = not kernels_cached()
-    print(f"mjsound warmup: numba cache {kernel_cache_dir()} ({'empty: compiling, about a minute' if cold else 'filled: loading'})",
-          file=sys.stderr, flush=True)
+    print(f"mjsound warmup: numba cache {kernel_cache_dir()} ({'empty: compiling, about a minute' if cold else 'filled: loading'}); "
+          + (f"{SHIPPED.reason}, {SHIPPED.added} entries copied in by this process" if SHIPPED.used
+             else f"shipped kernels not used: {SHIPPED.reason}"), file=sys.stderr, flush=True)
     times = warm_kernels(progress=lambda part: print(f"  {part} kernels ...", file=sys.stderr, flush=True))
     print("mjsound warmup: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()) + f"; total {sum(times.values()):.1f} s")
     return 0

@@ -54,8 +54,11 @@ def notice_first_compile(stream=None) -> None:
         return
     _NOTICED[0] = True
     if not kernels_cached():
+        from ..jit import SHIPPED
+
         print("mjsound: compiling numba kernels, about half a minute of CPU (once per machine and mjsound "
-              "version, cached afterwards; `mjsound warmup` does it ahead of time)", file=stream or sys.stderr, flush=True)
+              "version, cached afterwards; `mjsound warmup` does it ahead of time; the shipped kernels are not "
+              f"used: {SHIPPED.reason})", file=stream or sys.stderr, flush=True)
 
 
 def warmup(verbose: bool = True, once: bool = False) -> float:
