@@ -45,7 +45,7 @@ from .interrupt import interruptible
 from .pulse import half_sine
 
 __all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES",
-           "fft_inplace", "lowpass", "transfer", "pulse_window", "render_pulse", "mix_pulse", "PulseTrack"]
+           "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "render_pulse", "mix_pulse", "PulseTrack"]
 
 #: One pulse at one output channel: arrival time [s], pulse length [s], velocity change times
 #: transfer numerator ``b0`` [channel unit / (m/s)] and ``b1`` [channel unit s / (m/s)],
@@ -66,8 +66,28 @@ MAX_PULSE_SAMPLES = 1 << 16
 
 
 @njit(cache=True)
-def fft_inplace(x, inverse):
-    """Radix-2 complex FFT of ``x`` (complex128, length a power of two), in place.
+def twiddles(n, inverse):
+    """The twiddle factors of :func:`fft_with` for every transform length up to ``n`` (a
+    power of two): stage ``L`` (butterflies ``L / 2`` apart) reads ``e^{-+2 pi j k / L}``,
+    ``k < L / 2``, at index ``L / 2 - 1 + k`` (``-`` forward, ``+`` with ``inverse``). A table
+    kept by the caller saves the ``n - 1`` sines and cosines of every transform (most of a
+    short one's time); each factor is computed as the transform would compute it itself."""
+    t = np.empty(max(n - 1, 1), np.complex128)
+    sign = 1.0 if inverse else -1.0
+    length = 2
+    while length <= n:
+        half = length // 2
+        step = sign * 2.0 * math.pi / length
+        for k in range(half):
+            t[half - 1 + k] = complex(math.cos(step * k), math.sin(step * k))
+        length *= 2
+    return t
+
+
+@njit(cache=True)
+def fft_with(x, table, inverse):
+    """Radix-2 complex FFT of ``x`` (complex128, length a power of two), in place, with the
+    twiddle factors ``table`` (:func:`twiddles` of at least ``len(x)`` and the same ``inverse``).
 
     ``inverse=False``: ``X_k = sum_n x_n e^{-2 pi j k n / N}``; ``inverse=True``: the same with
     ``+j`` and a factor ``1 / N`` (``numpy.fft.fft`` / ``ifft``).
@@ -84,13 +104,11 @@ def fft_inplace(x, inverse):
             t = x[i]
             x[i] = x[j]
             x[j] = t
-    sign = 1.0 if inverse else -1.0
     length = 2
     while length <= n:
         half = length // 2
-        step = sign * 2.0 * math.pi / length
         for k in range(half):
-            w = complex(math.cos(step * k), math.sin(step * k))
+            w = table[half - 1 + k]
             for start in range(0, n, length):
                 a = x[start + k]
                 b = x[start + k + half] * w
@@ -100,6 +118,12 @@ def fft_inplace(x, inverse):
     if inverse:
         for i in range(n):
             x[i] = x[i] / n
+
+
+@njit(cache=True)
+def fft_inplace(x, inverse):
+    """:func:`fft_with` with its twiddle factors computed for this one transform."""
+    fft_with(x, twiddles(x.shape[0], inverse), inverse)
 
 
 @njit_inner(cache=True)
@@ -158,7 +182,7 @@ def _usable(p, fs):
 
 
 @njit(cache=True)
-def render_pulse(pulse, dv, fs, work, out):
+def render_pulse(pulse, dv, fs, work, out, table):
     """Band-limited samples of one pulse (see the module docstring).
 
     Parameters
@@ -173,6 +197,8 @@ def render_pulse(pulse, dv, fs, work, out):
         Scratch, at least the window length long.
     out : float64 array
         Receives the samples, at least the window length long.
+    table : complex128 array
+        The inverse transform's twiddle factors, ``twiddles(len(work), True)``.
 
     Returns
     -------
@@ -183,7 +209,7 @@ def render_pulse(pulse, dv, fs, work, out):
     if not _usable(pulse, fs):
         return 0, 0
     n = pulse_window(pulse.tau_s, pulse.d1, pulse.d2, fs)
-    if n == 0 or n > work.shape[0] or n > out.shape[0]:
+    if n == 0 or n > work.shape[0] or n > out.shape[0] or n > table.shape[0] + 1:
         return 0, 0
     first = int(math.floor(pulse.time_s * fs)) - LEAD
     shift = pulse.time_s - first / fs  # arrival after the window's first sample [s]
@@ -200,7 +226,7 @@ def render_pulse(pulse, dv, fs, work, out):
         work[k] = v
         if 0 < k < n // 2:
             work[n - k] = v.conjugate()
-    fft_inplace(work[:n], True)
+    fft_with(work[:n], table, True)
     for i in range(n):
         out[i] = work[i].real
     return first, n
@@ -239,14 +265,14 @@ def _extent(pulses, fs):
 
 
 @njit(cache=True)
-def _render_pulses(pulses, dv, fs, acc, start, work, out):
+def _render_pulses(pulses, dv, fs, acc, start, work, out, table):
     """Render and mix every pulse (:func:`render_pulse`, :func:`mix_pulse`); returns ``(pulses
     dropped, first, end)`` of the samples written (``end <= first``: none)."""
     dropped = 0
     lo = 2**62
     hi = -(2**62)
     for i in range(pulses.shape[0]):
-        first, n = render_pulse(pulses[i], dv[i], fs, work, out)
+        first, n = render_pulse(pulses[i], dv[i], fs, work, out, table)
         if n == 0:
             dropped += 1
             continue
@@ -329,6 +355,7 @@ class PulseTrack:
         self._take_into_call = EntryPoint(_take_into)
         self._work = np.zeros(256, np.complex128)
         self._out = np.zeros(256)
+        self._table = twiddles(256, True)
 
     def reset(self, start: int = 0) -> None:
         """Forget every pending pulse; the next sample handed out is ``start``."""
@@ -379,9 +406,11 @@ class PulseTrack:
         if n_max > len(self._work):
             self._work = np.zeros(n_max, np.complex128)
             self._out = np.zeros(n_max)
+            self._table = twiddles(n_max, True)
         if last >= self.start:
             self._ensure(last)
-        dropped, lo, hi = _call(_render_pulses, pulses, dv, self.fs, self._acc, int(self.start), self._work, self._out)
+        dropped, lo, hi = _call(_render_pulses, pulses, dv, self.fs, self._acc, int(self.start), self._work, self._out,
+                                 self._table)
         self.dropped += int(dropped)
         if hi > lo:
             self.pending_from = lo if self.pending_until <= self.start else min(self.pending_from, lo)
