@@ -179,6 +179,7 @@ def call_inner(kernel, *args):
     a kernel against a plain reference and for one-off use, not for a hot loop."""
     return _trampoline(kernel, args)
 
+
 #: Longest wait for another process's compilation of the same kernel [s]; then this one compiles too.
 COMPILE_WAIT_S = 600.0
 

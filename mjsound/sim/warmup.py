@@ -56,9 +56,10 @@ def notice_first_compile(stream=None) -> None:
     if not kernels_cached():
         from ..jit import SHIPPED
 
+        why = "they lack these kernels" if SHIPPED.used else SHIPPED.reason
         print("mjsound: compiling numba kernels, about half a minute of CPU (once per machine and mjsound "
               "version, cached afterwards; `mjsound warmup` does it ahead of time; the shipped kernels are not "
-              f"used: {SHIPPED.reason})", file=stream or sys.stderr, flush=True)
+              f"used: {why})", file=stream or sys.stderr, flush=True)
 
 
 def warmup(verbose: bool = True, once: bool = False) -> float:
