@@ -7,7 +7,8 @@ compiles in an on-disk cache, keyed by the function, its argument types and the 
 with the target set to a named CPU model instead of "this host" (``NUMBA_CPU_NAME``, numba's
 documented way to share a cache between machines) the cached machine code runs on any CPU
 that has that model's instructions. mjsound ships such a cache, built for ``x86-64-v3``
-(AVX2 and FMA, the x86 CPUs of the last ten years) by ``scripts/build_kernel_bundle.py``,
+(AVX2 and FMA: Intel's Core since Haswell, AMD's since Zen; not every low-end Atom,
+Celeron or Pentium has them) by ``scripts/build_kernel_bundle.py``,
 in ``mjsound/kernel_bundle/``: ``manifest.json`` (what it was built with) and
 ``kernels.tar.xz`` (numba's index and data files, by source folder).
 
