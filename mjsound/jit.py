@@ -37,7 +37,7 @@ from .io import file_lock
 from .io import sources_digest as files_digest
 
 __all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest",
-           "cache_folder", "cache_path_of", "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
+           "cache_folder", "cache_path_of", "folder_cache_path", "folder_stamp", "kernel_digests", "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -143,13 +143,30 @@ def _folder_file(folder: str) -> str:
     return os.path.normpath(os.path.join(_ROOT, folder, "__init__.py"))
 
 
+def kernel_digests() -> dict:
+    """``{group: hex digest}`` of the kernel sources as they are: what a shipped bundle's
+    manifest must carry (:mod:`mjsound.kernel_bundle`)."""
+    return {g: sources_digest(g).hex() for g in KERNEL_GROUPS}
+
+
+def folder_stamp(folder: str) -> bytes:
+    """numba's source stamp of the kernels of the package folder ``folder`` ("sim", "." ...):
+    the digest of its group."""
+    return sources_digest(kernel_group(_folder_file(folder)))
+
+
+def folder_cache_path(folder: str) -> str | None:
+    """numba's cache folder for the kernels of the package folder ``folder`` (:func:`cache_path_of`)."""
+    return cache_path_of(_folder_file(folder))
+
+
 def _choose_shipped_kernels():
     """:func:`mjsound.kernel_bundle.activate` with this package's kernel sources; before any
     kernel is declared (numba fixes its CPU target with the first)."""
     from . import kernel_bundle
 
     try:
-        return kernel_bundle.activate({g: sources_digest(g).hex() for g in KERNEL_GROUPS})
+        return kernel_bundle.activate(kernel_digests())
     except Exception as e:  # (never fail an import over a cache: compile instead)
         kernel_bundle.STATUS.used, kernel_bundle.STATUS.reason = False, f"shipped kernels not used ({e!r})"
         return kernel_bundle.STATUS
@@ -160,8 +177,7 @@ def seed_shipped_kernels():
     (:func:`mjsound.kernel_bundle.seed_cache`); ``mjsound/__init__`` calls it last."""
     from . import kernel_bundle
 
-    return kernel_bundle.seed_cache(locate=lambda folder: cache_path_of(_folder_file(folder)),
-                                    stamp_of=lambda folder: sources_digest(kernel_group(_folder_file(folder))))
+    return kernel_bundle.seed_cache(locate=folder_cache_path, stamp_of=folder_stamp)
 
 
 #: Whether this process loads mjsound's shipped kernels (:mod:`mjsound.kernel_bundle`), and why not.

@@ -95,23 +95,18 @@ def package_folders(cache_dir: str) -> dict:
     return out
 
 
-def current_digests() -> dict:
-    from mjsound.jit import KERNEL_GROUPS, sources_digest
-
-    return {g: sources_digest(g).hex() for g in KERNEL_GROUPS}
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--check", action="store_true", help="only check that the bundle matches the sources and numba")
     args = p.parse_args(argv)
     from mjsound import kernel_bundle
+    from mjsound.jit import kernel_digests
 
     manifest = kernel_bundle.read_manifest()
     if args.check:
         here = kernel_bundle.host_platform()
         stale = [k for k in here if manifest is None or manifest.get(k) != here[k]]
-        stale += [g for g, d in current_digests().items() if manifest is None or manifest["digests"].get(g) != d]
+        stale += [g for g, d in kernel_digests().items() if manifest is None or manifest["digests"].get(g) != d]
         print("build_kernel_bundle: " + (f"stale ({', '.join(stale)})" if stale else "the bundle matches"))
         return 1 if stale else 0
 
@@ -124,7 +119,7 @@ def main(argv=None) -> int:
         import llvmlite.binding as ll
 
         manifest = dict(kernel_bundle.host_platform(), cpu_name=CPU_NAME, cpu_features="", cpu_requires=CPU_REQUIRES,
-                        digests=current_digests(),
+                        digests=kernel_digests(),
                         built={"host_cpu": ll.get_host_cpu_name(), "functions": len(built["compiled"])})
         archive = kernel_bundle.write_bundle(kernel_bundle.BUNDLE_DIR, package_folders(cache), manifest)
     print(f"build_kernel_bundle: {len(built['compiled'])} functions compiled in {time.perf_counter() - t0:.0f} s; "

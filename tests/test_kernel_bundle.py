@@ -15,10 +15,6 @@ from mjsound import jit, kernel_bundle
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 
 
-def _digests():
-    return {g: jit.sources_digest(g).hex() for g in jit.KERNEL_GROUPS}
-
-
 def _child(code: str, **env) -> dict:
     e = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
     for k in ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", kernel_bundle.ENV_SWITCH):
@@ -30,7 +26,7 @@ def _child(code: str, **env) -> dict:
 
 
 #: This process's verdict on the bundle: None where it fits this machine and these sources.
-VERDICT = kernel_bundle.fits(kernel_bundle.read_manifest(), _digests())
+VERDICT = kernel_bundle.fits(kernel_bundle.read_manifest(), jit.kernel_digests())
 
 
 def test_the_bundle_is_built_from_these_sources():
@@ -41,7 +37,7 @@ def test_the_bundle_is_built_from_these_sources():
     assert manifest is not None, "no mjsound/kernel_bundle/manifest.json: run scripts/build_kernel_bundle.py"
     here = kernel_bundle.host_platform()
     if all(manifest[k] == here[k] for k in here):
-        assert manifest["digests"] == _digests(), "the kernel sources changed: run scripts/build_kernel_bundle.py"
+        assert manifest["digests"] == jit.kernel_digests(), "the kernel sources changed: run scripts/build_kernel_bundle.py"
         assert manifest["cpu_name"] == "x86-64-v3" and manifest["cpu_features"] == ""
     else:
         assert VERDICT.startswith("built for ")
@@ -115,15 +111,12 @@ def test_seeding_keeps_what_the_cache_holds(tmp_path):
         path.mkdir(exist_ok=True)
         return str(path)
 
-    def stamp_of(folder):
-        return jit.sources_digest(jit.kernel_group(jit._folder_file(folder)))
-
-    added = kernel_bundle.seed(manifest, locate, stamp_of)
+    added = kernel_bundle.seed(manifest, locate, jit.folder_stamp)
     assert added > 50
-    assert kernel_bundle.seed(manifest, locate, stamp_of) == 0  # (the markers)
+    assert kernel_bundle.seed(manifest, locate, jit.folder_stamp) == 0  # (the markers)
     sim = tmp_path / "sim"
     base = next(n for n in sorted(os.listdir(sim)) if n.startswith("step.advance-") and n.endswith(".nbi"))[:-4]
-    index = IndexDataCacheFile(str(sim), base, stamp_of("sim"))
+    index = IndexDataCacheFile(str(sim), base, jit.folder_stamp("sim"))
     shipped = index._load_index()
     assert len(shipped) == 1
     (key, name), = shipped.items()
@@ -134,7 +127,7 @@ def test_seeding_keeps_what_the_cache_holds(tmp_path):
     index._save_index({("another signature",): name})
     for m in sim.glob("mjsound-bundle-*.seeded"):
         m.unlink()
-    assert kernel_bundle.seed(manifest, locate, stamp_of) == 1
+    assert kernel_bundle.seed(manifest, locate, jit.folder_stamp) == 1
     merged = index._load_index()
     assert merged[("another signature",)] == name and (sim / name).read_bytes() == b"another entry"
     assert merged[key] != name and (sim / merged[key]).read_bytes() == code
@@ -143,7 +136,7 @@ def test_seeding_keeps_what_the_cache_holds(tmp_path):
     IndexDataCacheFile(str(sim), base, b"older sources")._save_index({("old",): name})
     for m in sim.glob("mjsound-bundle-*.seeded"):
         m.unlink()
-    assert kernel_bundle.seed(manifest, locate, stamp_of) == 1
+    assert kernel_bundle.seed(manifest, locate, jit.folder_stamp) == 1
     assert list(index._load_index()) == [key]
 
 
