@@ -48,9 +48,12 @@ def _warm_wrapper() -> None:
 def _warm_modal() -> None:
     from ..modal.analyze import analyze
 
-    # a solid (voxel hexahedra) and a thin wall (shell triangles): every modal kernel
+    # a solid (voxel hexahedra), a thin wall (shell triangles) and a curved rod (quadratic cells
+    # that place their surface voxels' material by its moments: the rods, legs and handles of
+    # robot scenes): the modal kernels of every common analysis
     analyze("box:0.1,0.06,0.02", "steel", quality="draft", f_max=8000.0, cache=False, progress=False)
     analyze("sphere:0.1", "aluminium,wall=2mm", quality="draft", f_max=4000.0, cache=False, progress=False)
+    analyze("cylinder:0.01,0.1", "steel", quality="draft", f_max=4000.0, cache=False, progress=False)
 
 
 #: The kernel groups, in the order they are warmed: the per-step path, the gymnasium wrapper,
