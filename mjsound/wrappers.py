@@ -35,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 
 from .jit import njit
+from .synth.dispatch import EntryPoint
 from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE, check_contact_full_scale
 
 __all__ = ["AudioObservation", "AudioWindow", "EnvAudio", "scene_materials", "stft_log1p"]
@@ -126,6 +127,7 @@ class AudioWindow:
             top = float(np.log1p(self.win.astype(np.float64).sum())) + 1e-3
             self.space = gym.spaces.Box(0.0, top, (C, self.n_fft // 2 + 1, frames), np.float32)
         self.buf = np.zeros((C, W), np.float32)
+        self._push = EntryPoint(_push_kernel)  # (its compiled entry point: numba's dispatch types every call)
 
     def reset(self) -> None:
         self.buf[:] = 0.0
@@ -139,7 +141,9 @@ class AudioWindow:
         """Append a (channels, n) pressure block; returns (clipped samples, peak |p| [Pa])."""
         if block.shape[1] == 0:
             return 0, 0.0
-        clipped, peak = _push_kernel(self.buf, np.ascontiguousarray(block, dtype=np.float32), 1.0 / self.full_scale_pa)
+        if block.dtype != np.float32 or not block.flags.c_contiguous:
+            block = np.ascontiguousarray(block, dtype=np.float32)
+        clipped, peak = self._push((self.buf,), block, 1.0 / self.full_scale_pa)
         return int(clipped), float(peak) * self.full_scale_pa
 
 

@@ -265,8 +265,8 @@ class ContactReader:
         if getattr(self, "_state", None) is None or getattr(self, "buffers", None) is None:
             self.counts = np.zeros(1, READER_COUNTS)
             # plain int64 views of the fields Python reads after every kernel call
-            self._n_records, self._n_bad, self._n_huge, self._nslots = (
-                self.counts[k] for k in ("n_records", "n_bad", "n_huge", "nslots"))
+            self._n_records, self._n_bad, self._n_huge, self._nslots, self._any_open = (
+                self.counts[k] for k in ("n_records", "n_bad", "n_huge", "nslots", "any_open"))
             self._pairs = np.zeros(0, PAIR)
             self._hkeys = np.full(0, -1, np.int64)
             self._hvals = np.zeros(0, np.int64)
@@ -310,7 +310,7 @@ class ContactReader:
     @property
     def any_open(self) -> bool:
         """Whether an impact record may be open (quiet steps must then be read)."""
-        return bool(self.counts[0]["any_open"])
+        return bool(self._any_open[0])
 
     def count_quiet_step(self) -> None:
         """Count a step in which nothing touches and no impact is open (the kernel would only
@@ -401,7 +401,7 @@ class ContactReader:
         each closes its slot's previous record with the sums banked at its onset."""
         if not len(rows):
             return
-        self.counts[0]["any_open"] = 1
+        self._any_open[0] = 1
         # (a few rows per step: plain tuples cost less than numpy operations on them)
         rows = rows.tolist()
         raw, geoms = self._raw, self._geoms
