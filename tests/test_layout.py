@@ -1,0 +1,143 @@
+"""The codebase's shape, as ``docs/design.md`` ("Code layout") promises it to a reader: small
+modules, numba kernels with short signatures, no import circle, argparse only in the CLI,
+and every repository path the code and docs cite exists."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import os
+import re
+
+import pytest
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+PACKAGE = os.path.join(ROOT, "mjsound")
+
+MAX_LINES = 600
+MAX_KERNEL_PARAMETERS = 12
+
+
+def _modules() -> dict[str, str]:
+    """``{dotted name: path}`` of every module of the package (a package as its ``__init__``)."""
+    out = {}
+    for folder, dirs, files in os.walk(PACKAGE):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        for f in files:
+            if f.endswith(".py"):
+                rel = os.path.relpath(os.path.join(folder, f), ROOT)[:-3].split(os.sep)
+                if rel[-1] == "__init__":
+                    rel = rel[:-1]
+                out[".".join(rel)] = os.path.join(folder, f)
+    return out
+
+
+MODULES = _modules()
+
+
+def _top_level_imports(name: str, path: str) -> set[str]:
+    """The package modules ``name`` imports while it is imported (statements in functions and
+    in ``if TYPE_CHECKING:`` blocks run later or never, and are left out)."""
+    is_package = path.endswith("__init__.py")
+    found = set()
+
+    def resolve(level: int, module: str | None) -> str:
+        if level == 0:
+            return module or ""
+        base = name.split(".") if is_package else name.split(".")[:-1]
+        base = base[: len(base) - (level - 1)]
+        return ".".join(base + ([module] if module else []))
+
+    def visit(nodes):
+        for node in nodes:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                continue
+            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+                visit(node.orelse)
+                continue
+            if isinstance(node, ast.Import):
+                found.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                target = resolve(node.level, node.module)
+                found.add(target)
+                found.update(f"{target}.{a.name}" for a in node.names)
+            visit(ast.iter_child_nodes(node))
+
+    visit(ast.parse(open(path).read()).body)
+    own = {m for m in found if m in MODULES}
+    # a module's parent packages are being imported already when it is: not an edge of a circle
+    return {m for m in own if not name.startswith(m + ".")} - {name}
+
+
+def test_no_module_is_longer_than_600_lines():
+    long = {n: sum(1 for _ in open(p)) for n, p in MODULES.items()}
+    assert {n: k for n, k in long.items() if k > MAX_LINES} == {}
+
+
+def test_no_numba_kernel_takes_more_than_12_parameters():
+    from numba.core.registry import CPUDispatcher  # (njit_inner's dispatchers are ones too)
+
+    kernels = {}
+    for name in MODULES:
+        if name.endswith("__main__"):
+            continue
+        module = importlib.import_module(name)
+        for attr, value in vars(module).items():
+            if isinstance(value, CPUDispatcher) and value.py_func.__module__ == name:
+                kernels[f"{name}.{attr}"] = len(inspect.signature(value.py_func).parameters)
+    assert len(kernels) > 50  # (the walk found the kernels: the step, render and modal ones)
+    assert {k: n for k, n in kernels.items() if n > MAX_KERNEL_PARAMETERS} == {}
+
+
+def test_the_package_has_no_import_circle():
+    graph = {name: _top_level_imports(name, path) for name, path in MODULES.items()}
+    assert "mjsound.sim.step" in graph["mjsound.sim.runner"]  # (the edges are found)
+    state, circles = {}, []
+
+    def walk(node, stack):
+        state[node] = "open"
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == "open":
+                circles.append(stack[stack.index(nxt):] + [nxt])
+            elif nxt not in state:
+                walk(nxt, stack)
+        stack.pop()
+        state[node] = "done"
+
+    for name in sorted(graph):
+        if name not in state:
+            walk(name, [])
+    assert circles == []
+
+
+def test_only_the_cli_imports_argparse():
+    users = []
+    for name, path in MODULES.items():
+        tree = ast.parse(open(path).read())
+        for node in ast.walk(tree):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module] if isinstance(node, ast.ImportFrom) else []
+            if "argparse" in names and not name.startswith("mjsound.cli"):
+                users.append(name)
+    assert users == []
+
+
+#: A path inside the repository, as code and documents cite one.
+CITED = re.compile(r"(?<![\w/.-])((?:docs|scripts|tests|reports|assets|mjsound)/[\w./-]+\.(?:md|py|xml|json|png|csv|txt))")
+
+
+@pytest.mark.parametrize("where", ["mjsound", "scripts", "tests", "docs", "README.md"])
+def test_every_cited_repository_path_exists(where):
+    top = os.path.join(ROOT, where)
+    files = [top] if os.path.isfile(top) else [
+        os.path.join(d, f) for d, dirs, fs in os.walk(top) if "__pycache__" not in d
+        for f in fs if f.endswith((".py", ".md"))]
+    cited = {}
+    for f in files:
+        for m in CITED.finditer(open(f, encoding="utf-8").read()):
+            cited.setdefault(m.group(1).rstrip("."), os.path.relpath(f, ROOT))
+    assert cited, f"no repository path cited in {where}"
+    missing = {p: f for p, f in cited.items() if not os.path.exists(os.path.join(ROOT, p))}
+    assert missing == {}
