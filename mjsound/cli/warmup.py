@@ -22,7 +22,7 @@ def register(sub) -> None:
         description=(
             "Compile (or load, when cached) every numba kernel mjsound runs: the per-step and "
             "render kernels, the gymnasium wrapper's and the modal analysis's, so that later "
-            "processes on this machine start in about a second. The cache is numba's: "
+            "processes on this machine load them instead of compiling. The cache is numba's: "
             "$NUMBA_CACHE_DIR when set, else __pycache__ next to the sources. Where mjsound's "
             "shipped kernels fit (x86-64 with AVX2, the numba they were built with) they are "
             "loaded instead of compiled; MJSOUND_SHIPPED_KERNELS=0 compiles for this host."

@@ -21,10 +21,10 @@ unlucky order): then the factorization is refused (None) and the caller takes Su
 For the definite ``K - sigma M`` (``sigma < 0``) every pivot is positive and the
 elimination is stable (a Cholesky factorization in another form).
 
-The beam's count took 3 MB and 4 ms here, where SuperLU's (same order, its ``U`` read back
-for the diagonal) wrote 4.3k fresh pages in 26 ms, and the shift's factorization 6 ms
-against SuperLU's 17 ms; in a process's first analysis every fresh page costs a fault
-(``scripts/bench_modal.py --vs-skfem``).
+On the beam the count writes a fraction of the memory SuperLU's does (same order, its ``U``
+read back for the diagonal), and the shift's factorization is faster too; in a process's
+first analysis every fresh page costs a fault (``scripts/bench_modal.py --vs-skfem``
+measures both).
 """
 
 from __future__ import annotations

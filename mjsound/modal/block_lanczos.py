@@ -200,10 +200,10 @@ def _full_pass(step: int) -> bool:
     only, and what rounding leaves along the older blocks (amplified at most by one
     application of T) goes at the next full pass. On a 20 cm bowl (basis 336) the basis
     stayed M-orthonormal to 1.8e-12 (every step: 1.6e-13), the eigenvalues moved by 1.9e-12
-    and the Gram-Schmidt time dropped from 1.0 to ~0.55 s; every third step let the
-    orthogonality go (the block solve gave up and ARPACK took 20 s). Frequencies against
-    every step: bowl 9e-13, beam 4e-12, 30 cm plate 4e-11 relative (its analysis 25.0 ->
-    18.9 s; ``scripts/bench_modal.py --no-baseline --objects beam plate``).
+    and the Gram-Schmidt time about halved; every third step let the orthogonality go
+    (the block solve gave up, and the fallback to ARPACK was many times slower). Frequencies against
+    every step: bowl 9e-13, beam 4e-12, 30 cm plate 4e-11 relative (its analysis about a quarter
+    faster; ``scripts/bench_modal.py --no-baseline --objects beam plate`` measures it).
     """
     return step % 2 == 0
 
@@ -226,7 +226,8 @@ def single_threaded_blas():
 
 _BLAS_CONTROLLER = None
 #: from this basis size on, LAPACK's eigensolver of the projection (multithreaded in
-#: OpenBLAS from about here: 36 calls of d = 100..200 took 1.5 s on two threads) runs with
+#: OpenBLAS from about here, where on matrices this small the threads cost more than they
+#: save) runs with
 #: BLAS on one thread (below :data:`SERIAL_PRODUCTS_DOFS` dofs, where the solve leaves
 #: BLAS's threads alone until then)
 SERIAL_EIGH_DIM = 64
@@ -301,7 +302,7 @@ def _block_lanczos(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, m
     max_dim = dim_limit(count)
     rng = np.random.default_rng(seed)
     # storage for the largest basis at once: np.empty/zeros only reserve address space, the
-    # pages are touched as the basis grows (growing by copies cost 0.2 s on the bowl)
+    # pages are touched as the basis grows (growing by copies rewrote the basis each time)
     cap = int(max_dim + b)
     Q = np.empty((cap, n))
     H = np.zeros((cap + b, cap + b))  # + b: room for the next block's coupling
@@ -416,8 +417,8 @@ def _block_lanczos(K, M, sigma, lam_max, n_target, solve, *, tol=None, seed=0, m
                 # 1e-6 relative errors there, where the quotients agree to 1e-10.
                 # y^T M y = s^T (Q M Q^T) s = 1 up to the basis' loss of M-orthonormality
                 # (2e-12 on the bowl), so the quotient needs only K (the mass products
-                # of the 120 vectors took 0.12..0.18 s; eigenvalues moved by 2e-12). The
-                # forms run on two threads (0.25 s on one).
+                # would add as much work again; eigenvalues moved by 2e-12). The forms run
+                # on two threads.
                 lam = quadratic_forms(K, V, threads=2, columns=True)
                 order = np.argsort(lam, kind="stable")
                 if np.any(np.diff(order) != 1):  # quotients of a near pair in the other order

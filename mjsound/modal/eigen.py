@@ -27,8 +27,8 @@ Strategy (chosen by measurement, see ``scripts/bench_modal.py``):
 
   - **one block solve** (``n_target <= BLOCK_MAX_MODES``): block Lanczos with full
     reorthogonalisation on ``(K - sigma M)^{-1} M`` (:func:`_block_band`). Its solves run on
-    blocks of 4..16 vectors, where PARDISO's substitution is BLAS-3 (a 20 cm bowl: 5 ms per
-    vector in blocks of 12 against 15..60 ms one at a time), and it stops when exactly
+    blocks of 4..16 vectors, where PARDISO's substitution is BLAS-3 (on a 20 cm bowl a
+    vector costs several times less in blocks of 12 than one at a time), and it stops when exactly
     ``n_target`` Ritz values lie below the band top, all converged: complete by Sylvester,
     whatever the multiplicities. Eigenvalues are the Rayleigh quotients of the vectors.
     With the shift below zero (no PARDISO for the interior one), from

@@ -70,7 +70,7 @@ def factorize(A: sp.spmatrix, backend: str | None = None, definite: bool = False
 #: stored column to the diagonal), which a factorization in that order fills, holds at most
 #: this many times the matrix's lower entries: a bar numbered along its length (the beam,
 #: 3123 dofs: 1.8 x, L + U 599k entries against 585k after minimum degree, whose ``A + A^T``
-#: and ordering cost 1.3k page faults and 5 ms more); a compact solid numbered the same way
+#: and ordering cost more than they save); a compact solid numbered the same way
 #: has a far wider envelope and gets the minimum-degree order.
 NATURAL_ENVELOPE = 2.0
 
@@ -105,10 +105,10 @@ class _Pardiso:
     pivots; ``iparm[13]`` counts perturbed pivots, ``iparm[21:23]`` the inertia).
 
     A matrix of 3 dofs per node (every one here) goes in as 3x3 blocks (``iparm[36] = 3``,
-    upper block triangle): the factorization of a 20 cm bowl took half the time (0.49
-    against 0.93 s definite, 0.63 against 1.33 s indefinite), with the same inertia.
+    upper block triangle): the factorization of a 20 cm bowl took about half the time,
+    definite and indefinite, with the same inertia.
     ``pypardiso.PyPardisoSolver.solve`` compares the whole matrix with the factored one and
-    converts its index arrays on every call (~10 ms here); Lanczos solves hundreds of times,
+    converts its index arrays on every call; Lanczos solves hundreds of times,
     so the phases are called directly with the factorization kept in ``pt``.
     """
 

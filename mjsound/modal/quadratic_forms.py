@@ -56,15 +56,15 @@ def quadratic_forms(A: sp.spmatrix, Y: np.ndarray, threads: int = 1, columns: bo
 
     ``threads > 1`` splits the rows of ``A`` into that many ranges summed on threads (the
     kernel releases the GIL), each range of about equal non-zeros; the partial sums are
-    added in the end. A 20 cm bowl's 120 quotients (34k dofs, 5.0M non-zeros of K) took
-    0.24..0.28 s on one thread (three timings of this function alone, 2-core machine)."""
+    added in the end. A 20 cm bowl's 120 quotients (34k dofs, 5.0M non-zeros of K) are
+    worth two threads."""
     A = sp.csr_matrix(A)
     Y = np.asarray(Y, dtype=np.float64)
     indptr, indices = A.indptr, A.indices  # int32 or int64 as scipy has them (a cast wrote 2.8 MB for the beam)
     data, Yt = np.ascontiguousarray(A.data, dtype=np.float64), np.ascontiguousarray(Y if columns else Y.T)
     n = A.shape[0]
-    # a thread is worth its start from a few million products on (the beam's 23 quotients,
-    # 8e6 products, took 1 ms on one thread)
+    # a thread is worth its start from a few million products on (below that, as for the
+    # beam's 23 quotients, its start costs about as much as the work)
     threads = int(max(1, min(threads, A.nnz * Yt.shape[1] // QUADRATIC_PRODUCTS_PER_THREAD)))
     outs = np.zeros((threads, Yt.shape[1]))
     if threads == 1:

@@ -59,7 +59,8 @@ _LOADED = [False]
 
 def _load_kernels() -> None:
     """Compile or load the pulse kernels once per process, when a simulator that will need them
-    is made, not at its first impact (loading them from numba's cache took 0.5 s here)."""
+    is made, not at its first impact (a first load from numba's cache, numba's own start included, would
+    stall the step of that impact)."""
     if not _LOADED[0]:
         _LOADED[0] = True
         track = PulseTrack(1, 16000)
@@ -228,7 +229,7 @@ class ImpactPulses:
             return block
         extra = self.track.take(block.shape[1])
         if extra is not None:
-            if not np.isfinite(extra).all():  # (never NaN audio; nan_to_num alone took 5 us a block)
+            if not np.isfinite(extra).all():  # (never NaN audio; checking costs less than nan_to_num on every block)
                 extra = np.nan_to_num(extra, nan=0.0, posinf=0.0, neginf=0.0)
             block += extra.astype(block.dtype)
         return block

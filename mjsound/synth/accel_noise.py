@@ -127,7 +127,7 @@ def carlson_rd(x: float, y: float, z: float) -> float:
     + (1/4) R_D((x + lambda)/4, (y + lambda)/4, (z + lambda)/4)``; the arguments close in on their
     weighted mean ``mu = (x + y + 3 z)/5`` fourfold per step, and once their relative spread
     ``d`` is below 1e-3 a fifth-order series in ``d`` ends it (relative error ~ d^6 < 1e-17).
-    (scipy.special.elliprd gives the same; importing scipy.special costs 0.1-0.2 s at start-up.)
+    (scipy.special.elliprd gives the same; importing scipy.special would lengthen every start-up.)
     """
     x, y, z = float(x), float(y), float(z)
     if not (x >= 0 and y >= 0 and z > 0 and x + y > 0):

@@ -307,7 +307,7 @@ def _take_into(acc, n0, lo, hi, block):
 @interruptible
 def _call(kernel, *args):
     """``kernel(*args)`` through its compiled entry point once it has been compiled for these
-    argument types: numba's dispatch types a structured array in Python (about 0.3 ms a call),
+    argument types: numba's dispatch types a structured array in Python (more than the call's work),
     and the track's arguments always have the same types (C-contiguous arrays of fixed dtypes,
     Python floats and ints)."""
     entry = _ENTRY.get(kernel)
