@@ -141,3 +141,25 @@ def test_every_cited_repository_path_exists(where):
     assert cited, f"no repository path cited in {where}"
     missing = {p: f for p, f in cited.items() if not os.path.exists(os.path.join(ROOT, p))}
     assert missing == {}
+
+
+#: A section of the design document cited by name: ``docs/design.md`` ("Section") and the like.
+CITED_SECTION = re.compile(r"design\.md`*[ ,(]*[\"“]([^\"”]+)[\"”]")
+
+
+def test_every_cited_design_section_exists():
+    headings = {line.lstrip("#").strip() for line in open(os.path.join(ROOT, "docs", "design.md"), encoding="utf-8")
+                if line.startswith("#")}
+    cited = {}
+    for top in ("mjsound", "scripts", "tests", "docs", "README.md"):
+        path = os.path.join(ROOT, top)
+        files = [path] if os.path.isfile(path) else [
+            os.path.join(d, f) for d, _, fs in os.walk(path) if "__pycache__" not in d for f in fs
+            if f.endswith((".py", ".md"))]
+        for f in files:
+            if os.path.abspath(f) == os.path.abspath(__file__):
+                continue  # (its own pattern and example are not citations)
+            for m in CITED_SECTION.finditer(open(f, encoding="utf-8").read()):
+                cited.setdefault(m.group(1), os.path.relpath(f, ROOT))
+    assert "State records" in cited  # (the pattern finds the citations)
+    assert {s: f for s, f in cited.items() if s not in headings} == {}
