@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -240,6 +241,7 @@ class EnvAudio:
         self._audible = audible_geoms(model, self.scene, self.sim).tolist()  # (indexed per impact: plain bools)
         self._rng = None
         self._reader_impacts = 0
+        self._clip_reported = False
 
     def reset(self, seed=None) -> dict:
         """After the env's reset: silence, re-anchor the clock at ``data.time``, draw the noise
@@ -268,12 +270,26 @@ class EnvAudio:
         aud = self._audible
         return sum(1 for g1, g2 in geoms if aud[g1] or aud[g2])
 
+    def _report_clipping(self, clipped: int, peak: float) -> None:
+        """Warn, once per env, that the observation clipped (the agent hears a distorted
+        sound; ``info["audio_clipped"]`` keeps counting)."""
+        self._clip_reported = True
+        fsp = self.audio.full_scale_pa
+        knobs = f"full_scale_pa (now {fsp:g} Pa)"
+        if len(self._contact):
+            knobs += f" or, for the contact channels, contact_full_scale (now {fsp / self._contact_gain:g} m/s^2)"
+        warnings.warn(f"mjsound: the audio observation clipped: {clipped} sample(s) beyond full scale this step, "
+                      f"peak {peak:.3g} Pa (NaN counts as clipped); a larger {knobs} keeps such steps undistorted. "
+                      "info['audio_clipped'] counts every step's; reported once per env", RuntimeWarning, stacklevel=4)
+
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
         block = self.sim.flush()
         if len(self._contact):
             block[self._contact] *= self._contact_gain
         clipped, peak = self.audio.push(block)
+        if clipped and not self._clip_reported:
+            self._report_clipping(clipped, peak)
         info = dict(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
                     audio_impacts=self._audible_impacts())
         return self.audio.observe(), info

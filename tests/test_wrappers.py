@@ -99,11 +99,14 @@ def test_substep_contacts_are_read():
     bare.close()
 
 
-def test_clipping_is_counted():
+def test_clipping_is_counted_and_reported_once():
     env = wrapped("Ant-v5", full_scale_pa=1e-9)
-    _, infos = run(env, 7, 25)
+    with pytest.warns(RuntimeWarning, match="full_scale_pa \\(now 1e-09 Pa\\)") as record:
+        _, infos = run(env, 7, 25)
     clipped = sum(i["audio_clipped"] for i in infos)
     assert clipped > 0
+    assert sum("audio observation clipped" in str(w.message) for w in record) == 1
+    assert sum(i["audio_clipped"] > 0 for i in infos) > 1  # (later steps clipped too, unreported)
     assert all("audio_clipped" in i and "audio_peak_pa" in i for i in infos)
     env.close()
 
