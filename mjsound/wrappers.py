@@ -280,7 +280,8 @@ class EnvAudio:
             knobs += f" or, for the contact channels, contact_full_scale (now {fsp / self._contact_gain:g} m/s^2)"
         warnings.warn(f"mjsound: the audio observation clipped: {clipped} sample(s) beyond full scale this step, "
                       f"peak {peak:.3g} Pa (NaN counts as clipped); a larger {knobs} keeps such steps undistorted. "
-                      "info['audio_clipped'] counts every step's; reported once per env", RuntimeWarning, stacklevel=4)
+                      "The step's info counts every step's (audio_clipped; dm_control: last_info); reported once "
+                      "per env", RuntimeWarning, stacklevel=4)
 
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
