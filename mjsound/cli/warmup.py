@@ -48,12 +48,22 @@ def _warm_wrapper() -> None:
 def _warm_modal() -> None:
     from ..modal.analyze import analyze
 
-    # a solid (voxel hexahedra), a thin wall (shell triangles) and a curved rod (quadratic cells
+    # a solid (voxel hexahedra), a thin wall (shell triangles), a curved rod (quadratic cells
     # that place their surface voxels' material by its moments: the rods, legs and handles of
-    # robot scenes): the modal kernels of every common analysis
+    # robot scenes) and an open surface (a box without its lid, analysed as a wall around the
+    # surface: robot meshes that are not closed): the modal kernels of every common analysis
     analyze("box:0.1,0.06,0.02", "steel", quality="draft", f_max=8000.0, cache=False, progress=False)
     analyze("sphere:0.1", "aluminium,wall=2mm", quality="draft", f_max=4000.0, cache=False, progress=False)
     analyze("cylinder:0.01,0.1", "steel", quality="draft", f_max=4000.0, cache=False, progress=False)
+    analyze(_open_box(), "steel", quality="draft", f_max=4000.0, cache=False, progress=False)
+
+
+def _open_box():
+    """``(vertices, faces)`` of a 20 x 12 x 8 cm box without its top face (an open surface)."""
+    import trimesh
+
+    box = trimesh.creation.box((0.2, 0.12, 0.08))
+    return box.vertices, box.faces[box.face_normals[:, 2] < 0.5]
 
 
 #: The kernel groups, in the order they are warmed: the per-step path, the gymnasium wrapper,
