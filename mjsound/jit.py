@@ -37,7 +37,7 @@ from .io import file_lock
 from .io import sources_digest as files_digest
 
 __all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest",
-           "cache_folder", "cache_path_of", "folder_cache_path", "folder_stamp", "kernel_digests", "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
+           "cache_folder", "folder_cache_path", "folder_stamp", "kernel_digests", "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -125,20 +125,6 @@ def _register() -> None:
 _register()
 
 
-def cache_path_of(py_file: str) -> str | None:
-    """numba's cache folder for the kernels of the source file ``py_file``: that of the first
-    locator that takes the file, in numba's order (:data:`caching.CacheImpl._locator_classes`,
-    the group-stamped ones first), or None when none does."""
-    def probe():
-        pass
-
-    for cls in caching.CacheImpl._locator_classes:
-        locator = cls.from_function(probe, py_file)
-        if locator is not None:
-            return locator.get_cache_path()
-    return None
-
-
 def _folder_file(folder: str) -> str:
     return os.path.normpath(os.path.join(_ROOT, folder, "__init__.py"))
 
@@ -156,8 +142,18 @@ def folder_stamp(folder: str) -> bytes:
 
 
 def folder_cache_path(folder: str) -> str | None:
-    """numba's cache folder for the kernels of the package folder ``folder`` (:func:`cache_path_of`)."""
-    return cache_path_of(_folder_file(folder))
+    """numba's cache folder for the kernels of the package folder ``folder`` ("sim", "." ...):
+    that of the first locator that takes the folder's files, in numba's order
+    (:data:`caching.CacheImpl._locator_classes`, the group-stamped ones first), or None when
+    none does."""
+    def probe():
+        pass
+
+    for cls in caching.CacheImpl._locator_classes:
+        locator = cls.from_function(probe, _folder_file(folder))
+        if locator is not None:
+            return locator.get_cache_path()
+    return None
 
 
 def _choose_shipped_kernels():

@@ -43,7 +43,7 @@ import sys
 import tarfile
 from dataclasses import dataclass
 
-__all__ = ["BUNDLE_DIR", "ENV_SWITCH", "Status", "STATUS", "activate", "seed_cache", "fits", "seed", "read_manifest",
+__all__ = ["BUNDLE_DIR", "ENV_SWITCH", "Status", "STATUS", "activate", "seed_cache", "fits", "mismatches", "seed", "read_manifest",
            "host_platform", "write_bundle"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
@@ -97,6 +97,15 @@ def _target_taken() -> bool:
     return "_toplevel_target_context" in vars(cpu_target)
 
 
+def mismatches(manifest: dict, digests: dict, here: dict | None = None) -> list[str]:
+    """What the bundle ``manifest`` was built with that differs here: the keys of
+    :func:`host_platform` (``here``, default this process's), then the kernel groups whose
+    source digest (``digests``: ``{group: hex digest}``) is not the bundle's, sorted."""
+    here = host_platform() if here is None else here
+    keys = [k for k in here if manifest.get(k) != here[k]]
+    return keys + sorted(g for g in digests if manifest.get("digests", {}).get(g) != digests[g])
+
+
 def fits(manifest: dict | None, digests: dict) -> str | None:
     """Why the bundle ``manifest`` cannot be used in this process, or None when it can.
     ``digests``: ``{group: hex digest}`` of the current kernel sources."""
@@ -108,12 +117,12 @@ def fits(manifest: dict | None, digests: dict) -> str | None:
     if manifest is None:
         return "no bundle in this install"
     here = host_platform()
-    for key in ("numba", "python", "triple"):
-        if manifest.get(key) != here[key]:
+    differ = mismatches(manifest, digests, here)
+    for key in differ:
+        if key in here:
             return f"built for {key} {manifest.get(key)}, this is {here[key]}"
-    stale = sorted(g for g in digests if manifest.get("digests", {}).get(g) != digests[g])
-    if stale:
-        return (f"the kernel sources ({', '.join(stale)}) differ from the bundle's "
+    if differ:
+        return (f"the kernel sources ({', '.join(differ)}) differ from the bundle's "
                 "(rebuild it with scripts/build_kernel_bundle.py)")
     features = ll.get_host_cpu_features()
     missing = [f for f in manifest.get("cpu_requires", []) if not features.get(f, False)]

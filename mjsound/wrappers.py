@@ -142,8 +142,7 @@ class AudioWindow:
         """Append a (channels, n) pressure block; returns (clipped samples, peak |p| [Pa])."""
         if block.shape[1] == 0:
             return 0, 0.0
-        if block.dtype != np.float32 or not block.flags.c_contiguous:
-            block = np.ascontiguousarray(block, dtype=np.float32)
+        block = np.ascontiguousarray(block, dtype=np.float32)  # (the block itself when it is already)
         clipped, peak = self._push((self.buf,), block, 1.0 / self.full_scale_pa)
         return int(clipped), float(peak) * self.full_scale_pa
 

@@ -104,9 +104,7 @@ def main(argv=None) -> int:
 
     manifest = kernel_bundle.read_manifest()
     if args.check:
-        here = kernel_bundle.host_platform()
-        stale = [k for k in here if manifest is None or manifest.get(k) != here[k]]
-        stale += [g for g, d in kernel_digests().items() if manifest is None or manifest["digests"].get(g) != d]
+        stale = kernel_bundle.mismatches(manifest or {}, kernel_digests())
         print("build_kernel_bundle: " + (f"stale ({', '.join(stale)})" if stale else "the bundle matches"))
         return 1 if stale else 0
 

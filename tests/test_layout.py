@@ -128,14 +128,23 @@ def test_only_the_cli_imports_argparse():
 CITED = re.compile(r"(?<![\w/.-])((?:docs|scripts|tests|reports|assets|mjsound)/[\w./-]+\.(?:md|py|xml|json|png|csv|txt))")
 
 
-@pytest.mark.parametrize("where", ["mjsound", "scripts", "tests", "docs", "README.md"])
-def test_every_cited_repository_path_exists(where):
+#: Where code and documents cite repository paths and design sections.
+CITING = ["mjsound", "scripts", "tests", "docs", "README.md"]
+
+
+def _text_files(where: str) -> list[str]:
+    """The Python and Markdown files of ``where`` (a file or a folder of the repository)."""
     top = os.path.join(ROOT, where)
-    files = [top] if os.path.isfile(top) else [
-        os.path.join(d, f) for d, dirs, fs in os.walk(top) if "__pycache__" not in d
-        for f in fs if f.endswith((".py", ".md"))]
+    if os.path.isfile(top):
+        return [top]
+    return [os.path.join(d, f) for d, _, fs in os.walk(top) if "__pycache__" not in d
+            for f in fs if f.endswith((".py", ".md"))]
+
+
+@pytest.mark.parametrize("where", CITING)
+def test_every_cited_repository_path_exists(where):
     cited = {}
-    for f in files:
+    for f in _text_files(where):
         for m in CITED.finditer(open(f, encoding="utf-8").read()):
             cited.setdefault(m.group(1).rstrip("."), os.path.relpath(f, ROOT))
     assert cited, f"no repository path cited in {where}"
@@ -151,15 +160,10 @@ def test_every_cited_design_section_exists():
     headings = {line.lstrip("#").strip() for line in open(os.path.join(ROOT, "docs", "design.md"), encoding="utf-8")
                 if line.startswith("#")}
     cited = {}
-    for top in ("mjsound", "scripts", "tests", "docs", "README.md"):
-        path = os.path.join(ROOT, top)
-        files = [path] if os.path.isfile(path) else [
-            os.path.join(d, f) for d, _, fs in os.walk(path) if "__pycache__" not in d for f in fs
-            if f.endswith((".py", ".md"))]
-        for f in files:
-            if os.path.abspath(f) == os.path.abspath(__file__):
-                continue  # (its own pattern and example are not citations)
-            for m in CITED_SECTION.finditer(open(f, encoding="utf-8").read()):
-                cited.setdefault(m.group(1), os.path.relpath(f, ROOT))
+    for f in (f for where in CITING for f in _text_files(where)):
+        if os.path.abspath(f) == os.path.abspath(__file__):
+            continue  # (its own pattern and example are not citations)
+        for m in CITED_SECTION.finditer(open(f, encoding="utf-8").read()):
+            cited.setdefault(m.group(1), os.path.relpath(f, ROOT))
     assert "State records" in cited  # (the pattern finds the citations)
     assert {s: f for s, f in cited.items() if s not in headings} == {}
