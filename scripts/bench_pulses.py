@@ -59,13 +59,12 @@ def main(argv=None) -> int:
     pulses = np.zeros(2, bl.PULSE_DTYPE)
     pulses["time_s"], pulses["tau_s"], pulses["b0"], pulses["channel"] = [0.1, 0.1003], 2e-4, 1.0, 0
     pulses["d1"] = max((0.7 * args.n - bl.LEAD - bl.TAIL) / fs / bl.RING_TIME_CONSTANTS, 0.0)
-    n_window, _ = bl._extent(pulses, fs)
     dv = np.array([0.3, 0.2])
-    acc, work, out = np.zeros((1, 1 << 14)), np.zeros(n_window, np.complex128), np.zeros(n_window)
-    rtable = bl.twiddles(n_window, True)
-    call = (pulses, dv, fs, acc, 0, work, out, rtable)
-    bl._render_pulses(*call)
-    render = bl._render_pulses.overloads[tuple(typeof(v) for v in call)].entry_point
+    n_window, _ = bl.pulse_extent(pulses, dv, len(pulses), fs)
+    track = bl.PulseTrack(1, fs)
+    track.add_trusted(pulses, dv)  # (grows the track's ring and scratch to the window; compiles)
+    call = (track.state, pulses, dv, len(pulses))
+    render = bl.add_pulses.overloads[tuple(typeof(v) for v in call)].entry_point
 
     rec, tab, ren = [], [], []
     for _ in range(args.rounds):

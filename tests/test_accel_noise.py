@@ -210,7 +210,7 @@ def test_pulse_track_take_into_adds_what_take_returns():
         tr.reset(900)
         for t, ch in ((0.0201, 1), (0.0213, 0), (0.0440, 1)):
             tr.add(_accel_pulse(t, 5e-6, channel=ch), 2.5)
-        tr._acc[1, (1000 + 17) & (tr._acc.shape[1] - 1)] = np.nan  # (as an exploding simulation could leave it)
+        tr.state.acc[1, (1000 + 17) & (tr.state.acc.shape[1] - 1)] = np.nan  # (as an exploding simulation could leave it)
     for k in (50, 700, 333, 1024, 400):
         a = rng.standard_normal((2, k)).astype(np.float32)
         b = a.copy()
@@ -220,7 +220,7 @@ def test_pulse_track_take_into_adds_what_take_returns():
         tracks[1].take_into(b)
         assert np.array_equal(a, b) and np.isfinite(b).all()
         assert (tracks[0].start, tracks[0].pending_from) == (tracks[1].start, tracks[1].pending_from)
-    assert tracks[1].take(10) is None and not tracks[1]._acc.any()
+    assert tracks[1].take(10) is None and not tracks[1].state.acc.any()
 
 
 def test_pulse_track_integral_blocks_and_nothing_pending():

@@ -106,7 +106,10 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
         if variant == "tiny_buffers":
             sim.reader.buffers = sim.reader.buffers._replace(records=np.zeros(1, RECORD))
             sim.synth._ev._alloc(1, 1)
-            sim.pulses.state = sim.pulses.state._replace(rows=np.zeros(0, PULSE_DTYPE), dv=np.zeros(0))
+            sim.pulses._state = sim.pulses._state._replace(rows=np.zeros(0, PULSE_DTYPE), dv=np.zeros(0))
+            track = sim.pulses.track  # (a one-sample ring and scratch: the kernel hands the pulses back to grow them)
+            track.state = track.state._replace(acc=np.zeros((track.n_channels, 1)), work=np.zeros(1, np.complex128),
+                                               out=np.zeros(1), table=np.zeros(1, np.complex128))
         audio = play(model, data, sim)
         recs = [(r.time, r.geom1, r.geom2, r.impulse_pred, r.impulse_sim, r.steps, r.duration, r.open)
                 for r in sim.impacts]
@@ -127,6 +130,8 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     if variant == "tiny_buffers":  # (the event log's buffer also starts empty and grows once)
         assert reasons.get((True, S.ROOM), 0) > 1
         assert reasons.get((True, S.PULSES), 0) > 0  # (no room for the impacts' pulses: Python grows it)
+        grown = sim.pulses.track.state
+        assert grown.work.shape[0] >= 64 and grown.acc.shape[1] >= 64  # (Python grew the track for the kernel)
     if variant == "follow":
         assert not np.allclose(sim.synth.microphones, [[0.5, -0.4, 0.23]])  # moved with the box
 
@@ -143,8 +148,8 @@ def test_fused_substeps_follow_a_time_jump_like_the_python_loop():
 @pytest.mark.parametrize("jump", [None, "forward", "backward"])
 def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
     """``substeps(n, render=True)`` renders the pending samples in the step kernel's call
-    (``flush`` returns that block): the same blocks, bit for bit, as rendering in ``flush``,
-    the same ones handed to an observer, also around a clock jump (forward: re-anchored;
+    (``flush`` returns that block) and mixes the impacts' clicks into it: the same blocks, bit
+    for bit, as rendering and mixing in ``flush``, the same ones handed to an observer, also around a clock jump (forward: re-anchored;
     backward: an automatic reset) and with steps taken one by one before it."""
     from mjsound.sim.records import NOT_RENDERED
 
@@ -153,7 +158,7 @@ def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
         model, data, sim = make(True)
         seen = []
         sim.on_block = lambda s, block, n0, seen=seen: seen.append((n0, block.copy()))
-        codes = []
+        codes, mixed = [], []
         blocks = []
         for i in range(120):
             data.xfrc_applied[2, 0] = 3.0 if 30 <= i < 90 else 0.0
@@ -164,10 +169,13 @@ def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
                 sim.step(render=False)
             sim.substeps(5, render)
             codes.append(int(sim._kernel.f["render_code"][0]))
+            mixed.append(int(sim._kernel.f["pulses_mixed"][0]))
             blocks.append(sim.flush())
         out.append((blocks, seen, sim.samples, sim.clock.n))
         if render:  # (every call rendered, but the one that met the jump)
             assert codes.count(NOT_RENDERED) == (0 if jump is None else 1)
+            # (and mixed the clicks of the bounces into its block itself; Python mixed them into the others)
+            assert mixed == [int(c != NOT_RENDERED) for c in codes] and sim.pulses.track.dropped == 0
     (b0, seen0, *n0), (b1, seen1, *n1) = out
     assert n0 == n1 and len(b0) == len(b1) and len(seen0) == len(seen1)
     assert np.abs(np.concatenate(b0, axis=1)).max() > 0

@@ -24,9 +24,10 @@ import math
 import numpy as np
 from ..jit import njit, njit_inner
 
+from ..synth.bandlimited import add_pulses
 from ..synth.pulse import contact_time
 
-__all__ = ["impact_pulses", "queue_pulses", "pulse_room", "hertz_coefficient", "pulse_rows_needed"]
+__all__ = ["impact_pulses", "queue_pulses", "pulse_room", "render_waiting", "hertz_coefficient", "pulse_rows_needed"]
 
 
 def pulse_rows_needed(n_impacts: int, n_air: int, n_sites: int) -> int:
@@ -263,3 +264,18 @@ def queue_pulses(ps, impacts, k, time_s, views, mics):
     ``views.xmat`` and the air microphones ``mics[:n_air]``."""
     c = ps.counts[0]
     c.n = impact_pulses(ps.model, impacts, k, time_s, views.xpos, views.xmat, mics, ps.rows, ps.dv, c.n)
+
+
+@njit_inner(cache=True)
+def render_waiting(ps):
+    """Render the waiting rows of :class:`.records.PulseState` ``ps`` into its track
+    (:func:`mjsound.synth.bandlimited.add_pulses`, in the order they were made) and empty
+    them; False, with nothing changed, when the track must grow first (Python renders them,
+    :meth:`.clicks.ImpactPulses.flush`)."""
+    c = ps.counts[0]
+    if c.n == 0:
+        return True
+    if not add_pulses(ps.track, ps.rows, ps.dv, c.n):
+        return False
+    c.n = 0
+    return True

@@ -34,7 +34,8 @@ import numpy as np
 
 from ..materials import get_material
 from ..synth import accel_noise
-from ..synth.bandlimited import PULSE_DTYPE, PulseTrack
+from ..synth.bandlimited import PULSE_DTYPE, PulseTrack, pulse_extent
+from ..synth.records import TRACK, TrackState
 from ..synth.contact_mic import site_pulse
 from ..synth.dispatch import EntryPoint
 from ..synth.pulse import compliance, contact_time
@@ -64,7 +65,10 @@ def _load_kernels() -> None:
     if not _LOADED[0]:
         _LOADED[0] = True
         track = PulseTrack(1, 16000)
-        track.add_trusted(site_pulse(0.001, 1e-4, 0), np.ones(1))
+        pulse = site_pulse(0.001, 1e-4, 0)
+        track.add_trusted(pulse, np.ones(1))
+        pulse_extent(pulse, np.ones(1), 1, 16000.0)  # (the track's growth)
+        track.take_into(np.zeros((1, 64), np.float32))
         track.take(64)
         contact_time(1e-4, 1.0)
 
@@ -73,8 +77,9 @@ def silent_pulse_state() -> PulseState:
     """A :class:`.records.PulseState` of a model without bodies (the same types as an
     :class:`ImpactPulses`' state, for a drive in which nothing makes pulses)."""
     z = np.zeros
+    track = TrackState(z(1, TRACK), z((0, 1)), z(0, np.complex128), z(0), z(0, np.complex128))
     return PulseState(ClickModel(z(1, CLICK_PARAMS), z(0, CLICK_BODY), z(0, CLICK_GEOM), z(0, CLICK_SITE)),
-                      z(0, PULSE_DTYPE), z(0), z(1, PULSE_COUNTS))
+                      z(0, PULSE_DTYPE), z(0), z(1, PULSE_COUNTS), track)
 
 
 class ImpactPulses:
@@ -162,9 +167,9 @@ class ImpactPulses:
         prm[0]["clicks"], prm[0]["n_air"], prm[0]["c"] = int(self.clicks), self.n_air, self.c
         prm[0]["unknown_compliance"] = compliance(get_material(UNKNOWN_MATERIAL))
         self._model = ClickModel(prm, bodies, geoms, sites)
-        #: the pulses the step kernel made (click_kernels.queue_pulses), waiting for the track
-        self.state = PulseState(self._model, np.zeros(0, PULSE_DTYPE), np.zeros(0), np.zeros(1, PULSE_COUNTS))
-        self._waiting = self.state.counts["n"]  # (a plain int64 view: read after every kernel call)
+        self._state = PulseState(self._model, np.zeros(0, PULSE_DTYPE), np.zeros(0), np.zeros(1, PULSE_COUNTS),
+                                 self.track.state)
+        self._waiting = self._state.counts["n"]  # (a plain int64 view: read after every kernel call)
         self.reserve(8)
         self._impact_pulses = EntryPoint(impact_pulses)
         if self.active:
@@ -179,6 +184,15 @@ class ImpactPulses:
             audible |= self._dynamic
         audible[self._site_body] = True
         return audible
+
+    @property
+    def state(self) -> PulseState:
+        """The pulses the step kernel makes (:func:`.click_kernels.queue_pulses`) and the track
+        it renders them into (a new tuple after either grew: ask again after any call here)."""
+        st = self._state
+        if st.track is not self.track.state:
+            st = self._state = st._replace(track=self.track.state)
+        return st
 
     @property
     def n_channels(self) -> int:
@@ -199,7 +213,7 @@ class ImpactPulses:
             rows, dv = np.zeros(cap, PULSE_DTYPE), np.zeros(cap)
             n = int(self._waiting[0])
             rows[:n], dv[:n] = st.rows[:n], st.dv[:n]
-            self.state = PulseState(st.model, rows, dv, st.counts)
+            self._state = st._replace(rows=rows, dv=dv)
 
     @property
     def waiting(self) -> int:
@@ -208,7 +222,9 @@ class ImpactPulses:
 
     def flush(self) -> None:
         """Render the waiting pulse rows of :attr:`state` into the track (in the order they were
-        made: the same sum as rendering each step's pulses as they come)."""
+        made: the same sum as rendering each step's pulses as they come). The step kernel does
+        this itself after its substeps (:func:`.click_kernels.render_waiting`); Python when the
+        rows are full or the track must grow first (reason ``PULSES``)."""
         n = int(self._waiting[0])
         if n:
             self._waiting[0] = 0

@@ -17,6 +17,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..synth.records import TrackState
+
 __all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
            "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "NOT_RENDERED", "CLICK_PARAMS",
            "CLICK_BODY", "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState",
@@ -116,10 +118,13 @@ SOUND = np.dtype([("obj", i8), ("coef_row", i8)])
 #: The drive's constants (owner: AudioSimulator): slide / roll roughness [1/(m/s)] and
 #: low-pass length [m], samples between a stream's gain updates, whether sustained contacts
 #: sound, how microphones move (0 fixed, 1 ``mics[m] = source[rows[m]] + offsets[m]``) and
-#: from which positions (0 body ``xpos``, 1 ``site_xpos``), and whether a substep's impacts
-#: are handed to Python (their clicks and contact-microphone pulses: :mod:`.clicks`).
+#: from which positions (0 body ``xpos``, 1 ``site_xpos``), whether a substep's impacts make
+#: pulses (their clicks and contact-microphone pulses: :mod:`.clicks`), and whether the kernel
+#: mixes the pulse track into the block it renders (float32 blocks only: a float64 block is
+#: mixed by Python after its conversion to float32, as :meth:`ImpactPulses.mix` does).
 DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", f8), ("len_roll", f8),
-                         ("regain", i8), ("sustained", i8), ("mic_mode", i8), ("mic_source", i8), ("pulses", i8)])
+                         ("regain", i8), ("sustained", i8), ("mic_mode", i8), ("mic_source", i8), ("pulses", i8),
+                         ("mix_pulses", i8)])
 
 #: One call of the step kernel (owner: AudioSimulator, which sets the inputs and reads the
 #: outputs). Inputs: substeps asked (``nstep``) and done, whether the kernel calls
@@ -133,12 +138,13 @@ DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", 
 #: ``render`` (input): after the last substep, render the pending block into the call's block
 #: argument (it must end where the last substep ends); ``render_code`` (output): the render's
 #: code (``mjsound.synth.kernels.RENDERED`` or ``RENDERED_NONFINITE``), :data:`NOT_RENDERED`
-#: when no block was rendered.
+#: when no block was rendered; ``pulses_mixed`` (output): the pulse track is mixed into that
+#: block already (``DRIVE_PARAMS.mix_pulses`` and every sample finite).
 RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", i8), ("ncon", i8), ("nefc", i8),
                 ("explicit", i8), ("log_limit", i8), ("solved", i8), ("stage", i8), ("t0", f8), ("t1", f8),
                 ("n0", i8), ("n1", i8), ("n_sust", i8), ("n_hits", i8), ("n_onset", i8), ("n_imp", i8),
                 ("reason", i8), ("need", i8), ("n_missing", i8), ("n_impacts", i8), ("n_log", i8),
-                ("poses_current", i8), ("render", i8), ("render_code", i8)])
+                ("poses_current", i8), ("render", i8), ("render_code", i8), ("pulses_mixed", i8)])
 #: ``RUN.render_code`` of a call that rendered no block.
 NOT_RENDERED = 1
 
@@ -162,7 +168,7 @@ CLICK_BODY = np.dtype([("dynamic", i8), ("mass", f8), ("ipos", f8, (3,)), ("ifra
 #: and its contact radius [m] (inf: flat).
 CLICK_GEOM = np.dtype([("body", i8), ("has_material", i8), ("compliance", f8), ("radius", f8)])
 
-#: Pulse rows waiting in :class:`PulseState` for Python's pulse track.
+#: Pulse rows waiting in :class:`PulseState` for the pulse track.
 PULSE_COUNTS = np.dtype([("n", i8)])
 
 #: A contact microphone (owner: ImpactPulses): its body, site position and sensing axis in the
@@ -308,11 +314,12 @@ class ClickModel(NamedTuple):
 
 
 class PulseState(NamedTuple):
-    """Impact pulses made in the step kernel, waiting for Python's pulse track (owner:
-    ImpactPulses, which grows ``rows`` and ``dv`` when the kernel asks and empties them after
-    every kernel call)."""
+    """Impact pulses made in the step kernel and the track they are rendered into (owner:
+    ImpactPulses, which grows ``rows`` and ``dv`` when the kernel asks; the kernel renders the
+    waiting rows into ``track`` after its substeps, Python when the track must grow first)."""
 
     model: ClickModel
     rows: np.ndarray  # (cap,) PULSE_DTYPE
     dv: np.ndarray  # (cap,) velocity change each row is scaled by [m/s]
     counts: np.ndarray  # (1,) PULSE_COUNTS
+    track: TrackState  # the pulse track (mjsound.synth.bandlimited.PulseTrack.state)

@@ -195,6 +195,8 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air, self._contact_sites,
                                     self.sample_rate, clicks=clicks, active=makes_pulses)
         prm[0]["pulses"] = int(self.pulses.active)
+        # (the kernel mixes the track into a float32 block; a float64 one is mixed after its conversion)
+        prm[0]["mix_pulses"] = int(self.pulses.active and self.synth is not None and self.synth.dtype == np.float32)
         self._follow = None
         self._mic_sites = np.asarray(list(scene.mic_site_ids) + self._contact_sites, np.int64)  # (contact: unused)
         self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
@@ -407,7 +409,10 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             if code != NOT_RENDERED:  # (the pending samples are rendered: flush returns them)
                 n0 = self._pending_n0
                 self._pending = 0
-                self._ready = self._deliver(self.pulses.mix(synth.kernel_block(block, code == RENDERED)), n0)
+                block = synth.kernel_block(block, code == RENDERED)
+                if not f["pulses_mixed"][0]:  # (the kernel mixes the pulse track into a float32 block itself)
+                    block = self.pulses.mix(block)
+                self._ready = self._deliver(block, n0)
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""

@@ -14,10 +14,11 @@ flow):
    (:func:`.drive.queue_impacts`), the event log,
 5. drive: the sliding / rolling streams (:func:`.drive.drive_sustained`),
 
-and after the last substep syncs the poses and microphones once more (for the render's
-stream gains) and, when ``run.render`` asks, renders the pending block
+and after the last substep renders the impacts' pulses into the pulse track
+(:func:`.click_kernels.render_waiting`), syncs the poses and microphones once more (for the
+render's stream gains) and, when ``run.render`` asks, renders the pending block
 (:func:`mjsound.synth.kernels.render_streams`, as ``Synthesizer.render`` would right after
-the call), so that an env step costs one numba call. It stops and hands back to Python only for what numba cannot do, with a
+the call) and mixes the track into it, so that an env step costs one numba call. It stops and hands back to Python only for what numba cannot do, with a
 named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
 :data:`SOLVE`, :data:`HERTZ`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
 says where the substep resumes when Python calls again, and nothing of a stage is changed
@@ -39,7 +40,9 @@ import numpy as np
 from ..jit import njit, njit_inner
 from ..synth.kernels import render_streams
 from ..synth.packing import unpack
-from .click_kernels import pulse_room, queue_pulses
+from ..synth.bandlimited import take_into_block
+from ..synth.kernels import RENDERED
+from .click_kernels import pulse_room, queue_pulses, render_waiting
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
 from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
 from .impulses import event_impulses, normal_jacobians, write_records
@@ -229,7 +232,7 @@ def advance(table, layout, out):
                 rn.need = rn.n_imp
                 return
             rn.n_impacts += rn.n_imp
-            if pulses:  # their clicks and contact-microphone pulses, rendered by Python after the call
+            if pulses:  # their clicks and contact-microphone pulses, rendered into the track after the substeps
                 queue_pulses(drive.pulses, buf.impacts, rn.n_imp, t_ev, views, synth.mics)
             rn.stage = STAGE_LOG
         if rn.stage == STAGE_LOG:
@@ -259,7 +262,14 @@ def advance(table, layout, out):
                 ck.k += 1
             rn.done += 1
             rn.stage = STAGE_STEP
+    ps = drive.pulses
+    if drive.prm[0].pulses and not render_waiting(ps):
+        rn.reason = PULSES  # the pulse track must grow: Python renders the waiting pulses
+        return
     sync_poses(drive, views, synth)
     rn.poses_current = 1
     if rn.render:
         _render_block(synth, target, rn, ck, out)
+        if rn.render_code == RENDERED and drive.prm[0].mix_pulses:
+            take_into_block(ps.track, out)
+            rn.pulses_mixed = 1

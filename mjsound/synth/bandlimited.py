@@ -43,9 +43,11 @@ from ..jit import njit, njit_inner
 from .dispatch import EntryPoint
 from .interrupt import interruptible
 from .pulse import half_sine
+from .records import TRACK, TrackState
 
 __all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES",
-           "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "render_pulse", "mix_pulse", "PulseTrack"]
+           "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "render_pulse", "mix_pulse",
+           "pulse_extent", "add_pulses", "take_into_block", "PulseTrack"]
 
 #: One pulse at one output channel: arrival time [s], pulse length [s], velocity change times
 #: transfer numerator ``b0`` [channel unit / (m/s)] and ``b1`` [channel unit s / (m/s)],
@@ -251,49 +253,76 @@ def mix_pulse(acc, start, channel, first, samples):
 
 
 @njit(cache=True)
-def _extent(pulses, fs):
-    """``(longest window, last absolute sample)`` of ``pulses`` (windows that do not fit: 0)."""
+def pulse_extent(pulses, dv, n, fs):
+    """``(longest window, last absolute sample)`` of the rows ``pulses[:n]`` that render: a
+    finite velocity change ``dv`` and a window that fits (:func:`pulse_window`; others count 0)."""
     n_max = 0
     last = -(2**62)
-    for i in range(pulses.shape[0]):
+    for i in range(n):
         p = pulses[i]
-        n = pulse_window(p.tau_s, p.d1, p.d2, fs) if _usable(p, fs) else 0
-        if n > 0:
-            n_max = max(n_max, n)
-            last = max(last, int(math.floor(p.time_s * fs)) - LEAD + n - 1)
+        w = pulse_window(p.tau_s, p.d1, p.d2, fs) if np.isfinite(dv[i]) and _usable(p, fs) else 0
+        if w > 0:
+            n_max = max(n_max, w)
+            last = max(last, int(math.floor(p.time_s * fs)) - LEAD + w - 1)
     return n_max, last
 
 
 @njit(cache=True)
-def _render_pulses(pulses, dv, fs, acc, start, work, out, table):
-    """Render and mix every pulse (:func:`render_pulse`, :func:`mix_pulse`); returns ``(pulses
-    dropped, first, end)`` of the samples written (``end <= first``: none)."""
+def add_pulses(track, pulses, dv, n):
+    """Render the rows ``pulses[:n]`` (PULSE_DTYPE) scaled by ``dv[:n]`` [m/s] into the track
+    :class:`~mjsound.synth.records.TrackState` ``track`` (:func:`render_pulse`, :func:`mix_pulse`,
+    in row order; a row with a non-finite ``dv`` or one that does not render is dropped and
+    counted in ``rec.dropped``; samples before ``rec.start`` are dropped).
+
+    Returns False, having changed nothing, when the scratch is shorter than the longest
+    window or the ring cannot hold the last sample: the owner grows them
+    (:meth:`PulseTrack.add_trusted`) and calls again. The step kernel calls it after its
+    substeps, :meth:`PulseTrack.add_trusted` from Python."""
+    rec = track.rec[0]
+    fs = rec.fs
+    n_max, last = pulse_extent(pulses, dv, n, fs)
+    if n_max > track.work.shape[0] or (last >= rec.start and last - rec.start + 1 > track.acc.shape[1]):
+        return False
+    start = rec.start
     dropped = 0
     lo = 2**62
     hi = -(2**62)
-    for i in range(pulses.shape[0]):
-        first, n = render_pulse(pulses[i], dv[i], fs, work, out, table)
-        if n == 0:
+    for i in range(n):
+        if not np.isfinite(dv[i]):
             dropped += 1
             continue
-        if first + n <= start:
+        first, m = render_pulse(pulses[i], dv[i], fs, track.work, track.out, track.table)
+        if m == 0:
+            dropped += 1
             continue
-        end = mix_pulse(acc, start, pulses[i].channel, first, out[:n])
+        if first + m <= start:
+            continue
+        end = mix_pulse(track.acc, start, pulses[i].channel, first, track.out[:m])
         if end > start:
             lo = min(lo, max(first, start))
             hi = max(hi, end)
-    return dropped, lo, hi
-
-
-_ENTRY = {}
+    rec.dropped += dropped
+    if hi > lo:
+        rec.pending_from = lo if rec.pending_until <= start else min(rec.pending_from, lo)
+        rec.pending_until = max(rec.pending_until, hi)
+    return True
 
 
 @njit(cache=True)
-def _take_into(acc, n0, lo, hi, block):
-    """Add the ring ``acc``'s (channels, cap) samples ``[lo, hi)`` (absolute; sample ``u`` at
-    ``u & (cap - 1)``) into ``block`` (channels, n) float32, whose first sample is ``n0``, each
-    rounded to float32 first (as ``block += samples.astype(float32)``; a non-finite sample
-    adds nothing), and clear them in the ring."""
+def take_into_block(track, block):
+    """Add the track's next ``block.shape[1]`` samples of every channel into ``block``
+    (channels, n) float32 in place, each rounded to float32 first (as ``block +=
+    take(n).astype(float32)``; a non-finite sample adds nothing), and remove them from the
+    track (``rec.start`` advances by ``n``; nothing to add when no pending pulse reaches them)."""
+    rec = track.rec[0]
+    n0 = rec.start
+    n1 = n0 + block.shape[1]
+    rec.start = n1
+    lo = max(n0, rec.pending_from)
+    hi = min(n1, rec.pending_until)
+    if hi <= lo:
+        return
+    acc = track.acc
     mask = acc.shape[1] - 1
     for c in range(acc.shape[0]):
         for u in range(lo, hi):
@@ -302,26 +331,14 @@ def _take_into(acc, n0, lo, hi, block):
             acc[c, i] = 0.0
             if np.isfinite(x):
                 block[c, u - n0] += np.float32(x)
-
-
-@interruptible
-def _call(kernel, *args):
-    """``kernel(*args)`` through its compiled entry point once it has been compiled for these
-    argument types: numba's dispatch types a structured array in Python (more than the call's work),
-    and the track's arguments always have the same types (C-contiguous arrays of fixed dtypes,
-    Python floats and ints)."""
-    entry = _ENTRY.get(kernel)
-    if entry is None:
-        out = kernel(*args)
-        from numba import typeof
-
-        _ENTRY[kernel] = kernel.overloads[tuple(typeof(a) for a in args)].entry_point
-        return out
-    return entry(*args)
+    rec.pending_from = hi
 
 
 class PulseTrack:
     """Pending band-limited pulses of several output channels, mixed into rendered blocks.
+
+    Its state is a :class:`~mjsound.synth.records.TrackState` (:attr:`state`), which the step
+    kernel renders into and mixes from as well (:func:`add_pulses`, :func:`take_into_block`).
 
     Parameters
     ----------
@@ -332,13 +349,17 @@ class PulseTrack:
 
     Attributes
     ----------
+    state : TrackState
+        The ring, the scratch and the :data:`~mjsound.synth.records.TRACK` record (replaced
+        when the ring or the scratch grows).
     start : int
         First sample not handed out yet by :meth:`take`.
     pending_from, pending_until : int
         The samples pending pulses reach lie in ``[pending_from, pending_until)`` (empty:
         nothing pending).
     dropped : int
-        Pulses not rendered because their window exceeded :data:`MAX_PULSE_SAMPLES`.
+        Pulses not rendered: a window over :data:`MAX_PULSE_SAMPLES`, a non-finite field or
+        velocity change.
     """
 
     def __init__(self, n_channels: int, sample_rate: int):
@@ -347,35 +368,46 @@ class PulseTrack:
         if not (float(sample_rate) > 0 and math.isfinite(float(sample_rate))):
             raise ValueError(f"sample_rate={sample_rate!r} must be a positive number of samples per second")
         self.n_channels = int(n_channels)
-        self.fs = float(sample_rate)  # (a Python float: the kernels' argument types never change)
-        self.start = 0
-        self.pending_from = self.pending_until = 0
-        self.dropped = 0
-        self._acc = np.zeros((self.n_channels, 1024))
-        self._take_into_call = EntryPoint(_take_into)
-        self._work = np.zeros(256, np.complex128)
-        self._out = np.zeros(256)
-        self._table = twiddles(256, True)
+        rec = np.zeros(1, TRACK)
+        rec[0]["fs"] = float(sample_rate)
+        self.state = TrackState(rec, np.zeros((self.n_channels, 1024)), np.zeros(256, np.complex128), np.zeros(256),
+                                twiddles(256, True))
+        self._rec = rec[0]
+        self._add = EntryPoint(add_pulses)  # (compiled entry points: numba's dispatch types a record in Python)
+        self._take_into = EntryPoint(take_into_block)
+
+    fs = property(lambda self: float(self._rec["fs"]), doc="Sample rate [Hz].")
+    start = property(lambda self: int(self._rec["start"]))
+    pending_from = property(lambda self: int(self._rec["pending_from"]))
+    pending_until = property(lambda self: int(self._rec["pending_until"]))
+    dropped = property(lambda self: int(self._rec["dropped"]))
 
     def reset(self, start: int = 0) -> None:
         """Forget every pending pulse; the next sample handed out is ``start``."""
-        self._acc[:] = 0.0
-        self.start = self.pending_from = self.pending_until = int(start)
+        self.state.acc[:] = 0.0
+        r = self._rec
+        r["start"] = r["pending_from"] = r["pending_until"] = int(start)
 
-    def _ensure(self, last: int) -> None:
-        """Make the ring hold samples ``start .. last`` (re-laying out the pending ones)."""
-        cap = self._acc.shape[1]
+    def _grow(self, n_max: int, last: int) -> None:
+        """Scratch for windows of ``n_max`` samples and a ring holding samples ``start .. last``
+        (the pending ones laid out again); a new :attr:`state` when either grows."""
+        st = self.state
+        work, out, table = st.work, st.out, st.table
+        if n_max > len(work):
+            work, out, table = np.zeros(n_max, np.complex128), np.zeros(n_max), twiddles(n_max, True)
+        acc = st.acc
+        cap = acc.shape[1]
         need = last - self.start + 1
-        if need <= cap:
-            return
-        new = cap
-        while new < need:
-            new *= 2
-        acc = np.zeros((self.n_channels, new))
-        if self.pending_until > self.start:
-            k = np.arange(self.start, self.pending_until)
-            acc[:, k & (new - 1)] = self._acc[:, k & (cap - 1)]
-        self._acc = acc
+        if need > cap:
+            new = cap
+            while new < need:
+                new *= 2
+            acc = np.zeros((self.n_channels, new))
+            if self.pending_until > self.start:
+                k = np.arange(self.start, self.pending_until)
+                acc[:, k & (new - 1)] = st.acc[:, k & (cap - 1)]
+        if acc is not st.acc or work is not st.work:
+            self.state = TrackState(st.rec, acc, work, out, table)
 
     def add(self, pulses: np.ndarray, dv: np.ndarray) -> None:
         """Render ``pulses`` (PULSE_DTYPE array) scaled by ``dv`` [m/s] (one per pulse) into
@@ -394,57 +426,50 @@ class PulseTrack:
     def add_trusted(self, pulses: np.ndarray, dv: np.ndarray) -> None:
         """:meth:`add` without its checks (``pulses`` a PULSE_DTYPE array, ``dv`` a float64
         array of the same length; a non-finite ``dv`` drops that pulse)."""
-        finite = np.isfinite(dv)
-        if not finite.all():
-            self.dropped += int((~finite).sum())
-            pulses, dv = pulses[finite], dv[finite]
         if not len(pulses):
             return
         pulses = np.ascontiguousarray(pulses, dtype=PULSE_DTYPE)
         dv = np.ascontiguousarray(dv, dtype=np.float64)
-        n_max, last = _call(_extent, pulses, self.fs)
-        if n_max > len(self._work):
-            self._work = np.zeros(n_max, np.complex128)
-            self._out = np.zeros(n_max)
-            self._table = twiddles(n_max, True)
-        if last >= self.start:
-            self._ensure(last)
-        dropped, lo, hi = _call(_render_pulses, pulses, dv, self.fs, self._acc, int(self.start), self._work, self._out,
-                                 self._table)
-        self.dropped += int(dropped)
-        if hi > lo:
-            self.pending_from = lo if self.pending_until <= self.start else min(self.pending_from, lo)
-            self.pending_until = max(self.pending_until, hi)
+        if not _call(self._add, (self.state,), pulses, dv, len(pulses)):
+            n_max, last = _call(pulse_extent, (), pulses, dv, len(pulses), self.fs)
+            self._grow(n_max, last)
+            _call(self._add, (self.state,), pulses, dv, len(pulses))  # (fits now)
 
     def take_into(self, block: np.ndarray) -> None:
         """Add the next ``block.shape[1]`` samples of every channel into ``block`` (channels, n)
         float32 in place and remove them from the track, as ``block += take(n)`` does (a
-        non-finite sample adds nothing); one numba call, none when no pulse reaches them."""
-        n0, n1 = self.start, self.start + block.shape[1]
-        self.start = n1
-        lo, hi = max(n0, self.pending_from), min(n1, self.pending_until)
-        if hi <= lo:
-            return
-        self._take_into_call((self._acc,), n0, lo, hi, block)
-        self.pending_from = hi
+        non-finite sample adds nothing): :func:`take_into_block`."""
+        self._take_into((self.state,), block)
 
     def take(self, n: int) -> np.ndarray | None:
         """The next ``n`` samples of every channel, (channels, n), removed from the track; ``None``
         (nothing to add) when no pulse reaches them."""
-        n0, n1 = self.start, self.start + int(n)
-        self.start = n1
+        r = self._rec
+        n0 = int(r["start"])
+        n1 = n0 + int(n)
+        r["start"] = n1
         lo, hi = max(n0, self.pending_from), min(n1, self.pending_until)
         if hi <= lo:
             return None
-        cap = self._acc.shape[1]
+        acc = self.state.acc
+        cap = acc.shape[1]
         block = np.zeros((self.n_channels, n1 - n0))
         a = lo & (cap - 1)
         if a + (hi - lo) <= cap:  # no wrap: slices
-            block[:, lo - n0:hi - n0] = self._acc[:, a:a + hi - lo]
-            self._acc[:, a:a + hi - lo] = 0.0
+            block[:, lo - n0:hi - n0] = acc[:, a:a + hi - lo]
+            acc[:, a:a + hi - lo] = 0.0
         else:
             k = np.arange(lo, hi) & (cap - 1)
-            block[:, lo - n0:hi - n0] = self._acc[:, k]
-            self._acc[:, k] = 0.0
-        self.pending_from = hi
+            block[:, lo - n0:hi - n0] = acc[:, k]
+            acc[:, k] = 0.0
+        r["pending_from"] = hi
         return block
+
+
+@interruptible
+def _call(fn, state, *args):
+    """``fn(*state, *args)`` (an :class:`EntryPoint`, or a dispatcher called through numba's
+    dispatch when ``state`` is empty), a Ctrl-C during it raised as ``KeyboardInterrupt``."""
+    if isinstance(fn, EntryPoint):
+        return fn(state, *args)
+    return fn(*state, *args)

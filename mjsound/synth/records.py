@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["STREAM", "STREAMS", "EVENT", "QUEUE", "SYNTH_CONSTS", "CHANNEL", "AIR", "DEAF", "ObjectTable", "QueueState", "StreamState",
-           "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank", "RenderTarget"]
+           "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank", "RenderTarget", "TRACK", "TrackState"]
 
 i8, f8 = np.int64, np.float64
 
@@ -174,3 +174,22 @@ class RenderTarget(NamedTuple):
     layout: BankLayout
     zero: np.ndarray  # (1,) state dtype: 0 (fixes the render's accumulator type)
     empty: np.ndarray  # (mics, 0) state dtype: the block argument of a call that renders nothing
+
+
+#: A pulse track's position (owner: :class:`mjsound.synth.bandlimited.PulseTrack`): sample
+#: rate [Hz], first sample not handed out yet, the samples pending pulses reach
+#: ``[pending_from, pending_until)`` (empty: nothing pending), pulses dropped (a window too
+#: long, a non-finite field or velocity).
+TRACK = np.dtype([("fs", f8), ("start", i8), ("pending_from", i8), ("pending_until", i8), ("dropped", i8)])
+
+
+class TrackState(NamedTuple):
+    """A pulse track's arrays (owner: :class:`mjsound.synth.bandlimited.PulseTrack`, which
+    replaces the tuple when the ring or the scratch grows; the step kernel renders and mixes
+    through it, :func:`mjsound.synth.bandlimited.add_pulses` and ``take_into_block``)."""
+
+    rec: np.ndarray  # (1,) TRACK
+    acc: np.ndarray  # (channels, capacity) float64 ring: absolute sample u at u & (capacity - 1)
+    work: np.ndarray  # (n,) complex128 scratch of the longest window so far
+    out: np.ndarray  # (n,) float64 scratch
+    table: np.ndarray  # (n - 1,) complex128 inverse twiddle factors up to length n
