@@ -10,10 +10,12 @@ of ``--rounds`` interleaved rounds (physics only, then with audio):
   excluded; ``realtime_factor_physics_only`` is the same simulation without audio, the bound
   no audio pipeline can beat;
 * ``step_ratio``: time per step with audio / without audio (plain mj_step);
-* ``contact_us_per_step``: ContactReader (contacts -> events, impact impulses included) per
-  step [us]: a third pass, physics plus the reader alone, minus physics only;
-* ``synth_us_per_step``: the rest of the audio pipeline per step [us] (feeding the
-  synthesizer, sliding noise, rendering): with audio minus physics plus reader;
+* ``contact_us_per_step``: reading the contacts (pair states, impact impulses and records)
+  per step [us]: a third pass, the step kernel stepping and reading with nothing sounding
+  (the same fused substeps, one numba call per ``render_block_s`` as in the audio run), minus
+  physics only;
+* ``synth_us_per_step``: the rest of the audio pipeline per step [us] (queueing impacts,
+  sliding noise, clicks, rendering): with audio minus that third pass;
 * ``step_ratio_pulses_off`` and ``pulses_us_per_step``: the same audio run with clicks and
   contact microphones off (``clicks=False, contact_mics=[]``), interleaved in the same rounds,
   and what turning them on costs per step [us] (the demo scene has a contact microphone).
@@ -69,10 +71,19 @@ def main(argv=None) -> int:
     reset()
     sim_off = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate, clicks=False, contact_mics=[])
     sim_off.run(0.05)
+    from mjsound.sim.clock import SampleClock
     from mjsound.sim.contacts import ContactReader
+    from mjsound.sim.runner import StepKernel, silent_drive, silent_synth_state
 
+    # reading alone: the step kernel with nothing sounding (no synthesizer, no pulses)
     reader = ContactReader(model)
     dt = float(model.opt.timestep)
+    clock = SampleClock(args.sample_rate, dt, float(data.time))
+    kernel = StepKernel(model, data, reader, clock=clock.rec)
+    if not kernel.can_step:
+        raise SystemExit("bench_scene: the step kernel cannot call mj_step here (MuJoCo's C functions not found)")
+    drive, silent = silent_drive(model.ngeom), silent_synth_state()
+    every = sim.steps_per_render
     t_phys_all, t_audio_all, t_read_all, t_off_all = [], [], [], []
     for _ in range(args.rounds):
         reset()
@@ -83,10 +94,10 @@ def main(argv=None) -> int:
         # contact reading alone: the reader's events (impulses of impacts included), no synthesis
         reset()
         reader.reset()
+        clock.anchor(dt, float(data.time))
         t0 = time.process_time()
-        for k in range(nsteps):
-            mujoco.mj_step(model, data)
-            reader.events_fast(data, k * dt, (k + 1) * dt)
+        for k in range(0, nsteps, every):
+            kernel.call(drive, lambda: silent, min(every, nsteps - k), call_step=True)
         t_read_all.append(time.process_time() - t0)
         reset()
         sim.reset()
@@ -121,7 +132,6 @@ def main(argv=None) -> int:
         "us_per_step_audio": 1e6 * t_audio / nsteps,
         "contact_us_per_step": 1e6 * (t_read - t_phys) / nsteps,
         "synth_us_per_step": 1e6 * (t_audio - t_read) / nsteps,
-        "in_run_contact_and_drive_us_per_step": st["contact_us_per_step"],
         "events": st["events"],
         "peak_pa": float(np.abs(audio[: sim.n_air]).max()) if audio.size else 0.0,  # (air channels)
     }
