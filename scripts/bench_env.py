@@ -152,22 +152,16 @@ def main(argv=None) -> int:
         for mode in ("waveform", "spectrogram"):
             env = envs[mode]
             ratio = float(np.median(np.array(times[mode]) / np.array(times["bare"])))
-            st = env.sim.stats()
             off = float(np.median(np.array(times["clicks_off"]) / np.array(times["bare"])))
             rows.append({"id": env_id, "mode": mode, "step_ratio": ratio, "step_ratio_clicks_off": off,
                          "bare_ms": 1e3 * t_bare,
                          "wrapped_ms": 1e3 * float(np.median(times[mode])),
-                         "sounding_objects": len(env.scene.sounding), "modes": env.scene.n_modes,
-                         "contact_us_per_substep": st["contact_us_per_step"],
-                         "synth_us_per_substep": st["synth_us_per_step"],
-                         "fused_us_per_substep": st["fused_us_per_step"]})
+                         "sounding_objects": len(env.scene.sounding), "modes": env.scene.n_modes})
             if not args.json:
                 r = rows[-1]
                 print(f"{env_id:<14s} {mode:<12s} bare {r['bare_ms']:.3f} ms  wrapped {r['wrapped_ms']:.3f} ms  "
                       f"ratio {r['step_ratio']:.2f} (clicks off {r['step_ratio_clicks_off']:.2f})  "
-                      f"({r['sounding_objects']} objects, {r['modes']} modes; per substep "
-                      f"in numba {r['fused_us_per_substep']:.0f} us with mj_step, in Python contacts "
-                      f"{r['contact_us_per_substep']:.0f} us, synth {r['synth_us_per_substep']:.0f} us; "
+                      f"({r['sounding_objects']} objects, {r['modes']} modes; "
                       f"CPU time, median of {args.rounds} interleaved rounds)", flush=True)
         for env in envs.values():
             env.close()

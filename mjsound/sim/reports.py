@@ -50,7 +50,5 @@ class SimulatorReports:
             "events": dict(self.events),
             "contact_us_per_step": 1e6 * self.seconds_contacts / max(self.steps, 1),
             "synth_us_per_step": 1e6 * self.seconds_synth / max(self.steps, 1),
-            # substeps run in numba: mj_step, reading, driving and impacts together
-            "fused_us_per_step": 1e6 * self.seconds_fused / max(self.steps, 1),
             "clamped": self.reader.n_clamped,
         }

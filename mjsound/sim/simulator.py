@@ -245,7 +245,6 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.on_block = getattr(self, "on_block", None) if keep_observer else None
         self.seconds_contacts = 0.0
         self.seconds_synth = 0.0
-        self.seconds_fused = 0.0  # substeps run in numba (mj_step included)
         self._pending = 0  # samples stepped but not rendered yet (step(render=False))
         self._pending_n0 = self.clock.n
         self._ready = None  # a block substeps(render=True) rendered, returned by the next flush
@@ -395,9 +394,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         block = None
         if render and nstep > 0 and self._ready is None and not self._held and synth.renders_in_kernel:
             block = synth.new_block(self._pending + n1 - n0)
-        tc = _time.perf_counter()
         self._call(nstep, call_step=True, block=block)
-        self.seconds_fused += _time.perf_counter() - tc
         if self._seg is seg:  # (no clock jump counted a segment during the call: all in one go)
             self._count(n0, n1, nstep)
         else:
@@ -409,10 +406,11 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             if code != NOT_RENDERED:  # (the pending samples are rendered: flush returns them)
                 n0 = self._pending_n0
                 self._pending = 0
-                block = synth.kernel_block(block, code == RENDERED)
+                if code != RENDERED or block.dtype != np.float32:  # (else the block as it is)
+                    block = synth.kernel_block(block, code == RENDERED)
                 if not f["pulses_mixed"][0]:  # (the kernel mixes the pulse track into a float32 block itself)
                     block = self.pulses.mix(block)
-                self._ready = self._deliver(block, n0)
+                self._ready = self._deliver(block, n0) if self.on_block is not None or self._held else block
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
@@ -436,9 +434,6 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         """Take the kernel's impact records, impact count and event log entries."""
         f = self._kernel.f
         self.reader.take_records()
-        pulses = self.pulses
-        if pulses.active and pulses.waiting:
-            pulses.flush()
         n_imp, n_log = f["n_impacts"][0], f["n_log"][0]
         if not (n_imp or n_log):
             return
@@ -466,6 +461,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         elif reason == CLOCK_JUMP:
             run["render"] = 0  # (the pending samples change: flush renders them)
             self._collect()
+            self.pulses.flush()  # (the substeps' pulses so far, before the clock moves)
             self._count_segment()
             self._clock_jump()
             self._seg = (self.clock.k, self.clock.n)
@@ -474,6 +470,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             self.pulses.reserve(int(run["n_imp"]))
         elif reason == AMPLITUDE:
             self._collect()
+            self.pulses.flush()
             imp = buf.impacts[: int(run["need"])]
             objs = self._sound["obj"][np.concatenate([imp["g1"], imp["g2"]])]
             raise self.synth.amplitude_error(objs[objs >= 0])
