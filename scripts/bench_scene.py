@@ -2,8 +2,9 @@
 """Benchmark the demo scene (or any MJCF): real-time factor with audio and per-step overheads.
 
 Measures, single thread, after a warm-up (numba compile, model cache), in CPU time
-(``time.process_time``: the machine is shared; another process cannot inflate it), the median
-of ``--rounds`` interleaved rounds (physics only, then with audio):
+(``time.process_time``: the machine is shared; another process cannot inflate it), the medians
+over ``--rounds`` interleaved rounds (physics only, reading only, with audio, with audio and no
+clicks) of each round's own ratios and differences:
 
 * ``realtime_factor``: simulated seconds per CPU second with audio (mj_step + contacts +
   synthesis, ``AudioSimulator.run`` with its default ``render_block_s`` = 10 ms), analysis
@@ -46,7 +47,7 @@ def main(argv=None) -> int:
     p.add_argument("--duration", type=float, default=3.0, help="simulated seconds (default 3)")
     p.add_argument("--sample-rate", type=int, default=48000)
     p.add_argument("--quality", default="default")
-    p.add_argument("--rounds", type=int, default=3, help="interleaved rounds (median reported)")
+    p.add_argument("--rounds", type=int, default=7, help="interleaved rounds (medians over rounds reported)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     args = p.parse_args(argv)
     path = args.scene or find_demo_scene()
@@ -109,10 +110,14 @@ def main(argv=None) -> int:
         t0 = time.process_time()
         sim_off.run(args.duration)
         t_off_all.append(time.process_time() - t0)
+    # per-round differences and ratios, then their medians: a round's passes run back to back,
+    # so the machine's drifting load hits them alike (a median of each pass apart does not pair them)
+    t_phys_all, t_audio_all, t_read_all, t_off_all = map(np.array, (t_phys_all, t_audio_all, t_read_all, t_off_all))
     t_phys = float(np.median(t_phys_all))
     t_audio = float(np.median(t_audio_all))
-    t_read = float(np.median(t_read_all))
-    t_off = float(np.median(t_off_all))
+    ratio = float(np.median(t_audio_all / t_phys_all))
+    ratio_off = float(np.median(t_off_all / t_phys_all))
+    per_step = lambda x: 1e6 * float(np.median(x)) / nsteps
     st = sim.stats()
     out = {
         "scene": os.path.basename(path),
@@ -124,14 +129,14 @@ def main(argv=None) -> int:
         "scene_seconds": t_scene,
         "realtime_factor": args.duration / t_audio,
         "realtime_factor_physics_only": args.duration / t_phys,
-        "step_ratio": t_audio / t_phys,
-        "step_ratio_pulses_off": t_off / t_phys,
-        "pulses_us_per_step": 1e6 * (t_audio - t_off) / nsteps,
+        "step_ratio": ratio,
+        "step_ratio_pulses_off": ratio_off,
+        "pulses_us_per_step": per_step(t_audio_all - t_off_all),
         "channels": list(sim.channel_names),
         "us_per_step_physics": 1e6 * t_phys / nsteps,
         "us_per_step_audio": 1e6 * t_audio / nsteps,
-        "contact_us_per_step": 1e6 * (t_read - t_phys) / nsteps,
-        "synth_us_per_step": 1e6 * (t_audio - t_read) / nsteps,
+        "contact_us_per_step": per_step(t_read_all - t_phys_all),
+        "synth_us_per_step": per_step(t_audio_all - t_read_all),
         "events": st["events"],
         "peak_pa": float(np.abs(audio[: sim.n_air]).max()) if audio.size else 0.0,  # (air channels)
     }
