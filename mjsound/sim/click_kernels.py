@@ -22,8 +22,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ..jit import njit, njit_inner
 
+from ..jit import njit, njit_inner
 from ..synth.bandlimited import add_pulses
 from ..synth.pulse import contact_time
 

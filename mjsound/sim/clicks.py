@@ -35,10 +35,10 @@ import numpy as np
 from ..materials import get_material
 from ..synth import accel_noise
 from ..synth.bandlimited import PULSE_DTYPE, PulseTrack, pulse_extent
-from ..synth.records import TRACK, TrackState
 from ..synth.contact_mic import site_pulse
 from ..synth.dispatch import EntryPoint
 from ..synth.pulse import compliance, contact_time
+from ..synth.records import TRACK, TrackState
 from .click_kernels import impact_pulses, pulse_rows_needed
 from .records import CLICK_BODY, CLICK_GEOM, CLICK_PARAMS, CLICK_SITE, IMPACT, PULSE_COUNTS, ClickModel, PulseState
 

@@ -18,8 +18,9 @@ and after the last substep renders the impacts' pulses into the pulse track
 (:func:`.click_kernels.render_waiting`), syncs the poses and microphones once more (for the
 render's stream gains) and, when ``run.render`` asks, renders the pending block
 (:func:`mjsound.synth.kernels.render_streams`, as ``Synthesizer.render`` would right after
-the call) and mixes the track into it, so that an env step costs one numba call. It stops and hands back to Python only for what numba cannot do, with a
-named reason in ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
+the call) and mixes the track into it, so that an env step costs one numba call. It stops
+and hands back to Python only for what numba cannot do, with a named reason in
+``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
 :data:`SOLVE`, :data:`HERTZ`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
 says where the substep resumes when Python calls again, and nothing of a stage is changed
 before it can finish, so the resumed substep is the same as one that never stopped.
@@ -38,10 +39,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit, njit_inner
-from ..synth.kernels import render_streams
-from ..synth.packing import unpack
 from ..synth.bandlimited import take_into_block
-from ..synth.kernels import RENDERED
+from ..synth.kernels import RENDERED, render_streams
+from ..synth.packing import unpack
 from .click_kernels import pulse_room, queue_pulses, render_waiting
 from .drive import drive_sustained, missing_streams, queue_impacts, sync_poses
 from .fused import data_efc_force, data_ncon, data_time, gather_contacts, mj_solve_now, mj_step_now
