@@ -37,7 +37,8 @@ from .io import file_lock
 from .io import sources_digest as files_digest
 
 __all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest",
-           "cache_folder", "folder_cache_path", "folder_stamp", "kernel_digests", "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
+           "cache_folder", "folder_cache_path", "folder_stamp", "kernel_digests", "compile_lock", "COMPILE_WAIT_S",
+           "SHIPPED", "seed_shipped_kernels"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 

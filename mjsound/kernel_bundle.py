@@ -43,8 +43,8 @@ import sys
 import tarfile
 from dataclasses import dataclass
 
-__all__ = ["BUNDLE_DIR", "ENV_SWITCH", "Status", "STATUS", "activate", "seed_cache", "fits", "mismatches", "seed", "read_manifest",
-           "host_platform", "write_bundle"]
+__all__ = ["BUNDLE_DIR", "ENV_SWITCH", "Status", "STATUS", "activate", "seed_cache", "fits", "mismatches", "seed",
+           "read_manifest", "host_platform", "write_bundle"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 

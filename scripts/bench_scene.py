@@ -92,7 +92,7 @@ def main(argv=None) -> int:
         for _ in range(nsteps):
             mujoco.mj_step(model, data)
         t_phys_all.append(time.process_time() - t0)
-        # contact reading alone: the reader's events (impulses of impacts included), no synthesis
+        # contact reading alone: the step kernel with nothing sounding (impulses of impacts included)
         reset()
         reader.reset()
         clock.anchor(dt, float(data.time))

@@ -406,11 +406,10 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             if code != NOT_RENDERED:  # (the pending samples are rendered: flush returns them)
                 n0 = self._pending_n0
                 self._pending = 0
-                if code != RENDERED or block.dtype != np.float32:  # (else the block as it is)
-                    block = synth.kernel_block(block, code == RENDERED)
+                block = synth.kernel_block(block, code == RENDERED)
                 if not f["pulses_mixed"][0]:  # (the kernel mixes the pulse track into a float32 block itself)
                     block = self.pulses.mix(block)
-                self._ready = self._deliver(block, n0) if self.on_block is not None or self._held else block
+                self._ready = self._deliver(block, n0)
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""

@@ -373,8 +373,8 @@ class PulseTrack:
         self.state = TrackState(rec, np.zeros((self.n_channels, 1024)), np.zeros(256, np.complex128), np.zeros(256),
                                 twiddles(256, True))
         self._rec = rec[0]
-        self._add = EntryPoint(add_pulses)  # (compiled entry points: numba's dispatch types a record in Python)
-        self._take_into = EntryPoint(take_into_block)
+        # (compiled entry points: numba's dispatch types a record in Python)
+        self._add, self._extent, self._take_into = map(EntryPoint, (add_pulses, pulse_extent, take_into_block))
 
     fs = property(lambda self: float(self._rec["fs"]), doc="Sample rate [Hz].")
     start = property(lambda self: int(self._rec["start"]))
@@ -423,6 +423,7 @@ class PulseTrack:
             raise ValueError("pulse length tau_s and transfer denominators d1, d2 must be >= 0")
         self.add_trusted(pulses, dv)
 
+    @interruptible
     def add_trusted(self, pulses: np.ndarray, dv: np.ndarray) -> None:
         """:meth:`add` without its checks (``pulses`` a PULSE_DTYPE array, ``dv`` a float64
         array of the same length; a non-finite ``dv`` drops that pulse)."""
@@ -430,10 +431,9 @@ class PulseTrack:
             return
         pulses = np.ascontiguousarray(pulses, dtype=PULSE_DTYPE)
         dv = np.ascontiguousarray(dv, dtype=np.float64)
-        if not _call(self._add, (self.state,), pulses, dv, len(pulses)):
-            n_max, last = _call(pulse_extent, (), pulses, dv, len(pulses), self.fs)
-            self._grow(n_max, last)
-            _call(self._add, (self.state,), pulses, dv, len(pulses))  # (fits now)
+        if not self._add((self.state,), pulses, dv, len(pulses)):
+            self._grow(*self._extent((), pulses, dv, len(pulses), self.fs))
+            self._add((self.state,), pulses, dv, len(pulses))  # (fits now)
 
     def take_into(self, block: np.ndarray) -> None:
         """Add the next ``block.shape[1]`` samples of every channel into ``block`` (channels, n)
@@ -464,12 +464,3 @@ class PulseTrack:
             acc[:, k] = 0.0
         r["pending_from"] = hi
         return block
-
-
-@interruptible
-def _call(fn, state, *args):
-    """``fn(*state, *args)`` (an :class:`EntryPoint`, or a dispatcher called through numba's
-    dispatch when ``state`` is empty), a Ctrl-C during it raised as ``KeyboardInterrupt``."""
-    if isinstance(fn, EntryPoint):
-        return fn(state, *args)
-    return fn(*state, *args)
