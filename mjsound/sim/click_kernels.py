@@ -4,8 +4,9 @@ band-limited pulse rows (:data:`mjsound.synth.bandlimited.PULSE_DTYPE`), one cal
 For each touching pair of the substep (its impact rows with a finite, positive impulse,
 grouped by ``(geom1, geom2)`` in order of first appearance) the pulse acts at the
 impulse-weighted centre of its points with the summed impulse ``J`` (on geom2; geom1 gets
-``-J``), the fastest approach speed ``v`` and the Hertz time ``tau = coef v^(-1/5)``
-(:func:`mjsound.synth.pulse.contact_time`, :func:`hertz_coefficient`). Each dynamic body
+``-J``), the fastest approach speed ``v`` and the contact time ``tau``: Hertz's
+``coef v^(-1/5)`` (:func:`mjsound.synth.pulse.contact_time`, :func:`hertz_coefficient`), or,
+when longer, the thin shells' ``pi sqrt(m* (s1 + s2))`` (:func:`pair_contact_time`). Each dynamic body
 ``b`` of the pair (centre of mass ``o``, principal frame ``Ri``) changes its velocity by
 ``dv = J / m_b`` and its angular velocity by ``dw = Ri (Ri^T ((p - o) x J) / I_b)``, each of
 ``|dv|`` and ``|dw x arm|`` capped at ``2 v``. Its click at air microphone ``m`` (distance
@@ -25,9 +26,10 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from ..synth.bandlimited import add_pulses
-from ..synth.pulse import contact_time
+from ..synth.pulse import contact_time, shell_contact_time
 
-__all__ = ["impact_pulses", "queue_pulses", "pulse_room", "render_waiting", "hertz_coefficient", "pulse_rows_needed"]
+__all__ = ["impact_pulses", "queue_pulses", "pulse_room", "render_waiting", "hertz_coefficient", "pair_contact_time",
+           "pulse_rows_needed"]
 
 
 def pulse_rows_needed(n_impacts: int, n_air: int, n_sites: int) -> int:
@@ -38,11 +40,15 @@ def pulse_rows_needed(n_impacts: int, n_air: int, n_sites: int) -> int:
 
 @njit_inner(cache=True)
 def _effective(a, b):
-    """``1 / (1/a + 1/b)``, ``inf`` meaning absent (:func:`mjsound.synth.pulse.effective`)."""
+    """``1 / (1/a + 1/b)``, ``inf`` meaning absent (:func:`mjsound.synth.pulse.effective`);
+    0 when either is 0 (the limit: a massless body welded to a moving one, whose subtree has
+    no mass, makes no Hertz time rather than a division by zero)."""
     if math.isinf(a):
         return b
     if math.isinf(b):
         return a
+    if a == 0.0 or b == 0.0:
+        return 0.0
     return 1.0 / (1.0 / a + 1.0 / b)
 
 
@@ -65,6 +71,24 @@ def hertz_coefficient(cm, g1, g2):
         return 0.0
     E = 1.0 / c
     return 2.87 * (m * m / (R * E * E)) ** 0.2
+
+
+@njit(cache=True)
+def pair_contact_time(cm, g1, g2, speed):
+    """Contact time [s] of an impact between geoms ``g1`` and ``g2`` at approach ``speed``
+    [m/s]: Hertz's ``contact_time(hertz_coefficient(cm, g1, g2), speed)``, or the thin shells'
+    ``pi sqrt(m* (s1 + s2))`` when longer (:func:`mjsound.synth.pulse.shell_contact_time`;
+    ``m*`` the bodies' Hertz masses combined, ``s`` each geom's ``shell_compliance`` [m/N]).
+    Exactly Hertz's when neither geom is a shell."""
+    tau = contact_time(hertz_coefficient(cm, g1, g2), speed)
+    ga = cm.geoms[g1]
+    gb = cm.geoms[g2]
+    if ga.shell_compliance > 0 or gb.shell_compliance > 0:
+        m = _effective(cm.bodies[ga.body].hertz_mass, cm.bodies[gb.body].hertz_mass)
+        shell = shell_contact_time(m, ga.shell_compliance, gb.shell_compliance)
+        if shell > tau:
+            tau = shell
+    return tau
 
 
 @njit_inner(cache=True)
@@ -238,7 +262,7 @@ def impact_pulses(cm, impacts, k, time_s, xpos, xmat, mics, rows, dv, n):
         for c in range(3):
             point[c] = point[c] / wsum
             Jm[c] = -J[c]
-        tau = contact_time(hertz_coefficient(cm, g1, g2), speed)
+        tau = pair_contact_time(cm, g1, g2, speed)
         b = cm.geoms[g2].body
         if cm.bodies[b].dynamic:
             n = _body_pulses(cm, b, J, point, speed, tau, time_s, (xpos, xmat), mics, rows, dv, n)

@@ -17,10 +17,29 @@ chain holds back, this over-estimates the change, so ``|dv|`` and ``|dw x arm|``
 capped at ``2 v`` (``v`` the approach speed: an elastic impact against an immovable body).
 Bodies welded to the world and mocap bodies do not move and make no click.
 
-``tau`` is the modal excitation's: Hertz with both geoms' acoustic materials (a missing
-material counts as rigid), the bodies' subtree masses (infinite when welded) and the geoms'
-contact radii; when neither geom has a material, both count as :data:`UNKNOWN_MATERIAL` (ABS:
-most robot shells and household plastics), so that every click has a finite duration.
+``tau`` is Hertz's, as for the modal excitation: both geoms' acoustic materials (a missing
+material counts as rigid), the bodies' subtree masses ``m*`` combined (infinite when welded)
+and the geoms' contact radii; when neither geom has a material, both count as
+:data:`UNKNOWN_MATERIAL` (ABS: most robot shells and household plastics), so that every click
+has a finite duration. A body too light to be solid in its geom's material is a hollow shell,
+which bends under the contact (:func:`mjsound.synth.pulse.shell_contact_time`)::
+
+    tau = max(tau_hertz, pi sqrt(m* (s1 + s2)))       s = 1/k per geom [m/N], 0 when solid
+
+:func:`shell_compliances` estimates ``s`` at construction. A body's wall is its mass spread
+over its surface, ``t = m_b / (rho A_b)`` (``rho`` the geom's material's density, ``A_b`` and
+``V_b`` the summed surface and volume of the body's colliding geoms: a MuJoCo body's mass is
+its geoms' volume times their density, so the geoms, not the equivalent ellipsoid, tell its
+volume and surface; the ellipsoid of two spheres on a rod is one long ellipsoid far larger
+than they are). Where that wall is at most :data:`SHELL_MAX_WALL_RATIO` of both the geom's
+radius of curvature ``R`` and the body's thickness ``3 V_b / A_b`` (so at most 30 % of the
+body's volume is material), the geom is a thin shell with Reissner's point-load stiffness
+``k = 4 E t^2 / (R sqrt(3 (1 - nu^2)))``. Gymnasium's Ant (``density="5"``) in aluminium has
+foil walls (70 um ankles, 150 um torso): 8 to 23 ms of contact where solid Hertz gives 72 to
+163 us at 3.6 m/s, and its clicks are correspondingly quiet and low. A body of its material's
+density (a wall a third of a sphere's radius) stays solid, and its ``tau`` is Hertz's bit for
+bit. The modal excitation keeps Hertz's ``tau`` everywhere: the shell time is the clicks' and
+the contact microphones' rigid-body pulses' only.
 
 Only impacts call into this module: a step without impacts costs nothing here, and a render
 with nothing pending adds nothing (:class:`mjsound.synth.bandlimited.PulseTrack`).
@@ -37,15 +56,135 @@ from ..synth import accel_noise
 from ..synth.bandlimited import PULSE_DTYPE, PulseTrack, pulse_extent
 from ..synth.contact_mic import site_pulse
 from ..synth.dispatch import EntryPoint
-from ..synth.pulse import compliance, contact_time
+from ..synth.pulse import compliance, contact_time, shell_compliance
 from ..synth.records import TRACK, TrackState
 from .click_kernels import impact_pulses, pulse_rows_needed
 from .records import CLICK_BODY, CLICK_GEOM, CLICK_PARAMS, CLICK_SITE, IMPACT, PULSE_COUNTS, ClickModel, PulseState
 
-__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL"]
+__all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "SHELL_MAX_WALL_RATIO", "shell_compliances",
+           "geom_volume_area"]
 
 #: Material both sides of an impact count as for the click's duration when neither has one.
 UNKNOWN_MATERIAL = "abs"
+
+#: Largest wall-to-radius ratio ``t / R`` [-] of a body treated as a thin shell. Reissner's
+#: point-load stiffness is thin-shell theory, which neglects terms of order ``t / R``: ``R / t
+#: >= 10`` is its usual bound. Thicker walls keep Hertz's solid contact time; at the bound the
+#: two are alike (a wall of a tenth of the radius, aluminium, radii 3 to 25 cm: the shell's
+#: time within a factor 1.6 of Hertz's for the same mass at 0.3 to 3.6 m/s), so the switch
+#: makes no large jump. A uniform solid sphere has ``t / R = 1/3`` by this measure (its mass
+#: over its surface), a long solid capsule ``1/2``; MuJoCo's default density (1000) in
+#: aluminium (2700) about 0.12 to 0.19: solid. The same ratio bounds the wall against the
+#: body's thickness ``3 V / A`` (a sphere's radius; a thin disc's three half-heights): a solid
+#: disc, thin beside its curvature, is no shell.
+SHELL_MAX_WALL_RATIO = 0.1
+
+#: Geom types whose contact radius is also the radius of curvature of their wall (sphere,
+#: capsule, ellipsoid, cylinder); boxes and meshes use ``3 V / A`` of the geom instead (a
+#: sphere's radius from its volume and area: a cube's is its half side).
+_CURVED = (2, 3, 4, 5)
+
+
+def _ellipsoid_area(a, b, c) -> float:
+    """Surface of the ellipsoid of semi-axes ``a, b, c`` [m^2] (Thomsen's formula, within
+    1.1 %)."""
+    p = 1.6075
+    ap, bp, cp = a**p, b**p, c**p
+    return 4.0 * math.pi * ((ap * bp + ap * cp + bp * cp) / 3.0) ** (1.0 / p)
+
+
+def geom_volume_area(model, g: int) -> tuple[float, float] | None:
+    """Volume [m^3] and surface [m^2] of geom ``g`` as MuJoCo weighs it (``geom_size``:
+    sphere, capsule, ellipsoid, cylinder, box; a mesh from its triangles, the divergence
+    theorem's signed tetrahedra), or None for a plane, height field or other shape without a
+    closed volume (and a mesh whose volume is not positive)."""
+    t = int(model.geom_type[g])
+    s = np.asarray(model.geom_size[g], dtype=np.float64)
+    if t == 2:  # sphere
+        r = s[0]
+        return 4.0 / 3.0 * math.pi * r**3, 4.0 * math.pi * r * r
+    if t == 3:  # capsule: radius, half-length of the cylinder
+        r, h = s[0], s[1]
+        return math.pi * r * r * (2.0 * h + 4.0 / 3.0 * r), 2.0 * math.pi * r * (2.0 * h + 2.0 * r)
+    if t == 4:  # ellipsoid: semi-axes
+        return 4.0 / 3.0 * math.pi * s[0] * s[1] * s[2], _ellipsoid_area(s[0], s[1], s[2])
+    if t == 5:  # cylinder: radius, half-height
+        r, h = s[0], s[1]
+        return 2.0 * math.pi * r * r * h, 2.0 * math.pi * r * (2.0 * h + r)
+    if t == 6:  # box: half-sizes
+        return 8.0 * s[0] * s[1] * s[2], 8.0 * (s[0] * s[1] + s[1] * s[2] + s[0] * s[2])
+    if t == 7 and model.geom_dataid[g] >= 0:  # mesh
+        k = int(model.geom_dataid[g])
+        v0, nv = int(model.mesh_vertadr[k]), int(model.mesh_vertnum[k])
+        f0, nf = int(model.mesh_faceadr[k]), int(model.mesh_facenum[k])
+        vert = np.asarray(model.mesh_vert[v0:v0 + nv], dtype=np.float64)
+        face = np.asarray(model.mesh_face[f0:f0 + nf], dtype=np.int64)
+        if not (nv and nf) or face.min() < 0 or face.max() >= nv:
+            return None
+        a, b, c = vert[face[:, 0]], vert[face[:, 1]], vert[face[:, 2]]
+        vol = abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
+        area = 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+        return (vol, area) if vol > 0 and area > 0 else None
+    return None
+
+
+def shell_compliances(model, geom_material, geom_radius, dynamic) -> np.ndarray:
+    """Point-load compliance [m/N] of each geom's wall where its body is a thin hollow shell,
+    0 elsewhere (solid, no material, a body that does not move).
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    geom_material : list of Material | None
+        Acoustic material per geom (None: none, no shell).
+    geom_radius : (ngeom,) array
+        Contact radius per geom [m] (the click's: a box's half its largest extent; inf: flat).
+    dynamic : (nbody,) bool
+        Bodies that move (a shell elsewhere changes nothing: immovable bodies count as rigid).
+
+    Returns
+    -------
+    (ngeom,) float64 : ``R sqrt(3 (1 - nu^2)) / (4 E t^2)``
+    (:func:`mjsound.synth.pulse.shell_compliance`) where the body's wall
+    ``t = m_b / (rho A_b)`` is at most :data:`SHELL_MAX_WALL_RATIO` of ``R``, the geom's
+    radius of curvature, and of ``3 V_b / A_b``, the body's own thickness
+    (a sphere's radius; then ``t <= 0.1 (3 V_b / A_b)`` says ``m_b <= 0.3 rho V_b``: the body
+    is mostly hollow, which a solid disc or plate, thin beside its radius of curvature, is
+    not). ``V_b`` and ``A_b`` sum the volumes and surfaces of the body's colliding geoms (all
+    its geoms when none collides; overlaps count twice). A body with a geom of unknown volume
+    (plane, height field) is solid here.
+    """
+    m = model
+    out = np.zeros(m.ngeom)
+    if m.ngeom == 0:
+        return out
+    body = np.asarray(m.geom_bodyid, dtype=np.int64)
+    collide = (np.asarray(m.geom_contype) != 0) | (np.asarray(m.geom_conaffinity) != 0)
+    shapes = [geom_volume_area(m, g) for g in range(m.ngeom)]
+    volume, area = {}, {}
+    for b in np.unique(body).tolist():
+        mine = np.flatnonzero(body == b)
+        counted = mine[collide[mine]] if collide[mine].any() else mine
+        if all(shapes[g] is not None for g in counted):
+            volume[b] = sum(shapes[g][0] for g in counted)
+            area[b] = sum(shapes[g][1] for g in counted)
+    for g in range(m.ngeom):
+        mat, b = geom_material[g], int(body[g])
+        if mat is None or not dynamic[b] or b not in area or shapes[g] is None:
+            continue
+        mass = float(m.body_mass[b])
+        if not (math.isfinite(mass) and mass > 0 and area[b] > 0 and volume[b] > 0):
+            continue
+        vol, surf = shapes[g]
+        if int(m.geom_type[g]) in _CURVED:
+            R = float(geom_radius[g])
+        else:
+            R = 3.0 * vol / surf if surf > 0 else math.inf
+        wall = mass / (float(mat.rho) * area[b])
+        thin = min(R, 3.0 * volume[b] / area[b]) * SHELL_MAX_WALL_RATIO
+        if math.isfinite(R) and R > 0 and wall <= thin:
+            out[g] = shell_compliance(mat, wall, R)
+    return out
 
 
 def _quat_mat(q) -> np.ndarray:
@@ -159,6 +298,7 @@ class ImpactPulses:
         geoms["has_material"] = [mat is not None for mat in self._mat]
         geoms["compliance"] = [compliance(mat) for mat in self._mat]
         geoms["radius"] = self._radius
+        geoms["shell_compliance"] = shell_compliances(m, self._mat, self._radius, self._dynamic)
         sites = np.zeros(len(self.contact_sites), CLICK_SITE)
         sites["body"] = self._site_body
         sites["pos"] = np.asarray(m.site_pos, dtype=np.float64).reshape(-1, 3)[self.contact_sites]

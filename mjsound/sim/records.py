@@ -163,10 +163,12 @@ CLICK_PARAMS = np.dtype([("clicks", i8), ("n_air", i8), ("c", f8), ("unknown_com
 CLICK_BODY = np.dtype([("dynamic", i8), ("mass", f8), ("ipos", f8, (3,)), ("iframe", f8, (3, 3)),
                        ("masses", f8, (3,)), ("a_eq", f8), ("inertia", f8, (3,)), ("hertz_mass", f8)])
 
-#: Per geom, its impact pulses' Hertz contact (owner: ImpactPulses): its body, whether it has
-#: an acoustic material, the material's compliance ``(1 - nu^2) / E`` [1/Pa] (0: none, rigid)
-#: and its contact radius [m] (inf: flat).
-CLICK_GEOM = np.dtype([("body", i8), ("has_material", i8), ("compliance", f8), ("radius", f8)])
+#: Per geom, its impact pulses' contact (owner: ImpactPulses): its body, whether it has an
+#: acoustic material, the material's compliance ``(1 - nu^2) / E`` [1/Pa] (0: none, rigid),
+#: its contact radius [m] (inf: flat) and, where its body is a thin hollow shell, the wall's
+#: point-load compliance ``1 / k`` [m/N] (0: solid; :func:`mjsound.sim.clicks.shell_compliances`).
+CLICK_GEOM = np.dtype([("body", i8), ("has_material", i8), ("compliance", f8), ("radius", f8),
+                       ("shell_compliance", f8)])
 
 #: Pulse rows waiting in :class:`PulseState` for the pulse track.
 PULSE_COUNTS = np.dtype([("n", i8)])

@@ -19,6 +19,21 @@ area (total impulse J), whose spectrum (including the pulse's own delay) is::
 
 so S(0) = 1 (a short pulse is an ideal impulse), S -> -j pi / 4 at w tau = pi (a removable
 singularity, evaluated here with a series-stable form), and |S| falls as 1/(w tau)^2 above.
+
+A thin hollow shell (wall ``t`` much thinner than its radius of curvature ``R``) is struck
+through the bending of its wall, not through Hertz's local compression of a solid: a point load
+on a closed spherical shell deflects it linearly, with stiffness (Reissner, *J. Math. Phys.* 25,
+1946, shallow spherical shells; valid while ``t / R`` is small)::
+
+    k = 4 E t^2 / (R sqrt(3 (1 - nu^2)))       [N/m]
+
+and the struck mass on that spring touches for half its period,
+``tau_shell = pi sqrt(m* (1/k1 + 1/k2))`` (two shells: springs in series;
+:func:`shell_compliance`, :func:`shell_contact_time`). A 2.7 g table-tennis ball of ABS (radius
+20 mm, a wall of 0.5 mm) gives 0.6 ms on a rigid floor, against 90 us (at 1 m/s) of Hertz for a
+solid ball of its mass, radius and material; a measured ball touches a hard surface for about
+1 ms (the ball's wall flattens and buckles inward, softening as it goes: the linear spring is
+the stiff end of it).
 """
 
 from __future__ import annotations
@@ -29,8 +44,8 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 
-__all__ = ["hertz_contact_time", "hertz_coefficient", "compliance", "contact_time", "half_sine_spectrum", "half_sine", "effective",
-           "TAU_MIN_S", "TAU_MAX_S"]
+__all__ = ["hertz_contact_time", "hertz_coefficient", "compliance", "contact_time", "shell_compliance",
+           "shell_contact_time", "half_sine_spectrum", "half_sine", "effective", "TAU_MIN_S", "TAU_MAX_S"]
 
 #: Contact times are clamped to [TAU_MIN_S, TAU_MAX_S] seconds. The lower bound is far below
 #: any audible period (a 1 us pulse is flat to 100 kHz); the upper bound keeps a near-zero
@@ -119,6 +134,55 @@ def contact_time(coef, v):
     if not v > 0:
         return TAU_MAX_S
     return min(max(coef * v**-0.2, TAU_MIN_S), TAU_MAX_S)
+
+
+def shell_compliance(mat, wall, radius) -> float:
+    """Point-load compliance ``1 / k`` [m/N] of a thin closed shell of ``mat``: Reissner's
+    ``k = 4 E t^2 / (R sqrt(3 (1 - nu^2)))`` (see the module docstring).
+
+    Parameters
+    ----------
+    mat : Material
+        ``E`` [Pa] and ``nu`` used.
+    wall : float
+        Wall thickness ``t`` [m], > 0.
+    radius : float
+        Radius of curvature ``R`` of the wall at the load [m], > 0 and finite.
+
+    Returns
+    -------
+    float : ``R sqrt(3 (1 - nu^2)) / (4 E t^2)`` [m/N]; 0 (not a shell: infinitely stiff) for
+    a non-positive or non-finite wall or radius.
+    """
+    t, R = float(wall), float(radius)
+    if not (math.isfinite(t) and t > 0 and math.isfinite(R) and R > 0):
+        return 0.0
+    nu = float(mat.nu)
+    return R * math.sqrt(3.0 * (1.0 - nu * nu)) / (4.0 * float(mat.E) * t * t)
+
+
+@njit(cache=True)
+def shell_contact_time(mass, shell_compliance_1, shell_compliance_2):
+    """Contact time [s] of a mass on the two walls' point-load springs in series, half the
+    period: ``pi sqrt(mass (s1 + s2))``, clamped to [``TAU_MIN_S``, ``TAU_MAX_S``]. (numba:
+    called from the impact kernel, :func:`mjsound.sim.click_kernels.pair_contact_time`.)
+
+    Parameters
+    ----------
+    mass : float
+        Effective mass ``m*`` of the impact [kg] (``1/m* = 1/m1 + 1/m2``; inf: immovable).
+    shell_compliance_1, shell_compliance_2 : float
+        Each side's :func:`shell_compliance` ``s = 1/k`` [m/N]; 0 for a solid.
+
+    Returns
+    -------
+    float : [s]; 0 when neither side is a shell or the mass is infinite, not positive or NaN
+    (the contact is then Hertz's alone).
+    """
+    s = shell_compliance_1 + shell_compliance_2
+    if not (s > 0 and mass > 0) or math.isinf(mass):
+        return 0.0
+    return min(max(math.pi * math.sqrt(mass * s), TAU_MIN_S), TAU_MAX_S)
 
 
 def half_sine_spectrum(omega, tau) -> np.ndarray:
