@@ -25,10 +25,14 @@ the DFT grid of a window of ``N`` samples (a power of two) starting ``LEAD`` sam
 arrival: by Poisson's summation this is exact up to the part of the signal outside the window,
 which is the low-pass's own tails (``LEAD = TAIL = 32`` samples: -70 dB of the kernel's
 energy) and the transfer's ringing after ``RING_TIME_CONSTANTS`` of its slowest pole
-(``e^-16``). The inverse DFT is a radix-2 FFT in numba (:func:`fft_inplace`).
+(``e^-16``). The inverse DFT is a radix-2 FFT in numba (:func:`fft_inplace`). On the grid
+``w_k = k w_1`` the two phase factors of each bin, the half-sine's end ``e^{-j w_k tau}`` and the
+arrival's ``e^{-j w_k t}``, are each the previous bin's times a constant rotation, recomputed
+exactly every :data:`RESEED` bins (:func:`render_pulse`).
 
-Cost is per pulse only (one FFT of 64 to a few hundred points per pulse and channel); a render
-with no pulses pending touches nothing (:class:`PulseTrack`). The low-pass is non-causal: the
+Cost is per pulse only (one FFT of 64 to about a thousand points per pulse and channel: a
+hollow body's milliseconds-long contact, :mod:`.pulse`, makes the long ones); a render with no
+pulses pending touches nothing (:class:`PulseTrack`). The low-pass is non-causal: the
 at most ``LEAD`` samples of its pre-ringing that fall before audio already handed out are
 dropped (a pulse on a sample boundary loses about 4 % of its energy, -0.2 dB).
 """
@@ -42,10 +46,10 @@ import numpy as np
 from ..jit import njit, njit_inner
 from .dispatch import EntryPoint
 from .interrupt import interruptible
-from .pulse import half_sine
+from .pulse import half_sine_rotated
 from .records import TRACK, TrackState
 
-__all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES",
+__all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES", "RESEED",
            "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "render_pulse", "mix_pulse",
            "pulse_extent", "add_pulses", "take_into_block", "PulseTrack"]
 
@@ -65,6 +69,9 @@ PASS_FRACTION = 0.40
 RING_TIME_CONSTANTS = 16.0
 #: Longest window [samples] one pulse may need; :func:`pulse_window` reports longer ones.
 MAX_PULSE_SAMPLES = 1 << 16
+#: :func:`render_pulse` computes its phase factors exactly every this many bins and rotates
+#: them in between.
+RESEED = 32
 
 
 @njit(cache=True)
@@ -215,19 +222,30 @@ def render_pulse(pulse, dv, fs, work, out, table):
         return 0, 0
     first = int(math.floor(pulse.time_s * fs)) - LEAD
     shift = pulse.time_s - first / fs  # arrival after the window's first sample [s]
+    tau = pulse.tau_s
+    w1 = 2.0 * math.pi * fs / n  # the DFT grid's spacing [rad/s]
+    # e^{-j w tau} (the half-sine's end) and e^{-j w shift} (the arrival) on the grid, by
+    # rotation from bin to bin; recomputed every RESEED bins, so the products' rounding stays
+    # within a few ulps (two complex exponentials per bin were most of a pulse's time)
+    step_end = np.exp(-1j * w1 * tau)
+    step_arrival = np.exp(-1j * w1 * shift)
+    end = arrival = 1.0 + 0.0j
     work[:n] = 0.0
     for k in range(n // 2 + 1):
-        f = k / n  # cycles per sample
-        g = lowpass(f)
-        if g == 0.0:
-            continue
-        w = 2.0 * math.pi * f * fs
-        s = 1j * w
-        v = dv * half_sine(w * pulse.tau_s) * transfer(s, pulse.b0, pulse.b1, pulse.d1, pulse.d2)
-        v = v * g * np.exp(-s * shift) * fs
-        work[k] = v
-        if 0 < k < n // 2:
-            work[n - k] = v.conjugate()
+        if k % RESEED == 0:
+            end = np.exp(-1j * (k * w1) * tau)
+            arrival = np.exp(-1j * (k * w1) * shift)
+        g = lowpass(k / n)  # (k / n: cycles per sample)
+        if g != 0.0:
+            w = k * w1
+            s = 1j * w
+            v = dv * half_sine_rotated(w * tau, end) * transfer(s, pulse.b0, pulse.b1, pulse.d1, pulse.d2)
+            v = v * g * arrival * fs
+            work[k] = v
+            if 0 < k < n // 2:
+                work[n - k] = v.conjugate()
+        end *= step_end
+        arrival *= step_arrival
     fft_with(work[:n], table, True)
     for i in range(n):
         out[i] = work[i].real

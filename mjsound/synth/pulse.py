@@ -45,7 +45,7 @@ import numpy as np
 from ..jit import njit, njit_inner
 
 __all__ = ["hertz_contact_time", "hertz_coefficient", "compliance", "contact_time", "shell_compliance",
-           "shell_contact_time", "half_sine_spectrum", "half_sine", "effective", "TAU_MIN_S", "TAU_MAX_S"]
+           "shell_contact_time", "half_sine_spectrum", "half_sine", "half_sine_rotated", "effective", "TAU_MIN_S", "TAU_MAX_S"]
 
 #: Contact times are clamped to [TAU_MIN_S, TAU_MAX_S] seconds. The lower bound is far below
 #: any audible period (a 1 us pulse is flat to 100 kHz); the upper bound keeps a near-zero
@@ -215,9 +215,16 @@ def half_sine_spectrum(omega, tau) -> np.ndarray:
 @njit_inner(cache=True)
 def half_sine(x):
     """:func:`half_sine_spectrum` at one ``x = w tau`` (numba: the synthesizer's kernels call it)."""
+    return half_sine_rotated(x, np.exp(-1j * x))
+
+
+@njit_inner(cache=True)
+def half_sine_rotated(x, end):
+    """:func:`half_sine` at ``x`` given ``end = e^{-j x}`` (the pulse's end as a phase factor,
+    which a caller stepping along a frequency grid has by rotation)."""
     u = x - np.pi
     if abs(u) >= 0.25:
-        return (1.0 + np.exp(-1j * x)) / (2.0 * (1.0 - (x / np.pi) ** 2))
+        return (1.0 + end) / (2.0 * (1.0 - (x / np.pi) ** 2))
     if u == 0.0:
         return -1j * np.pi / 4.0
     # expm1(-j u) without cancellation: cos(u) - 1 = -2 sin^2(u / 2)
