@@ -144,7 +144,11 @@ def _reference_pulses(p, impacts, time_s, data, mics):
         shell = p._model.geoms["shell_compliance"][g1] + p._model.geoms["shell_compliance"][g2]
         if shell > 0:  # a thin hollow shell: the mass on the walls' springs, when longer
             mass = effective(p._hertz_mass[b1], p._hertz_mass[b2])
-            tau = max(tau, min(max(math.pi * math.sqrt(mass * shell), TAU_MIN_S), TAU_MAX_S))
+            # (no deeper than the smaller shell's radius: v tau / pi <= R)
+            gm = p._model.geoms
+            r = min(gm["radius"][g] for g in (g1, g2) if gm["shell_compliance"][g] > 0)
+            crush = math.pi * r / speed if speed > 0 and math.isfinite(r) else math.inf
+            tau = max(tau, min(min(max(math.pi * math.sqrt(mass * shell), TAU_MIN_S), TAU_MAX_S), crush))
         for g, J in ((g2, J2), (g1, -J2)):
             b = int(model.geom_bodyid[g])
             if not p._dynamic[b]:

@@ -235,3 +235,22 @@ def test_ant_clicks_no_longer_deafen():
         peak = max(peak, info["audio_peak_pa"])
     env.close()
     assert 0.5 < peak < 20.0
+
+
+def test_light_shell_on_a_heavy_subtree_sinks_no_deeper_than_its_radius():
+    """A 1 g aluminium sphere of 10 cm radius (a 3 um wall) carrying a 20 kg child: the wall's
+    spring under 20 kg would take seconds (the 1 s clamp: a 65536-point pulse window at
+    48 kHz); the mass cannot sink deeper than the radius, ``v tau / pi <= R``: ``pi R / v``."""
+    xml = """<mujoco><worldbody><geom name="floor" type="plane" size="2 2 .1"/>
+      <body name="shell" pos="0 0 0.5"><freejoint/><geom name="s" type="sphere" size="0.1" mass="0.001"/>
+      <body name="heavy"><geom type="box" size="0.05 0.05 0.05" mass="20" contype="0" conaffinity="0"/></body>
+      </body></worldbody></mujoco>"""
+    p = _pulses(xml, {"s": "aluminium"})
+    cm = p._model
+    s = cm.geoms[1]["shell_compliance"]
+    assert s > 0
+    assert shell_contact_time(20.001, s, 0.0) == TAU_MAX_S  # (the spring alone: seconds)
+    for v in (0.5, 3.0):
+        assert pair_contact_time(cm, 0, 1, v) == pytest.approx(math.pi * 0.1 / v, rel=1e-12)
+    # slow enough that the wall's spring ends the contact first: the spring's time (clamped)
+    assert pair_contact_time(cm, 0, 1, 1e-3) == TAU_MAX_S

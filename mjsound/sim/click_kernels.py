@@ -6,7 +6,8 @@ grouped by ``(geom1, geom2)`` in order of first appearance) the pulse acts at th
 impulse-weighted centre of its points with the summed impulse ``J`` (on geom2; geom1 gets
 ``-J``), the fastest approach speed ``v`` and the contact time ``tau``: Hertz's
 ``coef v^(-1/5)`` (:func:`mjsound.synth.pulse.contact_time`, :func:`hertz_coefficient`), or,
-when longer, the thin shells' ``pi sqrt(m* (s1 + s2))`` (:func:`pair_contact_time`). Each dynamic body
+when longer, the thin shells' ``pi sqrt(m* (s1 + s2))``, at most ``pi R / v``
+(:func:`pair_contact_time`). Each dynamic body
 ``b`` of the pair (centre of mass ``o``, principal frame ``Ri``) changes its velocity by
 ``dv = J / m_b`` and its angular velocity by ``dw = Ri (Ri^T ((p - o) x J) / I_b)``, each of
 ``|dv|`` and ``|dw x arm|`` capped at ``2 v``. Its click at air microphone ``m`` (distance
@@ -73,19 +74,36 @@ def hertz_coefficient(cm, g1, g2):
     return 2.87 * (m * m / (R * E * E)) ** 0.2
 
 
+@njit_inner(cache=True)
+def _crush_time(ga, gb, speed):
+    """``pi R / v`` [s], the longest a shell's contact can last at approach ``speed`` [m/s]:
+    a mass on the wall's linear spring sinks ``v tau / pi`` into it, and the wall cannot give
+    more than the radius ``R`` of its geom (the smaller of the shells' radii; inf at speed 0)."""
+    r = math.inf
+    if ga.shell_compliance > 0 and ga.radius < r:
+        r = ga.radius
+    if gb.shell_compliance > 0 and gb.radius < r:
+        r = gb.radius
+    if not speed > 0 or math.isinf(r):
+        return math.inf
+    return math.pi * r / speed
+
+
 @njit(cache=True)
 def pair_contact_time(cm, g1, g2, speed):
     """Contact time [s] of an impact between geoms ``g1`` and ``g2`` at approach ``speed``
     [m/s]: Hertz's ``contact_time(hertz_coefficient(cm, g1, g2), speed)``, or the thin shells'
     ``pi sqrt(m* (s1 + s2))`` when longer (:func:`mjsound.synth.pulse.shell_contact_time`;
-    ``m*`` the bodies' Hertz masses combined, ``s`` each geom's ``shell_compliance`` [m/N]).
-    Exactly Hertz's when neither geom is a shell."""
+    ``m*`` the bodies' Hertz masses combined, ``s`` each geom's ``shell_compliance`` [m/N]),
+    at most ``pi R / v`` (:func:`_crush_time`: a wall sinks no deeper than its radius, which a
+    light shell carrying a heavy subtree would otherwise do for seconds). Exactly Hertz's when
+    neither geom is a shell."""
     tau = contact_time(hertz_coefficient(cm, g1, g2), speed)
     ga = cm.geoms[g1]
     gb = cm.geoms[g2]
     if ga.shell_compliance > 0 or gb.shell_compliance > 0:
         m = _effective(cm.bodies[ga.body].hertz_mass, cm.bodies[gb.body].hertz_mass)
-        shell = shell_contact_time(m, ga.shell_compliance, gb.shell_compliance)
+        shell = min(shell_contact_time(m, ga.shell_compliance, gb.shell_compliance), _crush_time(ga, gb, speed))
         if shell > tau:
             tau = shell
     return tau

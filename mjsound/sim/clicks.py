@@ -24,7 +24,10 @@ and the geoms' contact radii; when neither geom has a material, both count as
 has a finite duration. A body too light to be solid in its geom's material is a hollow shell,
 which bends under the contact (:func:`mjsound.synth.pulse.shell_contact_time`)::
 
-    tau = max(tau_hertz, pi sqrt(m* (s1 + s2)))       s = 1/k per geom [m/N], 0 when solid
+    tau = max(tau_hertz, min(pi sqrt(m* (s1 + s2)), pi R / v))
+
+(``s = 1/k`` per geom [m/N], 0 when solid; ``R`` the smaller shell radius: a wall sinks no
+deeper than its radius, ``v tau / pi <= R``.)
 
 :func:`shell_compliances` estimates ``s`` at construction. A body's wall is its mass spread
 over its surface, ``t = m_b / (rho A_b)`` (``rho`` the geom's material's density, ``A_b`` and
