@@ -337,6 +337,28 @@ def test_nan_and_huge_forces_give_finite_audio_and_one_warning():
     assert sim.reader.n_clamped > 0
 
 
+def test_massless_welded_striker_sounds_finite():
+    """A massless pad welded to a falling stick (subtree mass 0: common on gripper fingers)
+    strikes a sounding plate: its Hertz time is the shortest (the combined mass's limit 0), not
+    a division by zero; the sound is finite and close to a 1 g pad's."""
+    xml = """<mujoco><option timestep="0.001"/>
+      <custom><text name="mjsound:plate" data="aluminium"/><text name="mjsound:pad" data="steel"/></custom>
+      <worldbody><site name="mic0" pos="0.3 -0.3 0.3"/>
+      <body name="plate" pos="0 0 0.02"><geom name="plate" type="box" size="0.2 0.02 0.01" mass="0.5"/></body>
+      <body name="stick" pos="0 0 0.3"><freejoint/><geom name="handle" type="capsule" size="0.01 0.05" mass="0.2"/>
+      <body name="pad" pos="0 0 -0.07"><geom name="pad" type="sphere" size="0.012" mass="PAD"/></body></body>
+      </worldbody></mujoco>"""
+    models = {"plate": stub_model("box:0.4,0.04,0.02", "aluminium", 6, 900.0)}
+    peaks = []
+    for pad in ("0", "0.001"):
+        model, data, sim = make_sim(xml.replace("PAD", pad), models)
+        assert (model.body_subtreemass[3] == 0.0) == (pad == "0")
+        audio = sim.run(0.4)
+        assert np.isfinite(audio).all() and sim.reader.n_impacts >= 1
+        peaks.append(float(np.abs(audio[0]).max()))
+    assert peaks[1] > 0 and 0.5 < peaks[0] / peaks[1] < 2.0
+
+
 @pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
 def test_reader_normal_force_matches_mj_contactForce(cone):
     xml = BOX_XML.replace('<option timestep="0.001"/>', f'<option timestep="0.001" cone="{cone}"/>')

@@ -57,7 +57,9 @@ TAU_MAX_S = 1.0
 def effective(a: float, b: float) -> float:
     """Harmonic combination ``1 / (1/a + 1/b)`` with ``inf`` meaning "absent" (rigid/huge).
 
-    Returns ``inf`` when both are infinite.
+    Returns ``inf`` when both are infinite, and 0 when either is 0 (the limit: a massless body
+    welded to a moving one has no subtree mass; its Hertz time is then the shortest, as in the
+    impact kernel's copy, ``mjsound.sim.click_kernels._effective``).
     """
     a = float(a)
     b = float(b)
@@ -65,6 +67,8 @@ def effective(a: float, b: float) -> float:
         return b
     if math.isinf(b):
         return a
+    if a == 0.0 or b == 0.0:
+        return 0.0
     return 1.0 / (1.0 / a + 1.0 / b)
 
 
