@@ -14,7 +14,11 @@ per call) and prints microseconds per physics step (demo scene) or per env step 
   resets included), counted by numba (``NUMBA_NRT_STATS``);
 * ``call_in_step`` / ``call_back_to_back`` (env): one step-kernel call that steps and renders
   nothing, made after every env step of a run / in a tight loop: the fixed cost of a call
-  (unboxing its packed state, the pose sync), which a run pays with cold caches.
+  (unboxing its packed state, the pose sync), which a run pays with cold caches;
+* ``repack`` (env): packing the step kernel's state again with its numba type
+  (:func:`mjsound.synth.packing.pack`, what a call pays after an owner replaced a record),
+  and ``numba_typeof``: ``numba.typeof`` of that state alone (what packing spent typing it
+  before the types were memoised).
 
 The demo is also run with ``sustained=False`` (no sliding / rolling sound), which shows what
 the streams cost. Clicks and contact microphones are off (their cost: ``bench_scene.py``).
@@ -114,6 +118,7 @@ def env_parts(env_id: str, steps: int) -> dict:
     out = {k: 1e6 * v / steps for k, v in TIMES.items()}
     out["nrt_allocs"] = allocs / steps  # (resets included)
     out["call_in_step"], out["call_back_to_back"] = empty_call_cost(env, acts)
+    out["repack"], out["numba_typeof"] = repack_cost(env)
     m, d = env.unwrapped.model, mujoco.MjData(env.unwrapped.model)
     fs = env.unwrapped.frame_skip
     t0 = time.perf_counter()
@@ -152,6 +157,29 @@ def empty_call_cost(env, acts) -> tuple[float, float]:
         run["nstep"], run["done"], run["render"] = 0, 0, 0
         ep(state, state[-1].empty)
     return 1e6 * tot / len(acts), 1e6 * (time.perf_counter() - t0) / len(acts)
+
+
+def repack_cost(env, reps: int = 5) -> tuple[float, float]:
+    """Microseconds to pack the step kernel's current state again, its numba type memoised
+    (:func:`~mjsound.synth.packing.pack`, as the kernel's entry does), and to type that state
+    with ``numba.typeof`` alone (what packing paid before the memo); medians of ``reps``."""
+    from numba import typeof
+
+    from mjsound.synth import packing
+
+    sim = env.core.sim
+    k = sim._kernel
+    state = (k.mj, k.views, k.reader.state(), k.reader.buffers, k.clock, sim._drive_state(), sim.synth.kernel_state(),
+             k.run, sim.synth.render_target())
+    packs, typings = [], []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        packing.pack(state)
+        t1 = time.perf_counter()
+        typeof(state)
+        typings.append(time.perf_counter() - t1)
+        packs.append(t1 - t0)
+    return 1e6 * float(np.median(packs)), 1e6 * float(np.median(typings))
 
 
 def main(argv=None) -> int:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from mjsound.synth.dispatch import PackedEntry
-from mjsound.synth.packing import MAX_NDIM, pack, unpack
+from mjsound.synth.packing import MAX_NDIM, pack, state_typeof, unpack
 
 REC = np.dtype([("n", np.int64), ("x", np.float64), ("v", np.float64, (3,))])
 
@@ -105,3 +105,25 @@ def test_unpack_refuses_a_table_of_another_layout():
         _touch(table[:4], layout, 1.0)
     with pytest.raises(numba.core.errors.TypingError):
         _touch(np.zeros(5), layout, 1.0)
+
+
+def test_state_typeof_is_numbas_typeof_for_every_kind_of_leaf():
+    """The memoised type of a state is numba's own, and arrays that numba types differently
+    (read-only, Fortran order, strided, another record dtype, aligned or not) stay apart."""
+    # (equal as numpy dtypes, and hashed alike: numba's record types differ in alignment)
+    aligned = np.dtype([("a", np.float64), ("b", np.float64)], align=True)
+    packed = np.dtype([("a", np.float64), ("b", np.float64)])
+    assert aligned == packed
+    ro = np.zeros(4)
+    ro.flags.writeable = False
+    leaves = (np.zeros(4), ro, np.zeros((3, 2), order="F"), np.zeros((4, 4))[:, 1], np.zeros(2, aligned),
+              np.zeros(2, packed), np.zeros((2, 3), np.float32), np.zeros(1, REC), 7, np.int32(3))
+    states = [_state(), leaves, (leaves, _state()), ()]
+    for _ in range(2):  # (the second time from the memo)
+        for st in states:
+            assert state_typeof(st) == numba.typeof(st)
+    assert len({state_typeof(x) for x in leaves[:6]}) == 6
+    # a new state of the same kinds of arrays: the same (interned) type, as numba's
+    assert state_typeof(_state()) is state_typeof(_state())
+    table, layout = pack(_state())
+    assert layout == numba.typeof(_state())

@@ -2,7 +2,7 @@
 
 numba's dispatcher finds the compiled version of a kernel from the types of its arguments on
 every call; for tuples and structured arrays it does so in Python (a structured dtype's
-record type is rebuilt each time: about half a millisecond per array). The per-step and render
+record type is rebuilt each time: about a tenth of a millisecond per array). The per-step and render
 kernels take their state as named records, so they are called through :class:`EntryPoint`:
 the types are computed only when one of the state objects is replaced. The step kernel's
 state, about a hundred arrays, crosses packed into one table (:class:`PackedEntry`).
@@ -10,10 +10,8 @@ state, about a hundred arrays, crosses packed into one table (:class:`PackedEntr
 
 from __future__ import annotations
 
-from numba import typeof
-
 from ..jit import compile_lock
-from .packing import pack
+from .packing import pack, state_typeof
 
 __all__ = ["EntryPoint", "PackedEntry"]
 
@@ -44,7 +42,7 @@ class EntryPoint:
             with compile_lock(self.fn):
                 out = self.fn(*state, *args)
         self._keep = state  # (keeps the ids unique while they are the key)
-        self._entry = self.fn.overloads[tuple(typeof(a) for a in (*state, *args))].entry_point
+        self._entry = self.fn.overloads[tuple(state_typeof(a) for a in (*state, *args))].entry_point
         self._key = key  # (last: an interrupt before it leaves no stale key)
         return out
 
