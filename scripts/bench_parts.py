@@ -129,6 +129,13 @@ def env_parts(env_id: str, steps: int) -> dict:
     return out
 
 
+def kernel_state(sim) -> tuple:
+    """The step kernel's current state, as :meth:`mjsound.sim.runner.StepKernel.call` makes it."""
+    k = sim._kernel
+    return (k.mj, k.views, k.reader.state(), k.reader.buffers, k.clock, sim._drive_state(), sim.synth.kernel_state(),
+            k.run, sim.synth.render_target())
+
+
 def empty_call_cost(env, acts) -> tuple[float, float]:
     """Microseconds of one step-kernel call that runs no substep and renders nothing (its
     packed state's unboxing and unpacking and the end-of-call pose sync): between env steps, as in a run (the
@@ -137,17 +144,13 @@ def empty_call_cost(env, acts) -> tuple[float, float]:
     k = sim._kernel
     run, ep = k.run[0], k._advance_call
 
-    def current_state():  # (as StepKernel.call makes it)
-        return (k.mj, k.views, k.reader.state(), k.reader.buffers, k.clock, sim._drive_state(),
-                sim.synth.kernel_state(), k.run, sim.synth.render_target())
-
     env.reset(seed=0)
     tot = 0.0
     for a in acts:
         _, _, te, tr, _ = env.step(a)
         if te or tr:
             env.reset()
-        state = current_state()
+        state = kernel_state(sim)
         run["nstep"], run["done"], run["render"] = 0, 0, 0
         t0 = time.perf_counter()
         ep(state, state[-1].empty)
@@ -167,10 +170,7 @@ def repack_cost(env, reps: int = 5) -> tuple[float, float]:
 
     from mjsound.synth import packing
 
-    sim = env.core.sim
-    k = sim._kernel
-    state = (k.mj, k.views, k.reader.state(), k.reader.buffers, k.clock, sim._drive_state(), sim.synth.kernel_state(),
-             k.run, sim.synth.render_target())
+    state = kernel_state(env.core.sim)
     packs, typings = [], []
     for _ in range(reps):
         t0 = time.perf_counter()
