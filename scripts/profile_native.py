@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Where a wrapped env step's CPU time goes, by library and by numba kernel (profiler, not a test).
 
-Samples a running process with Linux ``perf`` (``perf record -p``) and sorts the samples by
+Samples running processes with Linux ``perf`` (``perf record -p``) and sorts the samples by
 shared library (MuJoCo, the Python interpreter, numpy, libc, libm, numba's JIT code) and,
 within the JIT code, by numba kernel. numba's code has no symbols that ``perf`` can read, so
 the profiled child writes ``/tmp/perf-<pid>.map`` (the address of every function of every
@@ -13,12 +13,16 @@ half here, not profiled).
 Cases:
 
 * ``ant``: a wrapped Ant-v5 (16 kHz waveform, clicks on) and the bare env, each stepped with
-  seeded random actions; both profiles are scaled so that MuJoCo's share is the same work
-  (``libmujoco`` = the same physics in both), and the difference per library is what
-  mjsound adds, in percent of the bare env step;
+  seeded random actions, each in processes of its own sampled one after the other
+  (``--rounds``: wrapped, bare, wrapped, bare ..., averaged per variant; the machine's speed
+  drifts between processes). Each counts its env steps and its CPU time over the sampled
+  window, so every library's and kernel's share becomes microseconds of CPU
+  per env step, and the two processes compare directly: the difference per library is what
+  mjsound adds, MuJoCo's own line included (its physics is the same work in both, so what it
+  gains in the wrapped process is the time it loses to mjsound's use of the caches);
 * ``demo``: the demo scene's 3 s, over and over (shares of the whole process).
 
-Usage: python scripts/profile_native.py [--case ant|demo] [--seconds 4] [--top 20]
+Usage: python scripts/profile_native.py [--case ant|demo] [--seconds 4] [--top 20] [--rounds 2]
 Needs ``perf`` and ``/proc/sys/kernel/perf_event_paranoid`` <= 2 (a process's own samples).
 """
 
@@ -42,7 +46,15 @@ CHILD = r"""
 import os, sys, time, warnings
 warnings.filterwarnings("ignore")
 import numpy as np
-case, wrapped, ready, stop = sys.argv[1], sys.argv[2] == "1", sys.argv[3], sys.argv[4]
+case, wrapped, ready, stop, marks = sys.argv[1], sys.argv[2] == "1", sys.argv[3], sys.argv[4], sys.argv[5]
+steps = 0
+window = []  # (steps, CPU seconds) when the parent's perf window opened and when it closed
+def check_marks():
+    if len(window) < 2 and os.path.exists(f"{marks}.{len(window)}"):
+        window.append((steps, time.process_time()))
+        if len(window) == 2:
+            with open(f"{marks}.out", "w") as f:
+                f.write(f"{window[1][0] - window[0][0]} {window[1][1] - window[0][1]}")
 if case == "ant":
     import gymnasium as gym
     from mjsound.wrappers import AudioObservation
@@ -53,10 +65,14 @@ if case == "ant":
     acts = rng.uniform(-1, 1, (2000, env.action_space.shape[0]))
     env.reset(seed=0)
     def work():
+        global steps
         for a in acts:
             *_, te, tr, _ = env.step(a)
             if te or tr:
                 env.reset()
+            steps += 1
+            if steps % 50 == 0:  # (the window's ends to within 50 steps of thousands)
+                check_marks()
 else:
     import mujoco
     from mjsound.sim import AudioSimulator
@@ -97,6 +113,7 @@ if wrapped:
 open(ready, "w").write(str(os.getpid()))
 while not os.path.exists(stop):
     work()
+    check_marks()
 """
 
 
@@ -114,22 +131,49 @@ def kernel_name(symbol: str) -> str:
     return ".".join(parts) if parts and symbol.startswith("_ZN") else symbol[:60]
 
 
-def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict, dict]:
-    """Percent of samples per library and per numba kernel of one child process."""
+def _report(data: str, pid: int) -> tuple[dict, dict]:
+    """Percent of ``pid``'s samples per library and per numba kernel."""
+    rep = subprocess.run(["perf", "report", "-i", data, "--pid", str(pid), "--percentage", "relative", "--no-children", "--sort", "dso,sym",
+                          "--stdio"], capture_output=True, text=True, check=True).stdout
+    libs, kernels = collections.Counter(), collections.Counter()
+    for line in rep.splitlines():
+        m = re.match(r"\s*([\d.]+)%\s+(\S+(?: tid \d+)?)\s+\[\.\]\s+(\S+)", line)
+        if m:
+            pct, lib, sym = float(m.group(1)), m.group(2).split()[0], m.group(3)
+            libs["numba JIT" if lib == "[JIT]" else lib] += pct
+            if lib == "[JIT]":
+                kernels[kernel_name(sym)] += pct
+    return libs, kernels
+
+
+def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict, dict, float | None]:
+    """One child process sampled for ``seconds``: percent of its samples per library and per
+    numba kernel, and (``ant``) its CPU microseconds per env step over the sampled window
+    (None: ``demo``)."""
     with tempfile.TemporaryDirectory(prefix="mjsound-perf-") as d:
-        ready, stop, data = (os.path.join(d, n) for n in ("ready", "stop", "perf.data"))
+        ready, stop, data, marks = (os.path.join(d, n) for n in ("ready", "stop", "perf.data", "marks"))
         env = dict(os.environ, PYTHONPATH=ROOT, NUMBA_CACHE_DIR=cache, MJSOUND_SHIPPED_KERNELS="0")
-        child = subprocess.Popen([sys.executable, "-c", CHILD, case, "1" if wrapped else "0", ready, stop], env=env)
+        child = subprocess.Popen([sys.executable, "-c", CHILD, case, "1" if wrapped else "0", ready, stop, marks],
+                                 env=env)
         try:
             while not os.path.exists(ready):
                 if child.poll() is not None:
                     raise SystemExit(f"profile_native: the {case} child exited ({child.returncode}) before it was ready")
                 time.sleep(0.2)
             time.sleep(0.3)  # (the pid is written before the loop starts)
+            open(marks + ".0", "w").close()  # (the child notes its steps and CPU time: the window opens)
             rec = subprocess.run(["perf", "record", "-F", "4000", "-p", str(child.pid), "-o", data, "--", "sleep",
                                   str(seconds)], capture_output=True, text=True)
+            open(marks + ".1", "w").close()
             if rec.returncode != 0:
                 raise SystemExit("profile_native: perf record failed (perf_event_paranoid above 2?):\n" + rec.stderr)
+            us_per_step = None
+            if case == "ant":
+                t0 = time.monotonic()
+                while not os.path.exists(marks + ".out") and time.monotonic() - t0 < 60:
+                    time.sleep(0.05)
+                steps, cpu = open(marks + ".out").read().split()
+                us_per_step = float(cpu) / int(steps) * 1e6
         finally:
             open(stop, "w").close()
             child.wait(timeout=120)
@@ -147,7 +191,30 @@ def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict,
             libs["numba JIT" if lib == "[JIT]" else lib] += pct
             if lib == "[JIT]":
                 kernels[kernel_name(sym)] += pct
-    return libs, kernels
+    return libs, kernels, us_per_step
+
+
+def per_step(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict, dict, float]:
+    """CPU microseconds per env step of one process (:func:`profile`), by library and by numba
+    kernel, and in all."""
+    libs, kernels, us = profile(case, wrapped, seconds, cache)
+    scale = us / 100.0
+    return ({k: v * scale for k, v in libs.items()}, {k: v * scale for k, v in kernels.items()}, us)
+
+
+def _mean(runs: list) -> tuple[dict, dict, float]:
+    """The mean of :func:`per_step` results. The kernels' figures come from the processes
+    that named them: only the first wrapped process compiles the kernels (the others load
+    them from numba's cache, without the names its perf map needs)."""
+    libs, kernels = collections.Counter(), collections.Counter()
+    named = [kn for _, kn, _ in runs if any(k.startswith("mjsound.") for k in kn)]
+    for lb, _, _ in runs:
+        for k, v in lb.items():
+            libs[k] += v / len(runs)
+    for kn in named:
+        for k, v in kn.items():
+            kernels[k] += v / len(named)
+    return libs, kernels, sum(r[2] for r in runs) / len(runs)
 
 
 def main(argv=None) -> int:
@@ -155,31 +222,36 @@ def main(argv=None) -> int:
     p.add_argument("--case", choices=["ant", "demo"], default="ant")
     p.add_argument("--seconds", type=float, default=4.0, help="sampling time per process")
     p.add_argument("--top", type=int, default=20, help="numba kernels listed")
+    p.add_argument("--rounds", type=int, default=2, help="ant: processes per variant, alternated")
     args = p.parse_args(argv)
     if shutil.which("perf") is None:
         raise SystemExit("profile_native: needs Linux perf on PATH (linux-tools / linux-perf)")
     with tempfile.TemporaryDirectory(prefix="mjsound-numba-") as cache:
-        libs, kernels = profile(args.case, True, args.seconds, cache)
         if args.case == "ant":
-            bare, _ = profile(args.case, False, args.seconds, cache)
-            # the wrapped process ran MuJoCo's same physics: its step is `scale` bare steps
-            mj = next((k for k in bare if k.startswith("libmujoco")), None)
-            if mj is None or not libs[mj]:
-                raise SystemExit("profile_native: no samples in MuJoCo's library: nothing to scale by")
-            scale = bare[mj] / libs[mj]
-            keys = sorted(set(libs) | set(bare), key=lambda k: -(libs[k] * scale - bare[k]))
-            print(f"wrapped Ant-v5 step = {scale:.2f} x the bare step (MuJoCo's samples as the yardstick)")
-            print("library                          bare %   wrapped % of the bare step   added")
-            for k in keys[:10]:
-                print(f"{k[:32]:32s} {bare[k]:6.1f}   {libs[k] * scale:6.1f}                     "
-                      f"{libs[k] * scale - bare[k]:+6.1f}")
-            unit = scale
+            # (alternated: wrapped, bare, wrapped, bare ..., so that a drift of the machine's
+            # speed weighs on both; averaged per variant)
+            runs = {True: [], False: []}
+            for _ in range(args.rounds):
+                for wrapped in (True, False):
+                    runs[wrapped].append(per_step(args.case, wrapped, args.seconds, cache))
+            (libs, kernels, step_w), (bare, _, step_b) = (_mean(runs[True]), _mean(runs[False]))
+            keys = sorted(set(libs) | set(bare), key=lambda k: -max(libs[k], bare[k]))
+            print(f"Ant-v5 env step, CPU: bare {step_b:.0f} us, wrapped {step_w:.0f} us ({step_w / step_b:.2f} x; "
+                  f"each process's CPU time over its sampled steps, mean of {args.rounds} process(es) each; "
+                  f"bare per process: {', '.join(f'{r[2]:.0f}' for r in runs[False])} us)")
+            print("library                          bare us  wrapped us   added us  (% of the bare step)")
+            for k in keys[:12]:
+                add = libs[k] - bare[k]
+                print(f"{k[:32]:32s} {bare[k]:7.1f}  {libs[k]:9.1f}  {add:+9.1f}  ({100 * add / step_b:+.1f})")
+            sb, sw = sum(bare.values()), sum(libs.values())
+            print(f"{'(all libraries)':32s} {sb:7.1f}  {sw:9.1f}  {sw - sb:+9.1f}  (the rest: the OS kernel's)")
+            unit, what = 1.0, "CPU us per wrapped env step, from the process that compiled them"
         else:
+            libs, kernels, _ = profile(args.case, True, args.seconds, cache)
             print("library                          % of samples")
             for k, v in libs.most_common(10):
                 print(f"{k[:32]:32s} {v:6.1f}")
-            unit = 1.0
-        what = "% of the bare step" if args.case == "ant" else "% of samples"
+            unit, what = 1.0, "% of samples"
         print(f"numba kernels ({what}):")
         for k, v in kernels.most_common(args.top):
             print(f"  {v * unit:6.2f}  {k}")
