@@ -131,21 +131,6 @@ def kernel_name(symbol: str) -> str:
     return ".".join(parts) if parts and symbol.startswith("_ZN") else symbol[:60]
 
 
-def _report(data: str, pid: int) -> tuple[dict, dict]:
-    """Percent of ``pid``'s samples per library and per numba kernel."""
-    rep = subprocess.run(["perf", "report", "-i", data, "--pid", str(pid), "--percentage", "relative", "--no-children", "--sort", "dso,sym",
-                          "--stdio"], capture_output=True, text=True, check=True).stdout
-    libs, kernels = collections.Counter(), collections.Counter()
-    for line in rep.splitlines():
-        m = re.match(r"\s*([\d.]+)%\s+(\S+(?: tid \d+)?)\s+\[\.\]\s+(\S+)", line)
-        if m:
-            pct, lib, sym = float(m.group(1)), m.group(2).split()[0], m.group(3)
-            libs["numba JIT" if lib == "[JIT]" else lib] += pct
-            if lib == "[JIT]":
-                kernels[kernel_name(sym)] += pct
-    return libs, kernels
-
-
 def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict, dict, float | None]:
     """One child process sampled for ``seconds``: percent of its samples per library and per
     numba kernel, and (``ant``) its CPU microseconds per env step over the sampled window
@@ -178,11 +163,17 @@ def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict,
             open(stop, "w").close()
             child.wait(timeout=120)
         try:  # (perf reads the map when it reports)
-            rep = subprocess.run(["perf", "report", "-i", data, "--no-children", "--sort", "dso,sym", "--stdio"],
-                                 capture_output=True, text=True, check=True).stdout
+            libs, kernels = _report(data)
         finally:
             if os.path.exists(f"/tmp/perf-{child.pid}.map"):
                 os.remove(f"/tmp/perf-{child.pid}.map")
+    return libs, kernels, us_per_step
+
+
+def _report(data: str) -> tuple[dict, dict]:
+    """Percent of the samples in ``data`` per library and per numba kernel."""
+    rep = subprocess.run(["perf", "report", "-i", data, "--no-children", "--sort", "dso,sym", "--stdio"],
+                         capture_output=True, text=True, check=True).stdout
     libs, kernels = collections.Counter(), collections.Counter()
     for line in rep.splitlines():
         m = re.match(r"\s*([\d.]+)%\s+(\S+(?: tid \d+)?)\s+\[\.\]\s+(\S+)", line)
@@ -191,7 +182,7 @@ def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict,
             libs["numba JIT" if lib == "[JIT]" else lib] += pct
             if lib == "[JIT]":
                 kernels[kernel_name(sym)] += pct
-    return libs, kernels, us_per_step
+    return libs, kernels
 
 
 def per_step(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict, dict, float]:
@@ -244,7 +235,7 @@ def main(argv=None) -> int:
                 add = libs[k] - bare[k]
                 print(f"{k[:32]:32s} {bare[k]:7.1f}  {libs[k]:9.1f}  {add:+9.1f}  ({100 * add / step_b:+.1f})")
             sb, sw = sum(bare.values()), sum(libs.values())
-            print(f"{'(all libraries)':32s} {sb:7.1f}  {sw:9.1f}  {sw - sb:+9.1f}  (the rest: the OS kernel's)")
+            print(f"{'(all libraries)':32s} {sb:7.1f}  {sw:9.1f}  {sw - sb:+9.1f}  (user-space samples only)")
             unit, what = 1.0, "CPU us per wrapped env step, from the process that compiled them"
         else:
             libs, kernels, _ = profile(args.case, True, args.seconds, cache)
