@@ -2,12 +2,18 @@
 """Where the per-step time goes: wall time of each stage of the audio pipeline (benchmark).
 
 Wraps the stages in ``time.perf_counter`` timers (each timer adds well under a microsecond
-per call) and prints microseconds per physics step (demo scene) or per env step (gymnasium):
+per call, to its own stage and to every stage around it) and prints microseconds per physics step (demo scene) or per env step (gymnasium):
 
 * ``step_kernel``: the numba step kernel calls (``mj_step`` included when it steps itself);
 * ``substeps`` / ``step_calls``: the simulator's calls around it (Python: hand-backs, records);
+  within ``substeps``: ``kernel_call`` (:meth:`~mjsound.sim.runner.StepKernel.call`: the
+  kernel's call with its hand-backs), ``getters`` (the owners' current state records, asked
+  before every call: the simulator's drive, the synthesizer's state and render target, the
+  reader's state) and ``collect`` (the call's impact records and counts);
 * ``render``: ``Synthesizer.render`` (``render_streams``: its one-call render kernel: due gains, due events, streams, banks);
-* ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper);
+* ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper); within
+  ``end_step``: ``push`` (the block into the observation window), ``audible_impacts`` (the
+  info's count) and ``observe`` (the observation's copy);
 * ``physics``: ``mj_step`` alone on a copy of the same model (demo: the same number of steps;
   env: ``frame_skip`` steps per env step);
 * ``nrt_allocs`` (env): numba's heap allocations per env step (arrays made inside kernels;
@@ -42,7 +48,7 @@ from numba.core.runtime import rtsys  # noqa: E402
 import numpy as np  # noqa: E402
 
 from mjsound import wrappers  # noqa: E402
-from mjsound.sim import runner, simulator  # noqa: E402
+from mjsound.sim import contacts, runner, simulator  # noqa: E402
 from mjsound.sim.demo import find_demo_scene  # noqa: E402
 from mjsound.synth import stream_table, synthesizer  # noqa: E402
 
@@ -64,9 +70,14 @@ def timed(cls, name: str, key: str) -> None:
 
 
 for _cls, _name, _key in ((runner.StepKernel, "_advance", "step_kernel"), (simulator.AudioSimulator, "substeps", "substeps"),
+                          (runner.StepKernel, "call", "kernel_call"), (simulator.AudioSimulator, "_collect", "collect"),
+                          (simulator.AudioSimulator, "_drive_state", "getters"), (synthesizer.Synthesizer, "kernel_state", "getters"),
+                          (synthesizer.Synthesizer, "render_target", "getters"), (contacts.ContactReader, "state", "getters"),
                           (simulator.AudioSimulator, "flush", "flush"), (synthesizer.Synthesizer, "render", "render"),
                           (stream_table.StreamMethods, "_render_streams", "render_streams"),
-                          (wrappers.EnvAudio, "end_step", "end_step"), (wrappers.AudioObservation, "step", "wrapper_step")):
+                          (wrappers.EnvAudio, "end_step", "end_step"), (wrappers.AudioWindow, "push", "push"),
+                          (wrappers.EnvAudio, "_audible_impacts", "audible_impacts"), (wrappers.AudioWindow, "observe", "observe"),
+                          (wrappers.AudioObservation, "step", "wrapper_step")):
     timed(_cls, _name, _key)
 
 
