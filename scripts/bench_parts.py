@@ -2,7 +2,8 @@
 """Where the per-step time goes: wall time of each stage of the audio pipeline (benchmark).
 
 Wraps the stages in ``time.perf_counter`` timers (each timer adds well under a microsecond
-per call, to its own stage and to every stage around it) and prints microseconds per physics step (demo scene) or per env step (gymnasium):
+per call, to its own stage and to every stage around it) and prints microseconds per physics
+step (demo scene) or per env step (gymnasium):
 
 * ``step_kernel``: the numba step kernel calls (``mj_step`` included when it steps itself);
 * ``substeps`` / ``step_calls``: the simulator's calls around it (Python: hand-backs, records);

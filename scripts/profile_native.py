@@ -155,7 +155,9 @@ def profile(case: str, wrapped: bool, seconds: float, cache: str) -> tuple[dict,
             us_per_step = None
             if case == "ant":
                 t0 = time.monotonic()
-                while not os.path.exists(marks + ".out") and time.monotonic() - t0 < 60:
+                while not os.path.exists(marks + ".out"):
+                    if time.monotonic() - t0 > 60 or child.poll() is not None:
+                        raise SystemExit("profile_native: the ant child never reported its steps over the window")
                     time.sleep(0.05)
                 steps, cpu = open(marks + ".out").read().split()
                 us_per_step = float(cpu) / int(steps) * 1e6
@@ -236,16 +238,16 @@ def main(argv=None) -> int:
                 print(f"{k[:32]:32s} {bare[k]:7.1f}  {libs[k]:9.1f}  {add:+9.1f}  ({100 * add / step_b:+.1f})")
             sb, sw = sum(bare.values()), sum(libs.values())
             print(f"{'(all libraries)':32s} {sb:7.1f}  {sw:9.1f}  {sw - sb:+9.1f}  (user-space samples only)")
-            unit, what = 1.0, "CPU us per wrapped env step, from the process that compiled them"
+            what = "CPU us per wrapped env step, from the process that compiled them"
         else:
             libs, kernels, _ = profile(args.case, True, args.seconds, cache)
             print("library                          % of samples")
             for k, v in libs.most_common(10):
                 print(f"{k[:32]:32s} {v:6.1f}")
-            unit, what = 1.0, "% of samples"
+            what = "% of samples"
         print(f"numba kernels ({what}):")
         for k, v in kernels.most_common(args.top):
-            print(f"  {v * unit:6.2f}  {k}")
+            print(f"  {v:6.2f}  {k}")
     return 0
 
 
