@@ -129,6 +129,7 @@ class AudioWindow:
             self.space = gym.spaces.Box(0.0, top, (C, self.n_fft // 2 + 1, frames), np.float32)
         self.buf = np.zeros((C, W), np.float32)
         self._push = EntryPoint(_push_kernel)  # (its compiled entry point: numba's dispatch types every call)
+        self._push_entry = None
 
     def reset(self) -> None:
         self.buf[:] = 0.0
@@ -143,8 +144,14 @@ class AudioWindow:
         if block.shape[1] == 0:
             return 0, 0.0
         block = np.ascontiguousarray(block, dtype=np.float32)  # (the block itself when it is already)
-        clipped, peak = self._push((self.buf,), block, 1.0 / self.full_scale_pa)
-        return int(clipped), float(peak) * self.full_scale_pa
+        fsp = self.full_scale_pa
+        entry = self._push_entry
+        if entry is None:  # (first call: compiled or looked up; its entry point serves the window's life)
+            clipped, peak = self._push((self.buf,), block, 1.0 / fsp)
+            self._push_entry = self._push._entry
+        else:
+            clipped, peak = entry(self.buf, block, 1.0 / fsp)  # (a Python int and float)
+        return clipped, peak * fsp
 
 
 @njit(cache=True)
@@ -285,14 +292,17 @@ class EnvAudio:
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
         block = self.sim.flush()
-        if len(self._contact):
+        if self._contact.size:
             block[self._contact] *= self._contact_gain
-        clipped, peak = self.audio.push(block)
+        audio = self.audio
+        clipped, peak = audio.push(block)
         if clipped and not self._clip_reported:
             self._report_clipping(clipped, peak)
-        info = dict(audio_clipped=clipped, audio_peak_pa=peak, audio_samples=int(block.shape[1]),
-                    audio_impacts=self._audible_impacts())
-        return self.audio.observe(), info
+        n_impacts = self.sim.reader.n_impacts  # (as _audible_impacts, whose work is rare: written out)
+        impacts = self._audible_impacts() if n_impacts != self._reader_impacts else 0
+        info = {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": block.shape[1],
+                "audio_impacts": impacts}
+        return audio.buf.copy() if audio.mode == "waveform" else audio.observe(), info
 
 
 def audible_geoms(model, scene, sim) -> np.ndarray:
@@ -499,17 +509,20 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         model, data = uw.model, uw.data
         # mj_step + on_substep, n times, and the env step's audio rendered, in one numba call
         # (end_step's flush returns that block)
-        substeps = self.sim.substeps
+        step = self.sim.stepper()  # (substeps(n, render=True))
         if hook == "_step_mujoco_simulation":  # gymnasium MujocoEnv
+            # (data.ctrl read once: each read of it makes a new view; its memory lives as the MjData)
+            ctrl_now, rne_post_constraint = data.ctrl, mj.mj_rnePostConstraint
+
             def _step_mujoco_simulation(ctrl, n_frames):
-                data.ctrl[:] = ctrl
-                substeps(n_frames, True)
-                mj.mj_rnePostConstraint(model, data)
+                ctrl_now[:] = ctrl
+                step(n_frames)
+                rne_post_constraint(model, data)
 
             uw._step_mujoco_simulation = _step_mujoco_simulation
         else:  # gymnasium-robotics MujocoRobotEnv: mj_step(model, data, nstep=n_substeps)
             def _mujoco_step(action):
-                substeps(uw.n_substeps, True)
+                step(uw.n_substeps)
 
             uw._mujoco_step = _mujoco_step
         self._hooked = hook
@@ -538,7 +551,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise RuntimeError("AudioObservation.step() after close(): make a new environment")
         obs, reward, terminated, truncated, info = self.env.step(action)
         audio, extra = self.core.end_step()
-        return self._observe(obs, audio), reward, terminated, truncated, {**info, **extra}
+        info.update(extra)  # (the env's own dict, made for this step: gymnasium's wrappers add to it so too)
+        return self._observe(obs, audio), reward, terminated, truncated, info
 
     _closed = False
 

@@ -7,14 +7,16 @@ step (demo scene) or per env step (gymnasium):
 
 * ``step_kernel``: the numba step kernel calls (``mj_step`` included when it steps itself);
 * ``substeps`` / ``step_calls``: the simulator's calls around it (Python: hand-backs, records);
-  within ``substeps``: ``kernel_call`` (:meth:`~mjsound.sim.runner.StepKernel.call`: the
-  kernel's call with its hand-backs), ``getters`` (the owners' current state records, asked
-  before every call: the simulator's drive, the synthesizer's state and render target, the
-  reader's state) and ``collect`` (the call's impact records and counts);
+  within them: ``kernel_call`` (:meth:`~mjsound.sim.runner.StepKernel.call`, the single-step
+  and replay paths' call with its hand-backs; the fused substeps call the kernel through
+  ``StepKernel.substeps_call``'s function, timed in ``step_kernel``), ``getters`` (the owners'
+  current state records, asked before every call: the simulator's drive, the synthesizer's
+  state and render target, the reader's state) and ``collect`` (the call's impact records and
+  counts, taken when the kernel's ``run.collect`` says there are any);
 * ``render``: ``Synthesizer.render`` (``render_streams``: its one-call render kernel: due gains, due events, streams, banks);
 * ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper); within
-  ``end_step``: ``push`` (the block into the observation window), ``audible_impacts`` (the
-  info's count) and ``observe`` (the observation's copy);
+  ``end_step``: ``push`` (the block into the observation window) and ``audible_impacts`` (the
+  info's count, when there were impacts); ``observe`` (the spectrogram mode's observation);
 * ``physics``: ``mj_step`` alone on a copy of the same model (demo: the same number of steps;
   env: ``frame_skip`` steps per env step);
 * ``nrt_allocs`` (env): numba's heap allocations per env step (arrays made inside kernels;
@@ -51,7 +53,7 @@ import numpy as np  # noqa: E402
 from mjsound import wrappers  # noqa: E402
 from mjsound.sim import contacts, runner, simulator  # noqa: E402
 from mjsound.sim.demo import find_demo_scene  # noqa: E402
-from mjsound.synth import stream_table, synthesizer  # noqa: E402
+from mjsound.synth import dispatch, stream_table, synthesizer  # noqa: E402
 
 TIMES: dict[str, float] = {}
 
@@ -70,7 +72,28 @@ def timed(cls, name: str, key: str) -> None:
     setattr(cls, name, wrapper)
 
 
-for _cls, _name, _key in ((runner.StepKernel, "_advance", "step_kernel"), (simulator.AudioSimulator, "substeps", "substeps"),
+def timed_stepper() -> None:
+    """Time the function ``AudioSimulator.stepper`` hands out (the gymnasium wrapper's
+    substeps) as ``substeps``."""
+    make = simulator.AudioSimulator.stepper
+
+    def stepper(self):
+        fn = make(self)
+
+        def step(nstep):
+            t0 = time.perf_counter()
+            try:
+                return fn(nstep)
+            finally:
+                TIMES["substeps"] = TIMES.get("substeps", 0.0) + time.perf_counter() - t0
+
+        return step
+
+    simulator.AudioSimulator.stepper = stepper
+
+
+timed_stepper()
+for _cls, _name, _key in ((dispatch.PackedEntry, "__call__", "step_kernel"), (simulator.AudioSimulator, "substeps", "substeps"),
                           (runner.StepKernel, "call", "kernel_call"), (simulator.AudioSimulator, "_collect", "collect"),
                           (simulator.AudioSimulator, "_drive_state", "getters"), (synthesizer.Synthesizer, "kernel_state", "getters"),
                           (synthesizer.Synthesizer, "render_target", "getters"), (contacts.ContactReader, "state", "getters"),

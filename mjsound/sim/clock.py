@@ -84,6 +84,13 @@ class SampleClock:
         """``t_start + k * timestep`` [s] (float, for reporting)."""
         return (self._a0 + k * self._b) / self._den  # int / int: correctly rounded, as float(Fraction)
 
+    def span(self, steps: int) -> tuple[int, int, int]:
+        """``(k, n0, n1)``: the steps counted now, and the samples ``n0 <= n < n1`` of the next
+        ``steps`` steps (:meth:`sample_at` of ``k`` and ``k + steps``), without counting them."""
+        k = int(self._k[0])
+        a0, b, fs, den = self._a0, self._b, self.fs, self._den
+        return k, -((-(a0 + k * b) * fs) // den), -((-(a0 + (k + steps) * b) * fs) // den)
+
     def advance(self, steps: int = 1) -> tuple[int, int]:
         """Count ``steps`` steps; returns ``(n0, n1)``, their samples ``n0 <= n < n1``."""
         k = self.k

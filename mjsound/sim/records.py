@@ -139,12 +139,15 @@ DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", 
 #: argument (it must end where the last substep ends); ``render_code`` (output): the render's
 #: code (``mjsound.synth.kernels.RENDERED`` or ``RENDERED_NONFINITE``), :data:`NOT_RENDERED`
 #: when no block was rendered; ``pulses_mixed`` (output): the pulse track is mixed into that
-#: block already (``DRIVE_PARAMS.mix_pulses`` and every sample finite).
+#: block already (``DRIVE_PARAMS.mix_pulses`` and every sample finite); ``collect`` (output):
+#: there is something for Python to take after the call (impacts, log entries, the reader's
+#: impact records or clamped-force counts: ``AudioSimulator._collect``).
 RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", i8), ("ncon", i8), ("nefc", i8),
                 ("explicit", i8), ("log_limit", i8), ("solved", i8), ("stage", i8), ("t0", f8), ("t1", f8),
                 ("n0", i8), ("n1", i8), ("n_sust", i8), ("n_hits", i8), ("n_onset", i8), ("n_imp", i8),
                 ("reason", i8), ("need", i8), ("n_missing", i8), ("n_impacts", i8), ("n_log", i8),
-                ("poses_current", i8), ("render", i8), ("render_code", i8), ("pulses_mixed", i8)])
+                ("poses_current", i8), ("render", i8), ("render_code", i8), ("pulses_mixed", i8),
+                ("collect", i8)])
 #: ``RUN.render_code`` of a call that rendered no block.
 NOT_RENDERED = 1
 

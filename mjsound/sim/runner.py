@@ -82,6 +82,7 @@ class StepKernel:
         #: the fields of :attr:`run` as one-element arrays (fast to use in Python)
         self.f = {name: self.run[name] for name in RUN.names}
         self.f["from_struct"][0] = self.from_struct
+        self._reason = self.f["reason"]
         self._run_bytes = self.run.view(np.uint8)
         self._fresh = {}  # (nstep, call_step, render) -> a fresh call's RUN record, as bytes
         if clock is None:  # (calls with explicit times only; fs 1 keeps the event time finite)
@@ -118,12 +119,6 @@ class StepKernel:
         run = self.run[0]
         run["ncon"], run["nefc"] = self.reader.copy_contacts(self.data)
 
-    def _advance(self, state, block) -> None:
-        """``advance(*state, block)`` through :class:`mjsound.synth.dispatch.PackedEntry`
-        (the state crosses as one table, packed again when one of its objects is replaced;
-        ``block`` is a new array of the same type each call)."""
-        self._advance_call(state, block)
-
     def _silent_target(self) -> RenderTarget:
         if self._silent is None:
             self._silent = silent_render_target()
@@ -141,15 +136,9 @@ class StepKernel:
         zeroed (mics, n) array of the bank dtype into which the kernel renders the pending
         samples after the last substep (``run.render_code`` says whether it did; None: no
         render)."""
-        f = self.f  # (plain one-element views of the record's fields: fast to set in Python)
-        key = (nstep, call_step, block is not None)
-        fresh = self._fresh.get(key)
-        if fresh is None:
-            fresh = self._fresh_run(*key)
-        self._run_bytes[:] = fresh  # (one copy of the whole record, its fields named in _fresh_run)
-        if log_limit:  # (the log room shrinks as a simulator with an event log logs)
-            f["log_limit"][0] = log_limit
+        self._start(nstep, call_step, block is not None, log_limit)
         if explicit is not None:
+            f = self.f
             f["explicit"][0] = 1
             f["t0"][0], f["t1"][0], f["n0"][0], f["n1"][0] = explicit
         if not self.from_struct:
@@ -157,19 +146,74 @@ class StepKernel:
                 raise ValueError("StepKernel.call: stepping needs MuJoCo's C functions and struct layout")
             self._copy_contacts()
         reader = self.reader
-        reason_f = f["reason"]
         if target is None:
             target = self._silent_target
+
+        def state():
+            return (self.mj, self.views, reader.state(), reader.buffers, self.clock,
+                    drive() if callable(drive) else drive, synth_state(), self.run, target())
+
+        self._loop(state, block, on_stop, synth)
+
+    def substeps_call(self):
+        """``call(state, nstep, block, log_limit) -> bool``: the first call of :meth:`call` for
+        :meth:`AudioSimulator.substeps`, ``nstep`` substeps that call ``mj_step``
+        (:attr:`can_step`) on the clock's times, on the kernel's ``state`` tuple (``mj``,
+        ``views``, the reader's state and buffers, ``clock``, the drive, the synthesizer's
+        state, ``run``, the render target), rendering into ``block`` (None: no render), with
+        ``log_limit`` log entries of room. It returns True when the kernel is done; False when
+        it handed back (``run.reason``): :meth:`resume` then handles that and finishes.
+
+        A closure over this kernel's run record and entry point: it runs once per env step,
+        where looking up an attribute costs more than the lines around it (see
+        ``AudioSimulator._make_substeps``)."""
+        fresh_runs, fresh_run, run_bytes, advance_call = self._fresh, self._fresh_run, self._run_bytes, self._advance_call
+        reason_f, log_limit_f = self._reason, self.f["log_limit"]
+
+        def call(state: tuple, nstep: int, block, log_limit: int) -> bool:
+            render = block is not None
+            fresh = fresh_runs.get((nstep, True, render))
+            if fresh is None:
+                fresh = fresh_run(nstep, True, render)
+            run_bytes[:] = fresh  # (as _start)
+            if log_limit:
+                log_limit_f[0] = log_limit
+            advance_call(state, block if render else state[-1].empty)
+            return reason_f[0] == DONE
+
+        return call
+
+    def resume(self, state, block, on_stop, synth) -> None:
+        """Finish a call that handed back (the function of :meth:`substeps_call` returned
+        False): ``state()`` returns the current state tuple, the rest as for :meth:`call`."""
+        self._loop(state, block, on_stop, synth, call_first=False)
+
+    def _start(self, nstep: int, call_step: bool, render: bool, log_limit: int) -> None:
+        """Reset :attr:`run` for a call (:meth:`_fresh_run`) with ``log_limit`` log entries of room."""
+        fresh = self._fresh.get((nstep, call_step, render))
+        if fresh is None:
+            fresh = self._fresh_run(nstep, call_step, render)
+        self._run_bytes[:] = fresh  # (one copy of the whole record, its fields named in _fresh_run)
+        if log_limit:  # (the log room shrinks as a simulator with an event log logs)
+            self.f["log_limit"][0] = log_limit
+
+    def _loop(self, state, block, on_stop, synth, call_first: bool = True) -> None:
+        """Call the kernel on ``state()`` until it is done; what it hands back is handled here
+        (buffers grow, ``mj_solveM`` through the bindings) or by ``on_stop(reason)``. ``block``
+        None: the render target's empty block (no render). ``call_first`` False: the kernel
+        was just called; handle its reason first."""
+        reason_f = self._reason
         while True:
-            d = drive() if callable(drive) else drive
-            t = target()
-            self._advance((self.mj, self.views, reader.state(), reader.buffers, self.clock, d, synth_state(),
-                           self.run, t), t.empty if block is None else block)
+            if call_first:
+                s = state()
+                self._advance_call(s, s[-1].empty if block is None else block)
+            call_first = True
             reason = reason_f[0]
             if reason == DONE:
                 return
             reason = int(reason)
             run = self.run[0]
+            reader = self.reader
             if reason == ROOM:
                 n = int(run["need"])
                 reader.grow(n, int(run["nefc"]))

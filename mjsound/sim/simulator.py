@@ -37,6 +37,7 @@ from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
 from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
 from .step import PULSES, AMPLITUDE, CLOCK_JUMP, HERTZ, RING, STREAMS
+from .substeps import make_substeps
 from .warmup import notice_first_compile
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -212,7 +213,9 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self._sidx = np.full((16, 2), -1, np.int64)
         self._sync_poses_call = EntryPoint(sync_poses)
         self._sidx_epoch = None
+        self._sidx_reader = None  # (the reader state _sidx was sized for)
         self._held = []  # blocks rendered before an automatic reset, returned by the next render
+        self._substeps = make_substeps(self)
         self.reset(clear_reader=True)
 
     # ------------------------------------------------------------------ state
@@ -284,18 +287,22 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self._origin += c.n - n_prev
 
     # ------------------------------------------------------------------ the kernel's inputs
-    def _drive_state(self) -> DriveState:
-        """The drive's arrays (:class:`.records.DriveState`), rebuilt when one was replaced."""
+    def _drive_state(self, reader_state=None) -> DriveState:
+        """The drive's arrays (:class:`.records.DriveState`), rebuilt when one was replaced;
+        ``reader_state``: the reader's current :meth:`ContactReader.state` (asked when None)."""
         synth = self.synth
         if synth is not None and self._sidx_epoch != synth.streams_epoch:  # the synthesizer forgot its streams
             self._sidx[:] = -1  # (in place: the kernel's entry point stays valid)
             self._sidx_epoch = synth.streams_epoch
-        nslots = self.reader.n_slots
-        if nslots > len(self._sidx):
-            grown = np.full((max(2 * len(self._sidx), nslots), 2), -1, np.int64)
-            grown[: len(self._sidx)] = self._sidx
-            self._sidx = grown
-            self._drive = None
+        rs = self.reader.state() if reader_state is None else reader_state
+        if rs is not self._sidx_reader:  # (a new reader state: its slot table may have grown)
+            slots = len(rs.pairs)  # (a stream row for every slot the reader can hold)
+            if slots > len(self._sidx):
+                grown = np.full((max(2 * len(self._sidx), slots), 2), -1, np.int64)
+                grown[: len(self._sidx)] = self._sidx
+                self._sidx = grown
+                self._drive = None
+            self._sidx_reader = rs
         if self._drive is None or self._drive.pulses is not self.pulses.state:
             mode, source, rows, offsets = self._mic_config()
             self._drive_prm[0]["mic_mode"], self._drive_prm[0]["mic_source"] = mode, source
@@ -378,38 +385,13 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         for bit. ``render=True``: the same call also renders every pending sample (when the
         synthesizer has no Python forcing sources), which :meth:`flush` then returns: the
         same audio as rendering in :meth:`flush`, one numba call fewer."""
-        nstep = int(nstep)
-        c = self.clock
-        k0 = c.k
-        synth = self.synth
-        if not self._fused or synth is None or k0 + nstep > c.k_max_int64 or self._opt.timestep != c.timestep:
-            for _ in range(nstep):
-                self._mj.mj_step(self.model, self.data)
-                self.step(render=False)
-            return
-        synth.poses_current = False
-        n0 = c.sample_at(k0)
-        n1 = c.sample_at(k0 + nstep)
-        seg = self._seg = (k0, n0)
-        block = None
-        if render and nstep > 0 and self._ready is None and not self._held and synth.renders_in_kernel:
-            block = synth.new_block(self._pending + n1 - n0)
-        self._call(nstep, call_step=True, block=block)
-        if self._seg is seg:  # (no clock jump counted a segment during the call: all in one go)
-            self._count(n0, n1, nstep)
-        else:
-            self._count_segment()
-        f = self._kernel.f
-        synth.poses_current = bool(f["poses_current"][0])
-        if block is not None:
-            code = int(f["render_code"][0])
-            if code != NOT_RENDERED:  # (the pending samples are rendered: flush returns them)
-                n0 = self._pending_n0
-                self._pending = 0
-                block = synth.kernel_block(block, code == RENDERED)
-                if not f["pulses_mixed"][0]:  # (the kernel mixes the pulse track into a float32 block itself)
-                    block = self.pulses.mix(block)
-                self._ready = self._deliver(block, n0)
+        self._substeps(int(nstep), bool(render))
+
+    def stepper(self):
+        """``stepper()(nstep)``: :meth:`substeps` ``(nstep, render=True)`` as a plain function,
+        for a caller that calls it every env step (:class:`mjsound.wrappers.AudioObservation`'s
+        hook): the same call, one Python call fewer."""
+        return self._substeps  # (render defaults to True there)
 
     def _count_segment(self) -> None:
         """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
@@ -425,9 +407,21 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         """One call of the step kernel (and its hand-backs), then collect what it produced;
         ``block``: render the pending samples into it (:meth:`.runner.StepKernel.call`)."""
         synth = self.synth
-        self._kernel.call(self._drive_state, synth.kernel_state, nstep, call_step, explicit,
-                          max(0, self.keep_events - self._n_logged), self._on_stop, synth, synth.render_target, block)
+        self._kernel.call(self._drive_state, synth.kernel_state, nstep, call_step, explicit, self._log_room(),
+                          self._on_stop, synth, synth.render_target, block)
         self._collect()
+
+    def _kernel_state(self) -> tuple:
+        """The step kernel's state now (:func:`.step.advance`'s tuple; asked again after every
+        hand-back: an owner may have replaced a record)."""
+        k, reader, synth = self._kernel, self.reader, self.synth
+        rs = reader.state()
+        return (k.mj, k.views, rs, reader.buffers, k.clock, self._drive_state(rs), synth.kernel_state(), k.run,
+                synth.render_target())
+
+    def _log_room(self) -> int:
+        """Event log entries the kernel may still write."""
+        return max(0, self.keep_events - self._n_logged)
 
     def _collect(self) -> None:
         """Take the kernel's impact records, impact count and event log entries."""
@@ -444,7 +438,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             self._log_pending.append(self.reader.buffers.log[:n_log].copy())
             self._n_logged += n_log
             f["n_log"][0] = 0
-            f["log_limit"][0] = max(0, self.keep_events - self._n_logged)
+            f["log_limit"][0] = self._log_room()
 
     def _on_stop(self, reason: int) -> None:
         """What the step kernel hands back: see :mod:`.step`."""

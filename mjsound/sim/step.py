@@ -273,3 +273,5 @@ def advance(table, layout, out):
         if rn.render_code == RENDERED and drive.prm[0].mix_pulses:
             take_into_block(ps.track, out)
             rn.pulses_mixed = 1
+    # (one flag for Python to read after the call instead of five counts)
+    rn.collect = rn.n_impacts > 0 or rn.n_log > 0 or cnt.n_records > 0 or cnt.n_bad > 0 or cnt.n_huge > 0

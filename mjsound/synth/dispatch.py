@@ -10,6 +10,8 @@ state, about a hundred arrays, crosses packed into one table (:class:`PackedEntr
 
 from __future__ import annotations
 
+from operator import is_
+
 from ..jit import compile_lock
 from .packing import pack, state_typeof
 
@@ -23,29 +25,27 @@ class EntryPoint:
     contiguity, scalars of the same kind): the callers pass freshly made arrays of fixed types
     there (a block's output, its events)."""
 
-    __slots__ = ("fn", "_key", "_entry", "_keep")
+    __slots__ = ("fn", "_entry", "_keep")
 
     def __init__(self, fn):
         self.fn = fn
-        self._key = None
         self._entry = None
-        self._keep = None
+        self._keep = None  # (the state the entry point was looked up for; None: none yet)
 
     def __call__(self, state: tuple, *args):
-        key = tuple(map(id, state))
-        if key == self._key:
+        keep = self._keep
+        # (the very objects of last time, compared one by one)
+        if keep is not None and len(state) == len(keep) and all(map(is_, state, keep)):
             return self._entry(*state, *args)
-        self._key = None
+        self._keep = None
         if self.fn.overloads:
             out = self.fn(*state, *args)
         else:  # (its first call here: compiled once by one of the processes starting together)
             with compile_lock(self.fn):
                 out = self.fn(*state, *args)
-        self._keep = state  # (keeps the ids unique while they are the key)
         self._entry = self.fn.overloads[tuple(state_typeof(a) for a in (*state, *args))].entry_point
-        self._key = key  # (last: an interrupt before it leaves no stale key)
+        self._keep = state  # (last: an interrupt before it leaves no stale state)
         return out
-
 
 
 class PackedEntry:
@@ -56,20 +56,21 @@ class PackedEntry:
     packed last, and the packed objects are kept alive while their table is in use. ``args``
     as for :class:`EntryPoint`. A call unboxes the table, not every array of the state."""
 
-    __slots__ = ("_call", "_key", "_keep", "_packed", "_entry")
+    __slots__ = ("_call", "_keep", "_packed", "_entry")
 
     def __init__(self, fn):
         self._call = EntryPoint(fn)
-        self._key = None
-        self._keep = self._packed = self._entry = None
+        self._keep = None
+        self._packed = self._entry = None
 
     def __call__(self, state: tuple, *args):
-        if tuple(map(id, state)) == self._key:  # (the packed table is current: its entry point directly)
+        keep = self._keep
+        # (the packed table is current: its entry point directly)
+        if keep is not None and len(state) == len(keep) and all(map(is_, state, keep)):
             return self._entry(*self._packed, *args)
-        self._key = None
-        self._keep = state  # (its arrays' memory is what the table describes)
+        self._keep = None
         self._packed = pack(state)  # (table, layout)
         out = self._call(self._packed, *args)
         self._entry = self._call._entry
-        self._key = tuple(map(id, state))  # (last: an interrupt before it leaves no stale key)
+        self._keep = state  # (its arrays' memory is what the table describes; set last: see EntryPoint)
         return out

@@ -143,7 +143,9 @@ class StreamMethods:
             # numba kernels called through their compiled entry points (no per-call typing)
             self._render_all_call = EntryPoint(kernels.render_all)
             self._render_streams_call = EntryPoint(kernels.render_streams)
-        self._st_epoch = getattr(self, "_st_epoch", 0) + 1  # stream indices held elsewhere are stale
+        #: changes whenever the synthesizer forgets its streams (stream indices held elsewhere
+        #: are stale then)
+        self.streams_epoch = getattr(self, "streams_epoch", 0) + 1
         #: optional ``on_regain()`` called once before the gains of due streams are computed
         #: (a driver updates the poses and the microphones there), unless ``poses_current``
         #: says the driver has just done so
@@ -200,12 +202,6 @@ class StreamMethods:
     def grow_stream_ring(self, need: int) -> None:
         """Stream rings of at least ``need`` samples."""
         self._streams.grow_ring(need)
-
-    @property
-    def streams_epoch(self) -> int:
-        """Changes whenever the synthesizer forgets its streams (stream indices held elsewhere
-        are stale then)."""
-        return self._st_epoch
 
     @property
     def n_streams(self) -> int:
