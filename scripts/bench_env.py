@@ -18,6 +18,14 @@ gymnasium-robotics envs (``--robotics``, default FetchPickAndPlace-v4; run throu
 onto the table for the first half of every 50-step episode and random ones after, so that the
 timed steps include contacts. Goal (issue 15): step_ratio <= 1.3.
 
+``--blocks N`` (optional): a second, finer protocol for the waveform mode, in the same
+process: the bare and the wrapped env alternate every ``--block-steps`` env steps (default 25;
+each block's mean CPU time per step), ``N`` blocks each, on the same seeded actions (the
+same trajectories: the audio does not act on the physics); ``block_ratio`` is the median over
+blocks of wrapped / bare and ``block_overhead_us`` the median of the difference. Alternating
+that often, the machine's drift hits both alike; four runs of it told apart a change of 0.03
+that eight runs of the rounds above did not.
+
 Cold construction (``--cold``): ``AudioObservation(gym.make(FETCH), sample_rate=fs)`` timed (wall
 and CPU seconds; the analysis uses both cores, so on a loaded machine the CPU time is the steadier
 figure) in a fresh process with an empty ``MJSOUND_CACHE_DIR`` (no model cache, no in-process memo; numba's own
@@ -25,8 +33,8 @@ on-disk cache of compiled kernels is used as a user's second run would: compile 
 analysis time), at each ``--cold-rates``. Goal (issue 15): under 10 s.
 
 Usage: python scripts/bench_env.py [--steps 300] [--rounds 5] [--sample-rate 16000] [--envs ...]
-       [--robotics ...] [--cold] [--cold-rates 16000 48000] [--json]
-With --json one object: {"envs": [{"id", "mode", "step_ratio", "bare_ms", "wrapped_ms", ...}],
+       [--robotics ...] [--cold] [--cold-rates 16000 48000] [--blocks 0] [--block-steps 25] [--json]
+With --json one object: {"envs": [{"id", "mode", "step_ratio", "bare_ms", "wrapped_ms", ("block_ratio", ...) ...}],
 "async2_steps_per_s", "cold": [{"id", "sample_rate", "seconds", "modes", ...}], ...}.
 """
 
@@ -64,6 +72,36 @@ def time_steps(env, acts, seed=0):
         if te or tr:
             env.reset()
     return total / len(acts)
+
+
+def time_blocks(bare, wrapped, acts, n_blocks, block_steps, seed=0) -> dict:
+    """The ``--blocks`` protocol (module docstring): CPU seconds per step of each block of
+    ``block_steps`` steps, the two envs alternating block by block (which goes first
+    alternates too), resets not timed."""
+    envs = (bare, wrapped)
+    pos = [0, 0]
+    for e in envs:
+        e.reset(seed=seed)
+        for a in acts[:20]:  # warm-up (numba, caches)
+            _, _, te, tr, _ = e.step(a)
+            if te or tr:
+                e.reset()
+    per = ([], [])
+    for b in range(n_blocks):
+        for i in ((0, 1) if b % 2 == 0 else (1, 0)):
+            e, total = envs[i], 0.0
+            for _ in range(block_steps):
+                a = acts[pos[i] % len(acts)]
+                pos[i] += 1
+                t0 = time.process_time()
+                _, _, te, tr, _ = e.step(a)
+                total += time.process_time() - t0
+                if te or tr:
+                    e.reset()
+            per[i].append(total / block_steps)
+    b, w = np.array(per[0]), np.array(per[1])
+    return {"block_ratio": float(np.median(w / b)), "block_overhead_us": float(1e6 * np.median(w - b)),
+            "block_bare_ms": float(1e3 * np.median(b)), "blocks": n_blocks, "block_steps": block_steps}
 
 
 def make_env(env_id):
@@ -119,6 +157,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--rounds", type=int, default=5)
+    p.add_argument("--blocks", type=int, default=0, help="also the block-alternating protocol, this many blocks")
+    p.add_argument("--block-steps", type=int, default=25)
     p.add_argument("--sample-rate", type=int, default=16000)
     p.add_argument("--envs", nargs="*", default=["Ant-v5", "Humanoid-v5"])
     p.add_argument("--robotics", nargs="*", default=["FetchPickAndPlace-v4"])
@@ -163,6 +203,13 @@ def main(argv=None) -> int:
                       f"ratio {r['step_ratio']:.2f} (clicks off {r['step_ratio_clicks_off']:.2f})  "
                       f"({r['sounding_objects']} objects, {r['modes']} modes; "
                       f"CPU time, median of {args.rounds} interleaved rounds)", flush=True)
+        if args.blocks:
+            blk = time_blocks(envs["bare"], envs["waveform"], acts, args.blocks, args.block_steps)
+            next(r for r in rows if r["id"] == env_id and r["mode"] == "waveform").update(blk)
+            if not args.json:
+                print(f"{env_id:<14s} waveform     blocks: ratio {blk['block_ratio']:.3f}, mjsound "
+                      f"{blk['block_overhead_us']:.1f} us an env step (bare {blk['block_bare_ms']:.3f} ms; median "
+                      f"of {args.blocks} alternating blocks of {args.block_steps} steps)", flush=True)
         for env in envs.values():
             env.close()
 
