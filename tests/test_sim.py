@@ -316,6 +316,12 @@ def test_sample_clock_no_drift_over_hours():
     c = SampleClock(44100, 0.001)
     blocks = [np.subtract(*c.advance()[::-1]) for _ in range(10000)]
     assert set(blocks) == {44, 45} and sum(blocks) == 441000
+    # span: the samples of the next steps without counting them, as sample_at gives them
+    c = SampleClock(44100, 0.002 / 3, t_start=1.25)
+    for steps in (0, 1, 6, 12338):
+        c.advance(steps)
+        k = c.k
+        assert c.span(5) == (k, c.sample_at(k), c.sample_at(k + 5)) and c.k == k
 
 
 # ---------------------------------------------------------------------- bad input / reader
