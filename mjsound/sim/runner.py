@@ -166,7 +166,7 @@ class StepKernel:
 
         A closure over this kernel's run record and entry point: it runs once per env step,
         where looking up an attribute costs more than the lines around it (see
-        ``AudioSimulator._make_substeps``)."""
+        :func:`mjsound.sim.substeps.make_substeps`)."""
         fresh_runs, fresh_run, run_bytes, advance_call = self._fresh, self._fresh_run, self._run_bytes, self._advance_call
         reason_f, log_limit_f = self._reason, self.f["log_limit"]
 
