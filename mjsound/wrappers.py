@@ -129,7 +129,6 @@ class AudioWindow:
             self.space = gym.spaces.Box(0.0, top, (C, self.n_fft // 2 + 1, frames), np.float32)
         self.buf = np.zeros((C, W), np.float32)
         self._push = EntryPoint(_push_kernel)  # (its compiled entry point: numba's dispatch types every call)
-        self._push_entry = None
 
     def reset(self) -> None:
         self.buf[:] = 0.0
@@ -145,12 +144,7 @@ class AudioWindow:
             return 0, 0.0
         block = np.ascontiguousarray(block, dtype=np.float32)  # (the block itself when it is already)
         fsp = self.full_scale_pa
-        entry = self._push_entry
-        if entry is None:  # (first call: compiled or looked up; its entry point serves the window's life)
-            clipped, peak = self._push((self.buf,), block, 1.0 / fsp)
-            self._push_entry = self._push._entry
-        else:
-            clipped, peak = entry(self.buf, block, 1.0 / fsp)  # (a Python int and float)
+        clipped, peak = self._push((self.buf,), block, 1.0 / fsp)  # (a Python int and float)
         return clipped, peak * fsp
 
 
@@ -292,17 +286,15 @@ class EnvAudio:
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
         block = self.sim.flush()
-        if self._contact.size:
+        if len(self._contact):
             block[self._contact] *= self._contact_gain
         audio = self.audio
         clipped, peak = audio.push(block)
         if clipped and not self._clip_reported:
             self._report_clipping(clipped, peak)
-        n_impacts = self.sim.reader.n_impacts  # (as _audible_impacts, whose work is rare: written out)
-        impacts = self._audible_impacts() if n_impacts != self._reader_impacts else 0
         info = {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": block.shape[1],
-                "audio_impacts": impacts}
-        return audio.buf.copy() if audio.mode == "waveform" else audio.observe(), info
+                "audio_impacts": self._audible_impacts()}
+        return audio.observe(), info
 
 
 def audible_geoms(model, scene, sim) -> np.ndarray:

@@ -56,13 +56,18 @@ import numpy as np  # noqa: E402
 from mjsound.wrappers import AudioObservation  # noqa: E402
 
 
-def time_steps(env, acts, seed=0):
-    """Mean CPU seconds per ``env.step`` over ``acts`` (after a warm-up)."""
+def warm_up(env, acts, seed=0) -> None:
+    """Reset ``env`` with ``seed`` and step it through ``acts[:20]`` (numba, caches)."""
     env.reset(seed=seed)
-    for a in acts[:20]:  # warm-up (numba, caches)
+    for a in acts[:20]:
         _, _, te, tr, _ = env.step(a)
         if te or tr:
             env.reset()
+
+
+def time_steps(env, acts, seed=0):
+    """Mean CPU seconds per ``env.step`` over ``acts`` (after a warm-up)."""
+    warm_up(env, acts, seed)
     env.reset(seed=seed)
     total = 0.0
     for a in acts:
@@ -81,11 +86,7 @@ def time_blocks(bare, wrapped, acts, n_blocks, block_steps, seed=0) -> dict:
     envs = (bare, wrapped)
     pos = [0, 0]
     for e in envs:
-        e.reset(seed=seed)
-        for a in acts[:20]:  # warm-up (numba, caches)
-            _, _, te, tr, _ = e.step(a)
-            if te or tr:
-                e.reset()
+        warm_up(e, acts, seed)
     per = ([], [])
     for b in range(n_blocks):
         for i in ((0, 1) if b % 2 == 0 else (1, 0)):

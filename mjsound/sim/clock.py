@@ -88,7 +88,7 @@ class SampleClock:
         """``(k, n0, n1)``: the steps counted now, and the samples ``n0 <= n < n1`` of the next
         ``steps`` steps (:meth:`sample_at` of ``k`` and ``k + steps``), without counting them."""
         k = int(self._k[0])
-        a0, b, fs, den = self._a0, self._b, self.fs, self._den
+        a0, b, fs, den = self._a0, self._b, self.fs, self._den  # (sample_at's formula, written out: per env step)
         return k, -((-(a0 + k * b) * fs) // den), -((-(a0 + (k + steps) * b) * fs) // den)
 
     def advance(self, steps: int = 1) -> tuple[int, int]:

@@ -49,7 +49,7 @@ def make_substeps(sim):
         rs = reader.state()  # (the state as _kernel_state makes it)
         state = (mj, views, rs, reader.buffers, clock_rec, drive_state(rs), synth.kernel_state(), run,
                  synth.render_target())
-        if not kernel_call(state, nstep, block, sim.keep_events - sim._n_logged if sim.keep_events else 0):
+        if not kernel_call(state, nstep, block, sim._log_room() if sim.keep_events else 0):
             kern.resume(kernel_state, block, on_stop, synth)
         if collect_f[0]:
             sim._collect()
