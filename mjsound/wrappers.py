@@ -238,9 +238,10 @@ class EnvAudio:
                 mujoco.mj_forward(model, d0)
                 self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
-        self._audible = audible_geoms(model, self.scene, self.sim).tolist()  # (indexed per impact: plain bools)
+        self._audible = audible_geoms(model, self.scene, self.sim)
+        self.sim.reader.set_audible(self._audible)  # (the step kernel counts the impacts heard)
         self._rng = None
-        self._reader_impacts = 0
+        self._audible_seen = 0
         self._clip_reported = False
 
     def reset(self, seed=None) -> dict:
@@ -253,22 +254,16 @@ class EnvAudio:
             self.sim.synth.seed = int(self._rng.integers(2**31 - 1))
         self.sim.reset()  # (moves a following listener to its body)
         self.audio.reset()
-        self._reader_impacts = self.sim.reader.n_impacts
+        self._audible_seen = self.sim.reader.n_audible
         return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
 
     def _audible_impacts(self) -> int:
-        """Impacts since the last call that make a sound (:func:`audible_geoms`; the geoms of
-        the reader's newest impacts)."""
-        r = self.sim.reader
-        new = r.n_impacts - self._reader_impacts
-        self._reader_impacts = r.n_impacts
-        if new <= 0:
-            return 0
-        geoms = r.newest_geoms(new)
-        if geoms is None:
-            return int(new)  # (more than the reader keeps: counted as audible)
-        aud = self._audible
-        return sum(1 for g1, g2 in geoms if aud[g1] or aud[g2])
+        """Impacts since the last call that make a sound (:func:`audible_geoms`, counted by
+        the step kernel: ``ContactReader.set_audible``)."""
+        n = self.sim.reader.n_audible
+        new = n - self._audible_seen if n >= self._audible_seen else n  # (the reader was reset: a clock jump)
+        self._audible_seen = n
+        return new
 
     def _report_clipping(self, clipped: int, peak: float) -> None:
         """Warn, once per env, that the observation clipped (the agent hears a distorted

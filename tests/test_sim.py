@@ -705,6 +705,42 @@ def test_reader_keeps_the_last_keep_records_impacts():
     assert [(r.time, r.impulse_pred, r.impulse_sim, r.open) for r in short.impacts] == key[-2:]
 
 
+def test_impact_records_wait_in_the_kernel_rows_until_read():
+    """The step kernel leaves its record rows waiting (no Python per step for them) and counts
+    the impacts and those with an audible geom; reading the records takes them; rows that
+    would overflow are taken by ``grow`` (none lost)."""
+    from mjsound.sim.records import RECORD
+
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0),
+              "plate": stub_model("box:0.3,0.3,0.01", "aluminium", 4, 900.0)}
+    model, data, sim = make_sim(drop_xml(h=0.1, plate=True), models)
+    reader = sim.reader
+    plate = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "plate")
+    audible = np.zeros(model.ngeom, bool)
+    audible[plate] = True  # (only the impacts on the plate are heard)
+    reader.set_audible(audible)
+    with pytest.raises(ValueError, match="set_audible"):
+        reader.set_audible(np.ones(model.ngeom + 1, bool))
+    for _ in range(12):
+        sim.substeps(100)
+    waiting = int(reader.counts[0]["n_records"])
+    assert waiting == reader.n_impacts >= 3  # (none taken yet: nobody read them)
+    recs = reader.impacts
+    assert int(reader.counts[0]["n_records"]) == 0 and len(recs) == waiting
+    heard = sum(1 for r in recs if audible[r.geom1] or audible[r.geom2])
+    assert reader.n_audible == heard == waiting  # (the ball bounces on the plate only)
+    assert sim.n_impacts == reader.n_impacts_made == sum(1 for r in recs if r.impulse_pred > 0)
+    # full rows: grow takes them before deciding on room
+    buf = reader.buffers
+    rcap = len(buf.records)
+    buf.records[:] = np.zeros(rcap, RECORD)
+    buf.records["g1"], buf.records["g2"], buf.records["slot"] = plate, 0, 0
+    reader.counts[0]["n_records"] = rcap
+    reader.grow(4)
+    assert reader.buffers is buf and int(reader.counts[0]["n_records"]) == 0
+    assert reader.n_impacts == waiting + rcap and reader.newest_geoms(1) == [(plate, 0)]
+
+
 @pytest.mark.parametrize("path", ["step", "substeps"])
 def test_an_external_reset_clears_the_ringing(path):
     """``data.time`` going backwards (an environment reset the simulator was not told about):

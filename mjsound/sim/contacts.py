@@ -60,114 +60,16 @@ from __future__ import annotations
 import itertools
 import warnings
 from collections import deque
-from dataclasses import dataclass
 
 import numpy as np
 
+from .contact_types import ContactEvent, ContactFrame, ImpactEvent, ImpactRecord
 from .impulses import restitution_of
 from .pairs import contact_quantities, rehash
 from .records import (BODY, GEOM, HIT, IMPACT, LOG, MISSING, ONSET, PAIR, PAIR_ROW, READER_COUNTS, READER_PARAMS,
                       RECORD, ReaderState, StepBuffers, contact_quantities_of, pair_scratch)
 
 __all__ = ["ContactReader", "ContactFrame", "ImpactEvent", "ContactEvent", "ImpactRecord"]
-
-
-@dataclass
-class ContactFrame:
-    """All contacts of one step, as arrays over the ``n`` contacts (world frame, SI).
-
-    Attributes
-    ----------
-    geom : (n, 2) int
-        ``geom[:, 0]``, ``geom[:, 1]``; the normal points from the first to the second.
-    pos : (n, 3) contact point [m].
-    normal : (n, 3) unit normal.
-    dist : (n,) signed distance [m] (negative: penetration).
-    force_n : (n,) normal force on geom 1 along ``normal`` [N] (clamped, finite).
-    force : (n, 3) world force on geom 1 [N] (geom 0 gets the opposite).
-    vel_rel : (n, 3) velocity of geom 1's material point minus geom 0's at ``pos`` [m/s].
-    v_approach : (n,) ``-(vel_rel . normal)``; positive when closing [m/s].
-    v_slip : (n,) tangential slip speed [m/s].
-    v_roll : (n,) rolling speed ``|omega_rel,t| r`` [m/s].
-    local : (n, 2, 3) contact point in each geom's frame [m] (computed on demand).
-    """
-
-    geom: np.ndarray
-    pos: np.ndarray
-    normal: np.ndarray
-    dist: np.ndarray
-    force_n: np.ndarray
-    force: np.ndarray
-    vel_rel: np.ndarray
-    v_approach: np.ndarray
-    v_slip: np.ndarray
-    v_roll: np.ndarray
-    local: np.ndarray | None = None
-
-    @property
-    def n(self) -> int:
-        return len(self.geom)
-
-
-@dataclass
-class ImpactEvent:
-    """One impact at one contact point.
-
-    ``impulse`` [N s] acts on ``geom2`` along ``normal`` (``geom1`` gets ``-impulse``).
-    """
-
-    time: float
-    geom1: int
-    geom2: int
-    point: np.ndarray
-    normal: np.ndarray
-    impulse: float
-    speed: float
-    effective_mass: float
-
-
-@dataclass
-class ContactEvent:
-    """Sustained contact of a pair over ``[t0, t1)``: ``kind`` is ``"slide"`` or ``"roll"``."""
-
-    kind: str
-    t0: float
-    t1: float
-    geom1: int
-    geom2: int
-    point: np.ndarray
-    normal: np.ndarray
-    force_n: float
-    speed: float
-
-
-@dataclass
-class ImpactRecord:
-    """Predicted and simulated impulse of one impact event (diagnostics).
-
-    Attributes
-    ----------
-    time : onset time [s].
-    geom1, geom2 : geom ids.
-    speed : largest pre-contact approach speed [m/s].
-    impulse_pred : emitted ``sum lambda = sum A^+ (1+e) v`` [N s].
-    impulse_sim : MuJoCo's ``sum F_n dt`` over the event [N s].
-    restitution : ``e`` used.
-    effective_mass : ``impulse_pred / ((1+e) speed)`` [kg].
-    duration : event length [s]; ``steps`` physics steps.
-    """
-
-    time: float
-    geom1: int
-    geom2: int
-    speed: float
-    impulse_pred: float
-    impulse_sim: float
-    restitution: float
-    effective_mass: float
-    duration: float = 0.0
-    steps: int = 0
-    open: bool = True
 
 
 class ContactReader:
@@ -237,6 +139,7 @@ class ContactReader:
         self.geoms["body"] = model.geom_bodyid
         self.geoms["plane"] = np.asarray(model.geom_type) == mujoco.mjtGeom.mjGEOM_PLANE
         self.geoms["restitution"] = e
+        self.geoms["audible"] = 1  # (every impact heard until set_audible says otherwise)
         # moving mass of each body's subtree and of its whole tree (inf: welded to the world)
         welded = np.asarray(model.body_weldid) == 0
         self.bodies = np.zeros(model.nbody, BODY)
@@ -265,8 +168,8 @@ class ContactReader:
         if getattr(self, "_state", None) is None or getattr(self, "buffers", None) is None:
             self.counts = np.zeros(1, READER_COUNTS)
             # plain int64 views of the fields Python reads after every kernel call
-            self._n_records, self._n_bad, self._n_huge, self._nslots, self._any_open = (
-                self.counts[k] for k in ("n_records", "n_bad", "n_huge", "nslots", "any_open"))
+            self._n_records, self._n_bad, self._n_huge, self._nslots, self._any_open, self._n_audible = (
+                self.counts[k] for k in ("n_records", "n_bad", "n_huge", "nslots", "any_open", "audible"))
             self._pairs = np.zeros(0, PAIR)
             self._hkeys = np.full(0, -1, np.int64)
             self._hvals = np.zeros(0, np.int64)
@@ -288,7 +191,7 @@ class ContactReader:
         # made when read, :meth:`_materialize`), and the geoms of the newest impacts
         self._raw: list[tuple] = []
         self._geoms = deque(maxlen=self.keep_records)  # ((g1, g2) of each impact)
-        self.n_impacts = 0
+        self._n_taken = 0  # (record rows taken from the kernel's buffer since the reset)
         self.n_clamped = 0
 
     @property
@@ -306,6 +209,31 @@ class ContactReader:
         """Sliding and rolling pair-steps since the last reset, (2,) int64."""
         c = self.counts[0]
         return np.array([c["slide_steps"], c["roll_steps"]], np.int64)
+
+    @property
+    def n_impacts(self) -> int:
+        """Impact records (impact events) since the last reset, taken or still waiting in the
+        kernel's rows."""
+        return self._n_taken + int(self._n_records[0])
+
+    @property
+    def n_impacts_made(self) -> int:
+        """Impacts made since the last reset: the impact events with a positive impulse
+        (those the synthesizer is asked to sound)."""
+        return int(self.counts[0]["impacts"])
+
+    @property
+    def n_audible(self) -> int:
+        """Impact records since the last reset with a geom that is heard (:meth:`set_audible`;
+        every geom until it is called): a plain int, read once per env step by the wrappers."""
+        return int(self._n_audible[0])
+
+    def set_audible(self, audible) -> None:
+        """Which geoms' impacts :attr:`n_audible` counts: ``audible`` (ngeom,) bool."""
+        a = np.asarray(audible, bool)
+        if a.shape != (len(self.geoms),):
+            raise ValueError(f"set_audible: {a.shape} flags for {len(self.geoms)} geoms; give one per geom")
+        self.geoms["audible"] = a  # (in place: the kernel's state is unchanged)
 
     @property
     def any_open(self) -> bool:
@@ -345,11 +273,13 @@ class ContactReader:
         nv = len(self.dof_parent)
         cap = 0 if b is None else len(b.geom)
         rcap = 0 if b is None else len(b.records)
-        nrec = int(self.counts[0]["n_records"])
+        if b is not None and int(self._n_records[0]) + ncon > rcap:
+            self.take_records()  # (the rows wait until read or full: taken, they are free again)
+        nrec = int(self._n_records[0])
         if b is not None and ncon <= cap and nefc <= len(b.efc) and nrec + ncon <= rcap:
             return
         cap = max(cap, 2 * ncon if ncon > cap else cap, 8)
-        rcap = max(rcap, 64, 2 * (nrec + ncon))
+        rcap = max(rcap, 256, 2 * (nrec + ncon))
         groups, steps = pair_scratch(cap)
         new = StepBuffers(
             geom=np.zeros((cap, 2), np.int32), pos=np.zeros((cap, 3)), frame=np.zeros((cap, 9)),
@@ -377,23 +307,34 @@ class ContactReader:
 
     # ------------------------------------------------------------------ results of the kernel
     def take_records(self) -> None:
-        """Turn the record rows the kernel wrote into :class:`ImpactRecord` (each closes its
+        """Take the record rows the kernel wrote (they wait in its buffer until read, or until
+        the rows are full: :meth:`grow`; made :class:`ImpactRecord` when read, each closing its
         slot's previous record) and report clamped forces (once)."""
-        if not (self._n_records[0] or self._n_bad[0] or self._n_huge[0]):
-            return  # (the common case, after every kernel call)
         n = int(self._n_records[0])
         if n:
             self.add_records(self.buffers.records[:n])
             self._n_records[0] = 0
+            self.counts[0]["clamped"] = 0  # (add_records warned of them)
         if self._n_bad[0] or self._n_huge[0]:
-            nbad, nhuge = int(self._n_bad[0]), int(self._n_huge[0])
-            self._n_bad[0] = self._n_huge[0] = 0
-            self.n_clamped += nbad + nhuge
-            self._warn_once(
-                "force",
-                f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
-                "velocities clamped (exploding simulation?); reported once",
-            )
+            self._report_forces()
+
+    def report_clamped(self) -> None:
+        """Warn (once) of the clamped forces and impulses the kernel counted; the record rows
+        wait unless one holds a clamped impulse."""
+        if self.counts[0]["clamped"]:
+            self.take_records()
+        elif self._n_bad[0] or self._n_huge[0]:
+            self._report_forces()
+
+    def _report_forces(self) -> None:
+        nbad, nhuge = int(self._n_bad[0]), int(self._n_huge[0])
+        self._n_bad[0] = self._n_huge[0] = 0
+        self.n_clamped += nbad + nhuge
+        self._warn_once(
+            "force",
+            f"mjsound: {nbad} NaN/Inf and {nhuge} huge (> {self.max_force:g} N) contact forces or "
+            "velocities clamped (exploding simulation?); reported once",
+        )
 
     def add_records(self, rows: np.ndarray) -> None:
         """Take the impact events' :data:`.records.RECORD` rows (in order). Their
@@ -412,7 +353,7 @@ class ContactReader:
                 self.n_clamped += 1
                 self._warn_once("impulse", f"mjsound: impact impulse above {self.max_force * 0.01:g} N s clamped; "
                                 "reported once")
-        self.n_impacts += len(rows)
+        self._n_taken += len(rows)
         if len(raw) > 2 * self.keep_records:  # (bounded memory when nobody reads them)
             self._materialize()
 
@@ -440,6 +381,7 @@ class ContactReader:
     def newest_geoms(self, n: int) -> list[tuple[int, int]] | None:
         """The geoms ``(g1, g2)`` of the ``n`` newest impacts, newest first; None when the
         reader keeps fewer than ``n`` (``keep_records``)."""
+        self.take_records()
         geoms = self._geoms
         if n > len(geoms):
             return None
@@ -454,6 +396,7 @@ class ContactReader:
     def impacts(self) -> list[ImpactRecord]:
         """The last ``keep_records`` impact events' :class:`ImpactRecord`, oldest first (the
         open ones brought up to date)."""
+        self.take_records()
         self._materialize()
         pairs = self._pairs
         for j, rec in list(self._open.items()):
@@ -470,6 +413,7 @@ class ContactReader:
         """The ``n`` newest :class:`ImpactRecord`, newest first, as they were made (open ones
         not brought up to date: geoms, time and predicted impulse are final); None when the
         reader keeps fewer than ``n`` (``keep_records``)."""
+        self.take_records()
         self._materialize()
         records = self._records
         if n > len(records):

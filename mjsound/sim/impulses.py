@@ -258,20 +258,27 @@ def write_records(reader, buf, n_onset, stats, t0):
     """An impact record row per event into ``buf.records`` (after the ``n_records`` waiting):
     time, geoms, largest approach speed, predicted impulse, restitution, slot, clamped, then
     what the state machine banked at this onset for the slot's previous record (sum F dt,
-    steps, end time), which closes it (``ContactReader.add_records``). Marks an impact open."""
+    steps, end time), which closes it (``ContactReader.add_records``). Marks an impact open;
+    counts the records with an audible geom (``GEOM.audible``) and the clamped ones."""
     cnt = reader.counts[0]
-    ons, hits, pairs = buf.onsets, buf.hits, reader.pairs
+    ons, hits, pairs, geoms = buf.onsets, buf.hits, reader.pairs, reader.geoms
     for q in range(n_onset):
         a, j = ons[q].first, ons[q].slot
         r = buf.records[cnt.n_records]
+        g1, g2 = hits[a].g1, hits[a].g2
         r.time = t0
-        r.g1 = hits[a].g1
-        r.g2 = hits[a].g2
+        r.g1 = g1
+        r.g2 = g2
         r.speed = stats[q, 1]
         r.impulse_pred = stats[q, 2]
         r.restitution = stats[q, 0]
         r.slot = j
-        r.clamped = 1 if stats[q, 3] else 0
+        r.clamped = 0
+        if stats[q, 3]:
+            r.clamped = 1
+            cnt.clamped += 1
+        if geoms[g1].audible or geoms[g2].audible:
+            cnt.audible += 1
         r.prev_impulse = pairs[j].prev_impulse
         r.prev_steps = pairs[j].prev_steps
         r.prev_end = pairs[j].prev_end

@@ -52,10 +52,14 @@ READER_PARAMS = np.dtype([("v_impact", f8), ("v_hard", f8), ("min_apart_s", f8),
 
 #: The reader's counters (owner: ContactReader; written by the step kernel): pair slots in
 #: use, whether an impact record may be open, steps read, record rows waiting in
-#: ``StepBuffers.records``, clamped forces (non-finite / huge; Python warns and zeroes them),
-#: sliding and rolling pair-steps.
+#: ``StepBuffers.records`` (Python takes them when they are read or the rows are full),
+#: clamped forces (non-finite / huge; Python warns and zeroes them), sliding and rolling
+#: pair-steps; since the reset: impacts made (the impact rows with a positive impulse: what
+#: ``AudioSimulator.n_impacts`` counts) and impact records with an audible geom
+#: (``GEOM.audible``); waiting record rows whose impulse was clamped (Python warns).
 READER_COUNTS = np.dtype([("nslots", i8), ("any_open", i8), ("step", i8), ("n_records", i8), ("n_bad", i8),
-                          ("n_huge", i8), ("slide_steps", i8), ("roll_steps", i8)])
+                          ("n_huge", i8), ("slide_steps", i8), ("roll_steps", i8), ("impacts", i8),
+                          ("audible", i8), ("clamped", i8)])
 
 #: One geom pair's state (owner: ContactReader, a table of slots; written by the state
 #: machine :func:`mjsound.sim.pairs.update_pairs`): approach speed of its last step [m/s],
@@ -67,9 +71,10 @@ PAIR = np.dtype([("vprev", f8), ("touch", f8), ("hit", f8), ("rec_time", f8), ("
                  ("rec_impulse", f8), ("rec_end", f8), ("prev_impulse", f8), ("prev_end", f8),
                  ("last", i8), ("calm", i8), ("open", i8), ("rec_steps", i8), ("prev_steps", i8)])
 
-#: Per geom (owner: ContactReader): its body, whether it is a plane (no rolling radius) and
-#: its acoustic restitution (NaN: unknown).
-GEOM = np.dtype([("body", i8), ("plane", i8), ("restitution", f8)])
+#: Per geom (owner: ContactReader): its body, whether it is a plane (no rolling radius), its
+#: acoustic restitution (NaN: unknown) and whether an impact on it is heard
+#: (``ContactReader.set_audible``; counted in ``READER_COUNTS.audible``).
+GEOM = np.dtype([("body", i8), ("plane", i8), ("restitution", f8), ("audible", i8)])
 
 #: Per body (owner: ContactReader): root body, dofs (``mj_jac``'s walk), moving mass of its
 #: subtree and of its whole tree [kg] (inf: welded to the world).
@@ -133,19 +138,19 @@ DRIVE_PARAMS = np.dtype([("rough_slide", f8), ("rough_roll", f8), ("len_slide", 
 #: samples ``[n0, n1)`` are given (replay) instead of coming from the clock, the log's limit,
 #: ``solved`` (Python supplied ``M^-1 Jn^T``). State of the current substep: ``stage``, its
 #: times and samples, sustained rows, hits, onset pairs and impacts. Outputs: why it stopped
-#: (``reason``, ``need``, ``n_missing``), impacts queued and log entries written (counting
-#: up over calls until Python takes them), whether poses and microphones are current.
+#: (``reason``, ``need``, ``n_missing``), log entries written (counting up over calls until
+#: Python takes them), whether poses and microphones are current.
 #: ``render`` (input): after the last substep, render the pending block into the call's block
 #: argument (it must end where the last substep ends); ``render_code`` (output): the render's
 #: code (``mjsound.synth.kernels.RENDERED`` or ``RENDERED_NONFINITE``), :data:`NOT_RENDERED`
 #: when no block was rendered; ``pulses_mixed`` (output): the pulse track is mixed into that
 #: block already (``DRIVE_PARAMS.mix_pulses`` and every sample finite); ``collect`` (output):
-#: there is something for Python to take after the call (impacts, log entries, the reader's
-#: impact records or clamped-force counts: ``AudioSimulator._collect``).
+#: there is something for Python to take after the call (log entries, clamped forces or
+#: impulses to warn of: ``AudioSimulator._collect``; the reader's impact records wait).
 RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", i8), ("ncon", i8), ("nefc", i8),
                 ("explicit", i8), ("log_limit", i8), ("solved", i8), ("stage", i8), ("t0", f8), ("t1", f8),
                 ("n0", i8), ("n1", i8), ("n_sust", i8), ("n_hits", i8), ("n_onset", i8), ("n_imp", i8),
-                ("reason", i8), ("need", i8), ("n_missing", i8), ("n_impacts", i8), ("n_log", i8),
+                ("reason", i8), ("need", i8), ("n_missing", i8), ("n_log", i8),
                 ("poses_current", i8), ("render", i8), ("render_code", i8), ("pulses_mixed", i8),
                 ("collect", i8)])
 #: ``RUN.render_code`` of a call that rendered no block.

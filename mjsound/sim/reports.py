@@ -28,14 +28,14 @@ class SimulatorReports:
     @property
     def n_impacts(self) -> int:
         """Impact events since the last reset (``events["impact"]``, without building the dict)."""
-        return self._n_impacts
+        return self.reader.n_impacts_made - self._impacts_base
 
     @property
     def events(self) -> dict:
         """Counts since the last reset: ``impact`` events, and ``slide`` / ``roll`` pair-steps
         (a pair sliding or rolling for one physics step counts once)."""
         s = self.reader.sustained_steps - self._sustained_base
-        return {"impact": self._n_impacts, "slide": int(s[0]), "roll": int(s[1])}
+        return {"impact": self.n_impacts, "slide": int(s[0]), "roll": int(s[1])}
 
     @property
     def impacts(self):

@@ -235,7 +235,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             self.reader.reset()
         self.clock.anchor(float(self.model.opt.timestep), t_start)
         self._origin = self.clock.n  # synth sample 0 is absolute sample n = origin
-        self._n_impacts = 0
+        self._impacts_base = self.reader.n_impacts_made
         self._sustained_base = self.reader.sustained_steps
         # event log: entries and LOG arrays, expanded when read (event_log)
         self._log = []
@@ -424,16 +424,11 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         return max(0, self.keep_events - self._n_logged)
 
     def _collect(self) -> None:
-        """Take the kernel's impact records, impact count and event log entries."""
+        """Take the kernel's event log entries and clamped-force counts (the reader warns); the
+        impact records wait in the reader's rows until read."""
         f = self._kernel.f
-        self.reader.take_records()
-        n_imp, n_log = f["n_impacts"][0], f["n_log"][0]
-        if not (n_imp or n_log):
-            return
-        n_imp, n_log = int(n_imp), int(n_log)
-        if n_imp:
-            self._n_impacts += n_imp
-            f["n_impacts"][0] = 0
+        self.reader.report_clamped()
+        n_log = int(f["n_log"][0])
         if n_log:
             self._log_pending.append(self.reader.buffers.log[:n_log].copy())
             self._n_logged += n_log

@@ -231,7 +231,7 @@ def advance(table, layout, out):
                 rn.reason = AMPLITUDE
                 rn.need = rn.n_imp
                 return
-            rn.n_impacts += rn.n_imp
+            cnt.impacts += rn.n_imp
             if pulses:  # their clicks and contact-microphone pulses, rendered into the track after the substeps
                 queue_pulses(drive.pulses, buf.impacts, rn.n_imp, t_ev, views, synth.mics)
             rn.stage = STAGE_LOG
@@ -273,5 +273,6 @@ def advance(table, layout, out):
         if rn.render_code == RENDERED and drive.prm[0].mix_pulses:
             take_into_block(ps.track, out)
             rn.pulses_mixed = 1
-    # (one flag for Python to read after the call instead of five counts)
-    rn.collect = rn.n_impacts > 0 or rn.n_log > 0 or cnt.n_records > 0 or cnt.n_bad > 0 or cnt.n_huge > 0
+    # (one flag for Python to read after the call instead of four counts; the impact records
+    # wait in their rows until they are read or the rows are full)
+    rn.collect = rn.n_log > 0 or cnt.n_bad > 0 or cnt.n_huge > 0 or cnt.clamped > 0
