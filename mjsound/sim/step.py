@@ -110,9 +110,10 @@ def _has_room(counts, pairs, geom, records, efc, log, rn, consts, queue, ncon):
 
 
 @njit_inner(cache=True)
-def _log(buf, rn, t, kind, g1, g2, value):
+def _log(log, rn, t, kind, g1, g2, value):
+    """An event log entry into ``log`` (the step buffers' LOG rows) while it has room."""
     if rn.n_log < rn.log_limit:
-        e = buf.log[rn.n_log]
+        e = log[rn.n_log]
         e.time = t
         e.kind = kind
         e.g1 = g1
@@ -236,12 +237,14 @@ def advance(table, layout, out):
                 queue_pulses(drive.pulses, buf.impacts, rn.n_imp, t_ev, views, synth.mics)
             rn.stage = STAGE_LOG
         if rn.stage == STAGE_LOG:
-            for i in range(rn.n_imp):
-                im = buf.impacts[i]
-                _log(buf, rn, rn.t0, np.int64(LOG_IMPACT), im.g1, im.g2, im.impulse)  # (one _log for both kinds)
-            for i in range(rn.n_sust):
-                row = buf.sustained[i]
-                _log(buf, rn, rn.t0, row.kind, row.g1, row.g2, row.speed)
+            if rn.n_log < rn.log_limit:  # (no log, as in the wrappers, or a full one: no call per row)
+                log = buf.log
+                for i in range(rn.n_imp):
+                    im = buf.impacts[i]
+                    _log(log, rn, rn.t0, np.int64(LOG_IMPACT), im.g1, im.g2, im.impulse)  # (one _log for both kinds)
+                for i in range(rn.n_sust):
+                    row = buf.sustained[i]
+                    _log(log, rn, rn.t0, row.kind, row.g1, row.g2, row.speed)
             rn.stage = STAGE_DRIVE
         if rn.stage == STAGE_DRIVE:
             k0 = rn.n0 - ck.origin
