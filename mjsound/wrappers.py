@@ -238,8 +238,8 @@ class EnvAudio:
                 mujoco.mj_forward(model, d0)
                 self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
         self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
-        self._audible = audible_geoms(model, self.scene, self.sim)
-        self.sim.reader.set_audible(self._audible)  # (the step kernel counts the impacts heard)
+        # (the step kernel counts the impacts on these geoms: info["audio_impacts"])
+        self.sim.reader.set_audible(audible_geoms(model, self.scene, self.sim))
         self._rng = None
         self._audible_seen = 0
         self._clip_reported = False
@@ -256,6 +256,12 @@ class EnvAudio:
         self.audio.reset()
         self._audible_seen = self.sim.reader.n_audible
         return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
+
+    @property
+    def _audible(self) -> np.ndarray:
+        """(ngeom,) bool: the geoms whose impacts are heard (the reader's flags, set from
+        :func:`audible_geoms`)."""
+        return self.sim.reader.geoms["audible"].astype(bool)
 
     def _audible_impacts(self) -> int:
         """Impacts since the last call that make a sound (:func:`audible_geoms`, counted by
