@@ -132,8 +132,8 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     assert (len(log0) > 0) == (keep_events > 0)
     if variant == "short_log":
         assert len(log0) == 40
-    for fused_on in (False, True):  # streams and Hertz coefficients are made in Python, on demand
-        assert reasons.get((fused_on, S.STREAMS), 0) > 0 and reasons.get((fused_on, S.HERTZ), 0) > 0
+    for fused_on in (False, True):  # streams are made in Python, on demand
+        assert reasons.get((fused_on, S.STREAMS), 0) > 0
     assert reasons.get((False, S.SOLVE), 0) > 0 and not reasons.get((True, S.SOLVE))
     if variant == "tiny_buffers":  # (the event log's buffer also starts empty and grows once)
         assert reasons.get((True, S.ROOM), 0) > 1

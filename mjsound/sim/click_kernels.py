@@ -27,7 +27,7 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from ..synth.bandlimited import add_pulses
-from ..synth.pulse import contact_time, shell_contact_time
+from ..synth.pulse import contact_time, effective, hertz_coef, shell_contact_time
 
 __all__ = ["impact_pulses", "queue_pulses", "pulse_room", "render_waiting", "hertz_coefficient", "pair_contact_time",
            "pulse_rows_needed"]
@@ -39,39 +39,21 @@ def pulse_rows_needed(n_impacts: int, n_air: int, n_sites: int) -> int:
     return 2 * int(n_impacts) * (int(n_air) + int(n_sites))
 
 
-@njit_inner(cache=True)
-def _effective(a, b):
-    """``1 / (1/a + 1/b)``, ``inf`` meaning absent (:func:`mjsound.synth.pulse.effective`);
-    0 when either is 0 (the limit: a massless body welded to a moving one, whose subtree has
-    no mass, makes no Hertz time rather than a division by zero)."""
-    if math.isinf(a):
-        return b
-    if math.isinf(b):
-        return a
-    if a == 0.0 or b == 0.0:
-        return 0.0
-    return 1.0 / (1.0 / a + 1.0 / b)
-
-
 @njit(cache=True)
 def hertz_coefficient(cm, g1, g2):
     """``coef`` [s (m/s)^(1/5)] of ``tau = coef v^(-1/5)`` for an impact between geoms ``g1``
     and ``g2``: their bodies' Hertz masses and their contact radii combined harmonically,
     ``E* = 1 / (c1 + c2)`` from the materials' compliances (both
     ``prm.unknown_compliance`` when neither geom has a material), ``2.87 (m^2 / (R E*^2))^(1/5)``,
-    0 for an immovable or flat pair or rigid materials (:func:`mjsound.synth.pulse.hertz_coefficient`)."""
+    0 for an immovable or flat pair or rigid materials (:func:`mjsound.synth.pulse.hertz_coef`)."""
     ga = cm.geoms[g1]
     gb = cm.geoms[g2]
     if ga.has_material or gb.has_material:
         c = ga.compliance + gb.compliance
     else:
         c = cm.prm[0].unknown_compliance + cm.prm[0].unknown_compliance
-    m = _effective(cm.bodies[ga.body].hertz_mass, cm.bodies[gb.body].hertz_mass)
-    R = _effective(ga.radius, gb.radius)
-    if math.isinf(m) or math.isinf(R) or c == 0.0:
-        return 0.0
-    E = 1.0 / c
-    return 2.87 * (m * m / (R * E * E)) ** 0.2
+    return hertz_coef(effective(cm.bodies[ga.body].hertz_mass, cm.bodies[gb.body].hertz_mass),
+                      effective(ga.radius, gb.radius), c)
 
 
 @njit_inner(cache=True)
@@ -102,7 +84,7 @@ def pair_contact_time(cm, g1, g2, speed):
     ga = cm.geoms[g1]
     gb = cm.geoms[g2]
     if ga.shell_compliance > 0 or gb.shell_compliance > 0:
-        m = _effective(cm.bodies[ga.body].hertz_mass, cm.bodies[gb.body].hertz_mass)
+        m = effective(cm.bodies[ga.body].hertz_mass, cm.bodies[gb.body].hertz_mass)
         shell = min(shell_contact_time(m, ga.shell_compliance, gb.shell_compliance), _crush_time(ga, gb, speed))
         if shell > tau:
             tau = shell

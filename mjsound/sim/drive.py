@@ -3,9 +3,8 @@ streams, poses and microphones to where they are (numba; stages of :mod:`.step`)
 
 Impacts: each sounding side of an impact (side 0 is geom2, pushed along the normal; side 1
 geom1, pushed against it) strikes its synthesizer object with the Hertz pulse length
-``tau = coef v^(-1/5)`` of the (struck, other) geom pair (:mod:`mjsound.synth.pulse`); the
-coefficient is computed by Python the first time a pair needs it
-(:data:`.step.HERTZ`).
+``tau = coef v^(-1/5)`` of the (struck, other) geom pair (:func:`mjsound.synth.pulse.hertz_coef`
+on the masses, radii and compliances of ``DriveState.sound``).
 
 Sustained contact: each pair and side that sounds owns a persistent noise stream of the
 synthesizer (:meth:`mjsound.synth.Synthesizer.stream`); whether the pair slides or rolls this
@@ -21,7 +20,7 @@ import numpy as np
 from ..jit import njit, njit_inner
 from ..synth.constants import MAX_AMPLITUDE
 from ..synth.kernels import commit_queued, impacts_to_queue
-from ..synth.pulse import contact_time
+from ..synth.pulse import contact_time, effective, hertz_coef
 from ..synth.streams import ring_need, stream_drive
 
 __all__ = ["sync_poses", "impact_sides", "queue_impacts", "missing_streams", "drive_sustained", "pose_rows",
@@ -81,55 +80,49 @@ def sync_poses(drive, views, synth):
 
 
 @njit_inner(cache=True)
-def impact_sides(drive, impacts, k, missing):
-    """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, budget, n,
-    n_missing)``, per side the synthesizer object index, world point [m], impulse on that side
-    [N s], Hertz pulse length [s] and the most vibration energy the impact can give it,
-    ``|J| v / 2`` [J] (``v`` the approach speed; ``inf`` without one; see
-    :func:`mjsound.synth.kernels.impacts_to_queue`); the (struck, other) geom pairs without a
-    coefficient yet go to ``missing`` (their sides are left out)."""
-    sound, coef = drive.sound, drive.coef
+def impact_sides(drive, impacts, k):
+    """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, budget, n)``, per
+    side the synthesizer object index, world point [m], impulse on that side [N s], Hertz pulse
+    length [s] (struck geom ``g``, other geom ``o``: ``hertz_coef(effective(m_g, M_o),
+    effective(R_g, R_o), c_g + C_o)``, the struck fields and the other's of ``drive.sound``) and
+    the most vibration energy the impact can give it, ``|J| v / 2`` [J] (``v`` the approach
+    speed; ``inf`` without one; see :func:`mjsound.synth.kernels.impacts_to_queue`)."""
+    sound = drive.sound
     obj = np.empty(2 * k, np.int64)
     P = np.empty((2 * k, 3))
     J = np.empty((2 * k, 3))
     tau = np.empty(2 * k)
     budget = np.empty(2 * k)
     n = 0
-    nm = 0
     for r in range(k):
         im = impacts[r]
         g1, g2 = im.g1, im.g2
         for side in range(2):
             g = g2 if side == 0 else g1
             other = g1 if side == 0 else g2
-            if sound[g].obj < 0:
+            s = sound[g]
+            if s.obj < 0:
                 continue
-            c = coef[sound[g].coef_row, other]
-            if not (c == c):
-                missing[nm].a = g
-                missing[nm].b = other
-                nm += 1
-                continue
+            o = sound[other]
+            c = hertz_coef(effective(s.mass, o.other_mass), effective(s.radius, o.other_radius),
+                           s.compliance + o.other_compliance)
             a = (1.0 if side == 0 else -1.0) * im.impulse
-            obj[n] = sound[g].obj
+            obj[n] = s.obj
             for q in range(3):
                 P[n, q] = im.point[q]
                 J[n, q] = a * im.normal[q]
             tau[n] = contact_time(c, im.speed)
             budget[n] = 0.5 * abs(im.impulse * im.speed) if im.speed > 0 else np.inf
             n += 1
-    return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n, nm
+    return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n
 
 
 @njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every array of its records)
 def queue_impacts(drive, synth, buf, k, t_ev):
     """The substep's impacts ``buf.impacts[:k]`` into the synthesizer's queue at synth time
-    ``t_ev`` [s] (:func:`mjsound.synth.kernels.impacts_to_queue`). Returns 0, ``-m`` when
-    ``m`` Hertz coefficients are missing (in ``buf.missing``; nothing queued) or 1 when an
+    ``t_ev`` [s] (:func:`mjsound.synth.kernels.impacts_to_queue`). Returns 0, or 1 when an
     amplitude is out of range (nothing queued)."""
-    obj, P, J, tau, budget, n, nm = impact_sides(drive, buf.impacts, k, buf.missing)
-    if nm:
-        return -nm
+    obj, P, J, tau, budget, n = impact_sides(drive, buf.impacts, k)
     t = np.full(n, t_ev)
     count, used, nxt, amax = impacts_to_queue(synth, obj, P, J, t, tau, budget)
     if not amax <= MAX_AMPLITUDE:  # (also NaN)

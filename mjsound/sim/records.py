@@ -112,13 +112,17 @@ RECORD = np.dtype([("time", f8), ("g1", i8), ("g2", i8), ("speed", f8), ("impuls
 #: 2 roll), geoms, value (impulse [N s] or speed [m/s]).
 LOG = np.dtype([("time", f8), ("kind", i8), ("g1", i8), ("g2", i8), ("value", f8)])
 
-#: What Python must supply before the kernel can go on: (row, side) without a stream, or
-#: (struck geom, other geom) without a Hertz coefficient.
+#: What Python must supply before the kernel can go on: (row, side) without a stream.
 MISSING = np.dtype([("a", i8), ("b", i8)])
 
-#: Per geom, how it sounds (owner: AudioSimulator): synthesizer object index (-1: silent),
-#: row of its Hertz coefficients (-1: silent).
-SOUND = np.dtype([("obj", i8), ("coef_row", i8)])
+#: Per geom, how it sounds (owner: AudioSimulator): synthesizer object index (-1: silent);
+#: what Hertz's contact time of its impacts (:func:`mjsound.synth.pulse.hertz_coef`) takes of
+#: it when it is struck (a sounding geom: its object's mass [kg], its radius of curvature [m],
+#: its material's compliance ``(1 - nu^2) / E`` [1/Pa]) and when it strikes a sounding geom
+#: (its body's moving subtree mass, inf: welded to the world; its contact radius, inf: flat;
+#: its material's compliance, 0: rigid or none).
+SOUND = np.dtype([("obj", i8), ("mass", f8), ("radius", f8), ("compliance", f8), ("other_mass", f8),
+                  ("other_radius", f8), ("other_compliance", f8)])
 
 #: The drive's constants (owner: AudioSimulator): slide / roll roughness [1/(m/s)] and
 #: low-pass length [m], samples between a stream's gain updates, whether sustained contacts
@@ -304,7 +308,6 @@ class DriveState(NamedTuple):
 
     prm: np.ndarray  # (1,) DRIVE_PARAMS
     sound: np.ndarray  # (ngeom,) SOUND
-    coef: np.ndarray  # (sounding geoms, ngeom) Hertz coefficient of (struck, other), NaN: not yet known
     sidx: np.ndarray  # (slots, 2) int64: stream of (pair slot, side), -1: none yet
     mic_rows: np.ndarray  # (mics,) int64: rows of the microphones' source positions
     mic_offsets: np.ndarray  # (mics, 3) [m]

@@ -28,8 +28,7 @@ def silent_drive(ngeom: int) -> DriveState:
     """A :class:`.records.DriveState` in which no geom sounds."""
     sound = np.zeros(ngeom, SOUND)
     sound["obj"] = -1
-    sound["coef_row"] = -1
-    return DriveState(np.zeros(1, DRIVE_PARAMS), sound, np.zeros((0, ngeom)), np.full((0, 2), -1, np.int64),
+    return DriveState(np.zeros(1, DRIVE_PARAMS), sound, np.full((0, 2), -1, np.int64),
                       np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64),
                       silent_pulse_state())
 

@@ -27,6 +27,7 @@ import numpy as np
 from ..synth.constants import ROLL_PATCH_M, ROLL_ROUGHNESS, SLIDE_GRAIN_M, SLIDE_ROUGHNESS
 from ..synth.dispatch import EntryPoint
 from ..synth.kernels import RENDERED
+from ..synth.pulse import compliance
 from .clock import SampleClock
 from .contacts import ContactReader
 from .drive import sync_poses
@@ -36,7 +37,7 @@ from .reports import SimulatorReports
 from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
 from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
-from .step import PULSES, AMPLITUDE, CLOCK_JUMP, HERTZ, RING, STREAMS
+from .step import PULSES, AMPLITUDE, CLOCK_JUMP, RING, STREAMS
 from .substeps import make_substeps
 from .warmup import notice_first_compile
 
@@ -159,9 +160,12 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         if not np.any(np.asarray(self.data.geom_xmat)):
             mujoco.mj_kinematics(model, self.data)  # poses for add_object (state is unchanged)
         # how each geom sounds: synthesizer object index (-1: silent, or no modes to drive) and
-        # the row of its Hertz coefficients; the moving objects with their geoms
+        # what Hertz's contact time takes of it struck and striking; the moving objects with their geoms
         self._sound = np.zeros(model.ngeom, SOUND)
         self._sound["obj"] = -1
+        self._sound["other_mass"] = self._other_mass
+        self._sound["other_radius"] = self._radius
+        self._sound["other_compliance"] = [compliance(m) for m in scene.geom_material]
         moving = {}
         prm = np.zeros(1, DRIVE_PARAMS)
         makes_pulses = needs_pulses(model, self._contact_sites, clicks)  # (clicks or contact microphones)
@@ -184,10 +188,10 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                     moving[idx] = s.geom_id  # the object's anchor: its model lives in that geom's frame
                 if self.synth.n_modes(s.name):
                     self._sound[g]["obj"] = idx
-        sounding = self._sound["obj"] >= 0
-        self._sound["coef_row"] = np.where(sounding, np.cumsum(sounding) - 1, -1)
-        # Hertz coefficient of (struck sounding geom, other geom), NaN until first needed
-        self._coef = np.full((int(sounding.sum()), model.ngeom), np.nan)
+                    r = float(self._radius[g])
+                    terms = self.synth.hertz_terms(s.name, r if np.isfinite(r) else None)
+                    for field, value in zip(("mass", "radius", "compliance"), terms):
+                        self._sound[field][g] = value
         self._dyn_obj = np.array(sorted(moving), np.int64)
         self._dyn_geoms = np.array([moving[i] for i in self._dyn_obj.tolist()], np.int64)
         self._drive_prm = prm
@@ -306,7 +310,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         if self._drive is None or self._drive.pulses is not self.pulses.state:
             mode, source, rows, offsets = self._mic_config()
             self._drive_prm[0]["mic_mode"], self._drive_prm[0]["mic_source"] = mode, source
-            self._drive = DriveState(self._drive_prm, self._sound, self._coef, self._sidx, rows, offsets,
+            self._drive = DriveState(self._drive_prm, self._sound, self._sidx, rows, offsets,
                                      self._dyn_geoms, self._dyn_obj, self.pulses.state)
         return self._drive
 
@@ -439,10 +443,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         """What the step kernel hands back: see :mod:`.step`."""
         run = self._kernel.run[0]
         buf = self.reader.buffers
-        if reason == HERTZ:
-            for g, other in buf.missing[: int(run["n_missing"])].tolist():
-                self._coef[self._sound[g]["coef_row"], other] = self._hertz_coef(g, other)
-        elif reason == STREAMS:
+        if reason == STREAMS:
             self._make_streams(buf.missing[: int(run["n_missing"])].tolist(), buf.sustained)
         elif reason == RING:
             self.synth.grow_stream_ring(int(run["need"]))
@@ -474,12 +475,6 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             if slot >= len(self._sidx):
                 self._drive_state()  # (grows the table to the reader's slots)
             self._sidx[slot, side] = j
-
-    def _hertz_coef(self, g, other) -> float:
-        """Hertz coefficient of sounding geom ``g`` struck by geom ``other``."""
-        return self.synth.hertz_coefficient(self._names[g], self.scene.geom_material[other],
-                                            float(self._other_mass[other]), float(self._radius[other]),
-                                            float(self._radius[g]) if np.isfinite(self._radius[g]) else None)
 
     # ------------------------------------------------------------------ rendering
     def flush(self) -> np.ndarray:

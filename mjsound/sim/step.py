@@ -21,7 +21,7 @@ render's stream gains) and, when ``run.render`` asks, renders the pending block
 the call) and mixes the track into it, so that an env step costs one numba call. It stops
 and hands back to Python only for what numba cannot do, with a named reason in
 ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
-:data:`SOLVE`, :data:`HERTZ`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
+:data:`SOLVE`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
 says where the substep resumes when Python calls again, and nothing of a stage is changed
 before it can finish, so the resumed substep is the same as one that never stopped.
 
@@ -49,18 +49,17 @@ from .impulses import event_impulses, normal_jacobians, write_records
 from .pairs import read_pairs
 from .records import NOT_RENDERED
 
-__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "HERTZ", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
+__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
            "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
 
 #: ``run.reason``: every substep done; ``data.time`` is not where the clock expects it (a
 #: jump or an external reset: Python re-anchors or resets, then resumes); a buffer must grow
 #: for ``run.need`` contacts; ``M^-1 Jn^T`` must come from Python (no C ``mj_solveM``: fill
-#: ``buf.minv_jt`` from ``buf.jn`` and set ``run.solved``); ``run.n_missing`` Hertz
-#: coefficients (``buf.missing``: struck, other geom) or streams (``buf.missing``: row, side)
-#: must be made; the stream rings must hold ``run.need`` samples; an impact's amplitude is out
+#: ``buf.minv_jt`` from ``buf.jn`` and set ``run.solved``); ``run.n_missing`` streams
+#: (``buf.missing``: row, side) must be made; the stream rings must hold ``run.need`` samples; an impact's amplitude is out
 #: of range (Python raises; ``run.need`` impacts in ``buf.impacts``).
-DONE, CLOCK_JUMP, ROOM, SOLVE, HERTZ, STREAMS, RING, AMPLITUDE, PULSES = range(9)
-REASONS = ("done", "clock jump", "room", "solve", "hertz", "streams", "ring", "amplitude", "pulses")
+DONE, CLOCK_JUMP, ROOM, SOLVE, STREAMS, RING, AMPLITUDE, PULSES = range(8)
+REASONS = ("done", "clock jump", "room", "solve", "streams", "ring", "amplitude", "pulses")
 #: ``run.stage``: where the current substep resumes.
 STAGE_STEP, STAGE_READ, STAGE_IMPULSES, STAGE_QUEUE, STAGE_LOG, STAGE_DRIVE = range(6)
 
@@ -223,12 +222,7 @@ def advance(table, layout, out):
                 return
             sync_poses(drive, views, synth)
             t_ev = max(rn.t0 - ck.origin / ck.fs, (rn.n0 - ck.origin) / ck.fs)
-            r = queue_impacts(drive, synth, buf, rn.n_imp, t_ev)
-            if r < 0:
-                rn.reason = HERTZ
-                rn.n_missing = -r
-                return
-            if r > 0:
+            if queue_impacts(drive, synth, buf, rn.n_imp, t_ev):
                 rn.reason = AMPLITUDE
                 rn.need = rn.n_imp
                 return

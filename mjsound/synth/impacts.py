@@ -16,7 +16,7 @@ import numpy as np
 from . import kernels
 from .constants import MAX_AMPLITUDE
 from .objects import finite_array
-from .pulse import contact_time, effective, hertz_coefficient
+from .pulse import compliance, contact_time, effective, hertz_coef
 
 __all__ = ["ImpactMethods"]
 
@@ -119,12 +119,26 @@ class ImpactMethods:
         (mass ``m2``, radius ``R2``; ``radius_m`` None: half the object's size) and the
         restitution of the pair."""
         mat1 = ob.model.material
+        m1, R1, c1 = self._struck_terms(ob, radius_m)
+        e = mat1.restitution if other_material is None else min(mat1.restitution, other_material.restitution)
+        return hertz_coef(effective(m1, m2), effective(R1, R2), c1 + compliance(other_material)), e
+
+    @staticmethod
+    def _struck_terms(ob, radius_m):
+        """``(mass [kg], radius [m], compliance [1/Pa])`` of object ``ob`` struck, for
+        :func:`.pulse.hertz_coef`: its mass (inf: unknown), ``radius_m`` (None: half the
+        object's size, inf when it has none) and its material's ``(1 - nu^2) / E``."""
         if radius_m is None:
             R1 = ob.model.size_m / 2 if ob.model.size_m > 0 else np.inf
         else:
             R1 = float(radius_m)
-        e = mat1.restitution if other_material is None else min(mat1.restitution, other_material.restitution)
-        return hertz_coefficient(effective(ob.mass, m2), effective(R1, R2), mat1, other_material), e
+        return float(ob.mass), float(R1), compliance(ob.model.material)
+
+    def hertz_terms(self, name, radius_m=None) -> tuple[float, float, float]:
+        """What Hertz's contact time (:func:`.pulse.hertz_coef`) takes of object ``name`` when
+        it is struck: ``(mass [kg], radius of curvature [m], compliance (1 - nu^2) / E
+        [1/Pa])``; ``radius_m`` None: half the object's size (inf when it has none)."""
+        return self._struck_terms(self._get(name), radius_m)
 
     def _hertz_tau(self, ob, J, other_material, m2, R2, v, radius_m):
         """Hertz contact time per impact (see :mod:`.pulse`); ``v`` None: from |J| / (m*(1+e))."""

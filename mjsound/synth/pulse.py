@@ -45,7 +45,7 @@ import numpy as np
 from ..jit import njit, njit_inner
 
 __all__ = ["hertz_contact_time", "hertz_coefficient", "compliance", "contact_time", "shell_compliance",
-           "shell_contact_time", "half_sine_spectrum", "half_sine", "half_sine_rotated", "effective", "TAU_MIN_S", "TAU_MAX_S"]
+           "shell_contact_time", "half_sine_spectrum", "half_sine", "half_sine_rotated", "effective", "hertz_coef", "TAU_MIN_S", "TAU_MAX_S"]
 
 #: Contact times are clamped to [TAU_MIN_S, TAU_MAX_S] seconds. The lower bound is far below
 #: any audible period (a 1 us pulse is flat to 100 kHz); the upper bound keeps a near-zero
@@ -54,15 +54,15 @@ TAU_MIN_S = 1e-7
 TAU_MAX_S = 1.0
 
 
-def effective(a: float, b: float) -> float:
+@njit(cache=True)
+def effective(a, b):
     """Harmonic combination ``1 / (1/a + 1/b)`` with ``inf`` meaning "absent" (rigid/huge).
 
     Returns ``inf`` when both are infinite, and 0 when either is 0 (the limit: a massless body
-    welded to a moving one has no subtree mass; its Hertz time is then the shortest, as in the
-    impact kernel's copy, ``mjsound.sim.click_kernels._effective``).
+    welded to a moving one has no subtree mass; its Hertz time is then the shortest). numba:
+    the one home of this formula, called from Python and from the per-step kernels (the modes'
+    and the clicks' Hertz times).
     """
-    a = float(a)
-    b = float(b)
     if math.isinf(a):
         return b
     if math.isinf(b):
@@ -113,14 +113,26 @@ def hertz_contact_time(m1, m2, R1, R2, mat1, mat2, v) -> float:
     v = abs(float(v))
     if math.isnan(v):
         raise ValueError("hertz_contact_time: speed v is NaN; give the normal approach speed in m/s")
-    return contact_time(hertz_coefficient(effective(m1, m2), effective(R1, R2), mat1, mat2), v)
+    m = effective(float(m1), float(m2))
+    return contact_time(hertz_coefficient(m, effective(float(R1), float(R2)), mat1, mat2), v)
 
 
 def hertz_coefficient(m, R, mat1, mat2) -> float:
     """``coef`` [s (m/s)^(1/5)] of ``tau = coef v^(-1/5)`` for effective mass ``m`` [kg] and
     radius ``R`` [m] (``inf``: immovable / flat) between ``mat1`` and ``mat2`` (``None``:
-    rigid); 0 when the contact is infinitely hard (see :func:`contact_time`)."""
-    c = compliance(mat1) + compliance(mat2)  # 1/E*
+    rigid); 0 when the contact is infinitely hard (see :func:`contact_time`).
+    :func:`hertz_coef` with the materials' compliances summed."""
+    return hertz_coef(float(m), float(R), compliance(mat1) + compliance(mat2))
+
+
+@njit(cache=True)
+def hertz_coef(m, R, c):
+    """``coef = 2.87 (m^2 / (R E*^2))^(1/5)`` [s (m/s)^(1/5)] of ``tau = coef v^(-1/5)`` for
+    effective mass ``m`` [kg], effective radius ``R`` [m] and ``c = 1 / E*``, the sum of the two
+    materials' compliances ``(1 - nu^2) / E`` [1/Pa]; 0 (infinitely hard: :func:`contact_time`
+    gives ``TAU_MIN_S``) when ``m`` or ``R`` is infinite or ``c`` is 0. numba: the one home of
+    Hertz's formula, for the modes' pulses (:func:`mjsound.sim.drive.impact_sides`), the clicks
+    (:func:`mjsound.sim.click_kernels.hertz_coefficient`) and Python (:func:`hertz_coefficient`)."""
     if math.isinf(m) or math.isinf(R) or c == 0.0:
         return 0.0
     E = 1.0 / c
