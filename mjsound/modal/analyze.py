@@ -59,7 +59,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 18  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 19  # bump when discretization or model contents change (invalidates cache)
 METHODS = ("auto", "hex", "tet", "facet", "shell")
 
 
@@ -366,12 +366,12 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     lam = np.maximum(sol.eigenvalues, 0.0)
     omega = np.sqrt(lam)
     shapes = (disc.interp @ sol.vectors).reshape(len(points), 3, -1)
-    radiation = _radiation(points, normals, shapes, omega, float(tm.area))
+    radiation, radiation_sh, centre = _radiation(points, normals, shapes, omega, float(tm.area))
     # Rayleigh damping d = (alpha + beta omega^2) / 2 plus what radiation takes away;
     # overdamped modes (d >= omega) make no tone and are dropped
     decay = 0.5 * (material.alpha + material.beta * omega**2) + radiation_damping(radiation, omega)
     under = decay < omega
-    shapes, radiation, decay = shapes[:, :, under], radiation[under], decay[under]
+    shapes, radiation, decay, radiation_sh = shapes[:, :, under], radiation[under], decay[under], radiation_sh[under]
     ex = np.zeros(disc.dofs)
     ex[0::disc.dofs_per_node] = 1.0  # rigid translation along x: e^T M e is the total mass
     mass = float(ex @ (disc.M @ ex))
@@ -409,6 +409,8 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
         normals=normals,
         shapes=shapes,
         radiation=radiation,
+        radiation_sh=radiation_sh,
+        radiation_centre=centre,
         material=material,
         method=name,
         dofs=disc.dofs,
@@ -428,19 +430,34 @@ def _radiation(points, normals, shapes, omega, area):
     ``W = rho0 c <v_n^2> A``, which at 1 m is ``R_max = rho0 c omega sqrt(A_eff / 4 pi)``
     with ``A_eff = sum_p a_p (phi . n)^2``: the weight is the smaller of the two.
 
+    The pattern is the compact one, ``F(d) = -(rho0 omega^2 / 4 pi) (Q - i k d . D)``
+    (degree 1 in spherical harmonics), scaled down with the weight where the cap applies.
+
     The radiated power is energy the mode loses: see :func:`radiation_damping`.
+
+    Returns
+    -------
+    radiation : (n,) RMS over directions [Pa m]; radiation_sh : (n, 4) complex coefficients
+    (:mod:`.sph`); centre : (3,) the point the phase refers to [m].
     """
+    from .sph import fit_coefficients, sphere_quadrature
+
+    centre = points.mean(axis=0)
     if shapes.shape[2] == 0:
-        return np.zeros(0)
+        return np.zeros(0), np.zeros((0, 4), complex), centre
     a = area / len(points)
     un = np.einsum("pcn,pc->pn", shapes.astype(np.float64), normals)  # normal displacement
     Q = a * un.sum(axis=0)
-    x = points - points.mean(axis=0)
+    x = points - centre
     D = a * np.einsum("pc,pn->cn", x, un)
     k = omega / SPEED_OF_SOUND
     compact = AIR_DENSITY * omega**2 / (4 * np.pi) * np.sqrt(Q**2 + (k * np.linalg.norm(D, axis=0)) ** 2 / 3.0)
     r_max = AIR_DENSITY * SPEED_OF_SOUND * omega * np.sqrt(a * np.einsum("pn,pn->n", un, un) / (4 * np.pi))
-    return np.minimum(compact, r_max)
+    rms = np.minimum(compact, r_max)
+    dirs, _ = sphere_quadrature(1)
+    F = -AIR_DENSITY * omega**2 / (4 * np.pi) * (Q[None, :] - 1j * k[None, :] * (dirs @ D))
+    scale = np.divide(rms, compact, out=np.zeros_like(rms), where=compact > 0)
+    return rms, fit_coefficients(1, F * scale[None, :]), centre
 
 
 def radiation_damping(radiation, omega):

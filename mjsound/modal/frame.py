@@ -70,5 +70,13 @@ def model_out_of_frame(model, frame):
     info = dict(model.info)
     info["analysis_frame"] = {"axes": Q.T.tolist(), "centre": c.tolist()}
     shapes = np.einsum("ij,pjn->pin", Q, np.asarray(model.shapes, float))
+    extra = {}
+    if model.radiation_sh is not None:  # F_model(d) = F_frame(Q^T d): resampled and refitted
+        from .sph import degree_of, fit_coefficients, sphere_quadrature
+
+        L = degree_of(model.radiation_sh.shape[1])
+        dirs, _ = sphere_quadrature(L)
+        extra = dict(radiation_sh=fit_coefficients(L, model.radiation_pattern(dirs @ Q)),
+                     radiation_centre=Q @ model.radiation_centre + c)
     return dataclasses.replace(model, points=np.asarray(model.points, float) @ Q.T + c,
-                               normals=np.asarray(model.normals, float) @ Q.T, shapes=shapes, info=info)
+                               normals=np.asarray(model.normals, float) @ Q.T, shapes=shapes, info=info, **extra)

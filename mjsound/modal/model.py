@@ -10,7 +10,11 @@ A model with ``n`` modes sampled at ``p`` surface points holds
 * ``shapes`` (p, 3, n)           mass-normalised mode shapes phi_i(x) at the points [1/sqrt(kg)]
                                  (phi^T M phi = 1): the *sound map*
 * ``radiation`` (n,)             far-field pressure at 1 m per unit modal coordinate
-                                 [Pa m / (m sqrt(kg))] (compact monopole + dipole estimate)
+                                 [Pa m / (m sqrt(kg))]: the RMS over directions of the pattern
+* ``radiation_sh`` (n, (L+1)^2)  the far-field pattern of each mode as complex coefficients on
+                                 real orthonormal spherical harmonics (:mod:`.sph`) about
+* ``radiation_centre`` (3,)      [m] in the object frame; read it with :meth:`ModalModel.radiation_pattern`
+                                 (None: no pattern, every direction gets ``radiation``)
 * ``material``, ``method``, ``dofs``, ``seconds``, ``error_estimate_cents``, ``mass_kg``,
   ``info`` (discretization details).
 
@@ -31,6 +35,7 @@ import numpy as np
 
 from ..io import commit_temp, temp_beside
 from ..materials import Material
+from .sph import degree_of, real_sph_harm
 
 __all__ = ["ModalModel", "FORMAT_VERSION"]
 
@@ -58,6 +63,8 @@ class ModalModel:
     error_estimate_cents: float = float("nan")
     mass_kg: float = float("nan")
     info: dict = field(default_factory=dict)
+    radiation_sh: np.ndarray | None = None
+    radiation_centre: np.ndarray | None = None
 
     def __post_init__(self):
         self.frequencies_hz = np.asarray(self.frequencies_hz, dtype=np.float64).reshape(-1)
@@ -69,6 +76,13 @@ class ModalModel:
         self.radiation = np.asarray(self.radiation, dtype=np.float64).reshape(-1)
         if len(self.decay_per_s) != n or len(self.radiation) != n:
             raise ValueError("ModalModel: frequencies, decay and radiation must have the same length")
+        if self.radiation_sh is not None:
+            self.radiation_sh = np.asarray(self.radiation_sh, dtype=np.complex64)
+            if self.radiation_sh.ndim != 2 or len(self.radiation_sh) != n:
+                raise ValueError("ModalModel: radiation_sh must be (n_modes, (L+1)^2)")
+            degree_of(self.radiation_sh.shape[1])
+            c = np.zeros(3) if self.radiation_centre is None else self.radiation_centre
+            self.radiation_centre = np.asarray(c, dtype=np.float64).reshape(3)
         if len(self.normals) != len(self.points):
             raise ValueError("ModalModel: points and normals must have the same length")
         if n and (not np.all(np.isfinite(self.frequencies_hz)) or np.any(self.frequencies_hz <= 0)):
@@ -99,6 +113,46 @@ class ModalModel:
         if len(self.points) < 2:
             return float(self.info.get("size_m", 0.0))
         return float(np.ptp(self.points, axis=0).max())
+
+    # ------------------------------------------------------------------ radiation
+    def radiation_pattern(self, directions) -> np.ndarray:
+        r"""Far-field pressure of each mode per unit modal coordinate in given directions.
+
+        The pressure a mode vibrating as ``q(t) = Re(Q e^{-i omega t})`` makes at distance
+        ``r`` (far field) in direction ``d`` is ``Re(F(d) Q e^{i(k r - omega t)}) / r``;
+        this returns ``F(d)`` [Pa m per m sqrt(kg)], complex: its magnitude is the amplitude at
+        1 m, its phase is referred to :attr:`radiation_centre` (a listener at ``x`` hears
+        the mode delayed by ``|x - centre| / c`` plus ``arg F / omega``). The RMS of
+        ``|F|`` over all directions is :attr:`radiation`.
+
+        Parameters
+        ----------
+        directions : (k, 3) array
+            Directions in the model's frame (normalised here; zero vectors are refused).
+
+        Returns
+        -------
+        (k, n_modes) complex128 array. A model without a stored pattern (``radiation_sh``
+        None: fitted or stub models) radiates ``radiation`` in every direction.
+
+        Examples
+        --------
+        >>> F = model.radiation_pattern([[0, 0, 1], [1, 0, 0]])  # doctest: +SKIP
+        >>> np.abs(F)  # Pa at 1 m per unit modal coordinate, up and sideways  # doctest: +SKIP
+        """
+        d = np.asarray(directions, dtype=np.float64)
+        if d.ndim == 1:
+            d = d.reshape(1, -1)
+        if d.ndim != 2 or d.shape[1] != 3:
+            raise ValueError(f"radiation_pattern: directions must be (k, 3) vectors, got shape {np.shape(directions)}")
+        norm = np.linalg.norm(d, axis=1)
+        if not np.all(np.isfinite(norm)) or np.any(norm <= 0):
+            raise ValueError("radiation_pattern: directions must be finite, non-zero vectors")
+        d = d / norm[:, None]
+        if self.radiation_sh is None:
+            return np.broadcast_to(self.radiation.astype(np.complex128), (len(d), self.n_modes)).copy()
+        Y = real_sph_harm(degree_of(self.radiation_sh.shape[1]), d)
+        return Y @ self.radiation_sh.astype(np.complex128).T
 
     # ------------------------------------------------------------------ sound map
     def nearest_points(self, points: np.ndarray) -> np.ndarray:
@@ -146,6 +200,7 @@ class ModalModel:
             decay_per_s=self.decay_per_s[keep],
             shapes=self.shapes[:, :, keep],
             radiation=self.radiation[keep],
+            radiation_sh=None if self.radiation_sh is None else self.radiation_sh[keep],
             info=dict(self.info),
         )
 
@@ -204,6 +259,8 @@ class ModalModel:
                     normals=self.normals,
                     shapes=self.shapes,
                     radiation=self.radiation,
+                    **({} if self.radiation_sh is None else
+                       dict(radiation_sh=self.radiation_sh, radiation_centre=self.radiation_centre)),
                     meta=np.array(json.dumps(self.metadata(), default=_json_default)),
                 )
             commit_temp(tmp, path)
@@ -224,6 +281,9 @@ class ModalModel:
                 if meta.get("format_version") != FORMAT_VERSION:
                     raise ValueError(f"format version {meta.get('format_version')} != {FORMAT_VERSION}")
                 arrays = {k: z[k] for k in ("frequencies_hz", "decay_per_s", "points", "normals", "shapes", "radiation")}
+                for k in ("radiation_sh", "radiation_centre"):  # absent: a model without a pattern
+                    if k in z.files:
+                        arrays[k] = z[k]
         except ValueError as exc:
             raise ValueError(f"{path}: not a valid mjsound model ({exc})") from exc
         except Exception as exc:  # zipfile.BadZipFile, KeyError, OSError, EOFError ...
