@@ -208,6 +208,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.clock = SampleClock(self.sample_rate, float(model.opt.timestep), float(self.data.time))
         notice_first_compile()
         use_c = fused and os.environ.get("MJSOUND_FUSED", "1") != "0"
+        self._use_c = use_c
         self._kernel = StepKernel(model, self.data, self.reader, clock=self.clock.rec, use_c=use_c)
         self._fused = use_c and self._kernel.can_step
         if use_c and not self._fused:
@@ -271,10 +272,13 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.clock.rec[0]["origin"] = n
 
     def _clock_jump(self) -> None:
-        """``data.time`` or the timestep no longer match the count: restart counting at this
-        step (the step just taken ends at ``data.time``). Backwards in time is a reset the
-        simulator was not told about: the ringing is cleared (the samples counted so far are
-        rendered first and come out with the next block)."""
+        """``data.time`` or the timestep no longer match the count. A new timestep: restart
+        counting at this step (the step just taken ends at ``data.time``). Backwards in time is
+        a reset the simulator was not told about (``mj_resetData`` between episodes): the
+        ringing is cleared and counting restarts (the samples counted so far are rendered first
+        and come out with the next block). Time that did not advance or advanced by more than
+        one step raises (:meth:`_time_error`): the contacts of skipped steps were never read,
+        and data that is not stepped any more gives no sound to read."""
         c = self.clock
         dt = float(self._opt.timestep)
         t_new = float(self.data.time) - dt
@@ -286,8 +290,77 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                 self._held.append(self._render_pending())
             self._reset_at(t_new, keep_observer=True)
             return
+        if dt == c.timestep:
+            raise self._time_error()
         n_prev = c.n
         c.anchor(dt, t_new)
+        self._origin += c.n - n_prev
+
+    def _time_error(self) -> RuntimeError:
+        """The error for a step whose ``data.time`` is not one timestep after the last one read."""
+        c = self.clock
+        t, t_last, dt = float(self.data.time), c.time_at(c.k), c.timestep
+        if abs(t - t_last) <= 0.25 * dt:
+            return RuntimeError(
+                f"mjsound: data.time ({t:.9g} s) has not advanced since the last step read: this simulator's MjData "
+                "is not the one being stepped (an env that rebuilt its MjModel/MjData on reset, e.g. robosuite's hard "
+                "reset or a dm_control composer env: call sim.rebind(model, data) with the new ones), or step() "
+                "was called without an mj_step before it")
+        return RuntimeError(
+            f"mjsound: data.time advanced by {t - t_last:.6g} s ({(t - t_last) / dt:.4g} timesteps of {dt:g} s) since "
+            "the last step read: the contacts of the skipped steps were never read. Call sim.step() after every "
+            "mj_step (in an env's own substep loop: sim.step(render=False) after each mj_step, then sim.flush() "
+            "once per env step), or let sim.advance(n) step the physics; after setting data.time yourself, call "
+            "sim.reset()")
+
+    def rebind(self, model, data=None) -> None:
+        """Follow a new ``MjModel`` / ``MjData`` of the same scene (an env that rebuilds them
+        on reset: robosuite's hard reset, a dm_control composer env's new ``Physics``).
+
+        The analysed scene, the synthesizer and everything ringing are kept; the clock is
+        anchored at the new ``data.time`` with the output's sample count continuing where it
+        was (samples pending from the old data stay pending: the next render returns them).
+        Call :meth:`reset` as well to silence the ringing and restart at the new time, as an
+        env reset usually does.
+
+        Parameters
+        ----------
+        model : mujoco.MjModel
+            The new model: the same geoms and bodies as the simulator's (same counts, geom
+            types and geom-to-body map).
+        data : mujoco.MjData, optional
+            Its data (created when omitted).
+
+        Raises
+        ------
+        ValueError
+            When ``model`` is not of the same scene (then build a new ``AudioSimulator``,
+            passing ``scene=`` of an equal model reuses the analysed objects).
+        """
+        mujoco = self._mj
+        if not isinstance(model, mujoco.MjModel):
+            raise TypeError(f"rebind: model must be a mujoco.MjModel, got {type(model).__name__}")
+        if data is None:
+            data = mujoco.MjData(model)
+        old = self.model
+        for what in ("ngeom", "nbody", "nv", "nsite"):
+            if getattr(model, what) != getattr(old, what):
+                raise ValueError(f"rebind: the new model has {what}={getattr(model, what)}, the simulator's "
+                                 f"{getattr(old, what)}: not the same scene; build a new AudioSimulator for it")
+        for what in ("geom_bodyid", "geom_type"):
+            if not np.array_equal(getattr(model, what), getattr(old, what)):
+                raise ValueError(f"rebind: the new model's {what} differs from the simulator's: not the same scene; "
+                                 "build a new AudioSimulator for it")
+        self.model, self.data, self._opt = model, data, model.opt
+        self.reader.model = model
+        if not np.any(np.asarray(data.geom_xmat)):
+            mujoco.mj_kinematics(model, data)  # (poses for the moving objects and microphones)
+        self._kernel = StepKernel(model, data, self.reader, clock=self.clock.rec, use_c=self._use_c)
+        self._fused = self._use_c and self._kernel.can_step
+        self._substeps = make_substeps(self)
+        c = self.clock
+        n_prev = c.n
+        c.anchor(float(model.opt.timestep), float(data.time))
         self._origin += c.n - n_prev
 
     # ------------------------------------------------------------------ the kernel's inputs
