@@ -223,7 +223,7 @@ def test_bowl_draft_error_estimate_within_a_factor_of_two():
     asymptotic range: the estimate uses order 1.8 there (3.3 from 33 per side up), and is
     within a factor of two of the measured error (measured 9.5 c RMS, estimate 9.6; with 3.3
     it said 2.7)."""
-    from mjsound.modal.analyze import FACET_DRAFT_ERROR_ORDER, FACET_ERROR_ORDER, facet_error_order
+    from mjsound.modal.error_estimate import FACET_DRAFT_ERROR_ORDER, FACET_ERROR_ORDER, facet_error_order
     from mjsound.report.accuracy_modal import BOWL_REFERENCE
 
     assert facet_error_order(16) == FACET_DRAFT_ERROR_ORDER and facet_error_order(50) == FACET_ERROR_ORDER

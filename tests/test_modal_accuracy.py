@@ -147,7 +147,7 @@ def test_round_rod_draft_estimate_from_the_length_alone():
     measured error (the staircase's order and the nominal 1.5 made it 49.7 cents against
     10). A grid coarsened along every axis keeps the nominal ratio and order; the same
     grid gives no estimate."""
-    from mjsound.modal.analyze import _hex_coarsening
+    from mjsound.modal.error_estimate import hex_coarsening as _hex_coarsening
     from mjsound.report.accuracy_modal import SHAPES, match_modes, references
 
     tm = load_mesh(SHAPES["rod"]["mesh"])

@@ -214,7 +214,7 @@ def test_hex_error_estimate_order_follows_the_voxels_fit():
     solid; the beam's estimate at default quality is within a factor of two of its measured
     error against the 3D bending references (order 2 overstated it 3.9x)."""
     from mjsound.geometry import load_mesh
-    from mjsound.modal.analyze import hex_error_order
+    from mjsound.modal.error_estimate import hex_error_order
     from mjsound.report.accuracy_modal import BEAM_BENDING_3D
 
     assert hex_error_order(load_mesh("box:0.5,0.01,0.01"), 2) == 4.0

@@ -64,6 +64,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .band import F_MIN_HZ
 from .banded import band_ldlt, band_solver, band_width
 from .block_lanczos import (BLOCK_TOL, PROJECT_SPLIT_MIN, SERIAL_PRODUCTS_DOFS, _block_band, _project_out,  # noqa: F401
                             _SplitSolve, single_threaded_blas)
@@ -71,7 +72,7 @@ from .node_mass import mass_rows
 from .pardiso import PARDISO_MIN_DOFS, backend_name, count_below, factorize, factorize_indefinite  # noqa: F401
 from .pencil import Pencil
 
-__all__ = ["solve_band", "factorize", "count_below", "BandSolution", "backend_name"]
+__all__ = ["solve_band", "solve_modes", "factorize", "count_below", "BandSolution", "backend_name"]
 
 
 class BandSolution:
@@ -147,6 +148,40 @@ def solve_band(
         return _solve_band(K, M, lam_min, lam_max, dense_max, slice_modes, backend, progress, max_modes, t0,
                            node_mass)
 
+
+def solve_modes(disc, f_max: float, progress: bool = False, max_modes=None) -> BandSolution:
+    """Every mode of a discretization from :data:`.band.F_MIN_HZ` to ``f_max`` [Hz]
+    (:func:`solve_band` on ``disc.K``, ``disc.M``), with a progress bar if ``progress``.
+
+    Parameters
+    ----------
+    disc : Discretization
+        Stiffness ``K``, mass ``M`` and optional lumped ``node_mass``.
+    f_max : float
+        Top of the band [Hz].
+    progress : bool
+        Show a tqdm bar of the solve's progress.
+    max_modes : int, optional
+        Keep at most this many (lowest) modes.
+    """
+    lam_min = (2 * np.pi * F_MIN_HZ) ** 2
+    lam_max = (2 * np.pi * f_max) ** 2
+    bar = None
+    cb = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=100, desc=f"modes to {f_max / 1000:.1f} kHz ({disc.dofs} dofs)", unit="%", leave=False)
+
+        def cb(frac):
+            bar.n = int(round(100 * frac))
+            bar.refresh()
+
+    try:
+        return solve_band(disc.K, disc.M, lam_min, lam_max, progress=cb, max_modes=max_modes, node_mass=disc.node_mass)
+    finally:
+        if bar is not None:
+            bar.close()
 
 def _one_thread_if_small(n: int):
     """BLAS on one thread for a solve of ``n < SERIAL_PRODUCTS_DOFS`` dofs (the dense path,
