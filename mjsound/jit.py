@@ -47,7 +47,7 @@ _ROOT = os.path.dirname(os.path.abspath(__file__))
 #: belongs to ``"sim"``.
 KERNEL_GROUPS = {
     "modal": ("modal",),
-    "sim": ("sim", "synth", "report", "wrappers.py", "limits.py", "materials.py", "jit.py"),
+    "sim": ("sim", "synth", "report", "audio_window.py", "limits.py", "materials.py", "jit.py"),
 }
 
 njit = numba.njit

@@ -1,0 +1,172 @@
+"""The audio side of an environment wrapper (:class:`EnvAudio`): the scene built from the env's
+model with a default material (:func:`scene_materials`, :func:`build_scene`), the simulator, a
+listener that follows the robot, the observation window (:mod:`mjsound.audio_window`) and the
+step's info entries. Shared by gymnasium's :class:`mjsound.wrappers.AudioObservation` and
+dm_control's :class:`mjsound.dmc.AudioEnvironment`."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from .audio_window import AudioWindow
+from .synth.contact_mic import check_contact_full_scale
+
+__all__ = ["EnvAudio", "audible_geoms", "build_scene", "scene_materials"]
+
+
+def scene_materials(materials=None, default_material=None) -> dict:
+    """The ``materials`` mapping for :meth:`SoundScene.from_model` with a default.
+
+    ``default_material`` becomes the ``"*"`` entry (the material of every geom that has none
+    otherwise) unless ``materials`` has its own ``"*"``; ``None`` leaves those geoms silent.
+    Keys are checked by the scene (an unknown one is an error listing the closest names).
+    """
+    mapping = dict(materials or {})
+    if default_material is not None:
+        mapping.setdefault("*", default_material)
+    return mapping
+
+
+def build_scene(model, mapping, sample_rate, quality="draft", method="auto", microphones=None,
+                budget_modes=None, progress=True, models=None, **scene_kw):
+    """:meth:`SoundScene.from_model` as the wrappers use it: no error estimate (a second,
+    coarser solve that only reports accuracy: about 2/3 of the time of a small model), models
+    memoised per process (several copies of one env analyse once) and disk-cached."""
+    from .sim.scene import SoundScene
+
+    return SoundScene.from_model(model, materials=mapping, microphones=microphones, budget_modes=budget_modes,
+                                 sample_rate=sample_rate, quality=quality, progress=progress, method=method,
+                                 models=models, error_estimate=False, **scene_kw)
+
+
+class EnvAudio:
+    """The audio side of an environment wrapper (gymnasium's :class:`AudioObservation` and
+    dm_control's :class:`mjsound.dmc.AudioEnvironment`): scene, simulator, listener, window.
+
+    Parameters are those of :class:`AudioObservation` (there documented), plus the physics
+    ``model``, ``data`` and the env step ``dt`` [s]. The wrapper steps the physics through
+    :attr:`sim` (``sim.substeps(n)`` or ``sim.step(render=False)`` after every ``mj_step``),
+    calls :meth:`reset` after the env's reset and :meth:`end_step` after each env step.
+    """
+
+    def __init__(self, model, data, dt, sample_rate=16000, window_s=None, mode="waveform", mics=None,
+                 materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
+                 follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
+                 objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True):
+        import mujoco
+
+        from .sim.simulator import AudioSimulator
+
+        if mode not in ("waveform", "spectrogram"):
+            raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
+        fsp = float(full_scale_pa)
+        if not (math.isfinite(fsp) and fsp > 0):
+            raise ValueError(f"full_scale_pa={full_scale_pa!r} must be a positive pressure [Pa]")
+        fsc = check_contact_full_scale(contact_full_scale)
+        from .limits import check_array_bytes, check_duration, check_sample_rate
+
+        self.sample_rate = check_sample_rate(sample_rate)
+        if mode == "spectrogram" and (isinstance(n_fft, bool) or not isinstance(n_fft, (int, np.integer)) or n_fft < 2):
+            raise ValueError(f"n_fft={n_fft!r} must be an integer >= 2 (samples per STFT frame), e.g. 256")
+        window = int(round((dt if window_s is None else check_duration(window_s, "window_s")) * self.sample_rate))
+        check_array_bytes(4.0 * window * max(1, len(mics) if mics is not None else 1), f"window_s={window_s}",
+                          "give the audio window in seconds (default: one env step)")
+        if window < 2:
+            raise ValueError(f"audio window of {window} samples is too short (window_s={window_s}, dt={dt})")
+        self.window = window
+        mic_arg = None if mics is None else (list(mics) if len(mics) and isinstance(mics[0], str) else np.asarray(mics, float))
+        self.scene = build_scene(model, scene_materials(materials, default_material), self.sample_rate,
+                                 quality=quality, microphones=mic_arg, budget_modes=budget_modes, progress=progress,
+                                 models=models, objects=objects, sound_meshes=sound_meshes)
+        self.sim = AudioSimulator(model, data, scene=self.scene, sample_rate=self.sample_rate, progress=False,
+                                  **{"keep_events": 0, "contact_mics": contact_mics, "clicks": clicks,
+                                     **(sim_kwargs or {})})
+        self.n_channels = self.sim.n_channels
+        # contact channels [m/s^2] enter the window in the air channels' full-scale units
+        self._contact = self.sim.contact_channels
+        self._contact_gain = fsp / fsc
+        # listener that follows a body (translation only; AudioSimulator.follow)
+        if mics is None and not self.scene.mic_site_ids and follow is not None and self.sim.synth is not None:
+            if follow == "auto":
+                body = 1 if model.nbody > 1 and model.body_weldid[1] != 0 else None
+            else:
+                body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, str(follow))
+                if body < 0:
+                    raise ValueError(f"follow={follow!r}: no such body")
+            if body is not None:
+                d0 = mujoco.MjData(model)
+                mujoco.mj_forward(model, d0)
+                self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
+        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
+        # (the step kernel counts the impacts on these geoms: info["audio_impacts"])
+        self.sim.reader.set_audible(audible_geoms(model, self.scene, self.sim))
+        self._rng = None
+        self._audible_seen = 0
+        self._clip_reported = False
+
+    def reset(self, seed=None) -> dict:
+        """After the env's reset: silence, re-anchor the clock at ``data.time``, draw the noise
+        seed from the wrapper's generator (seeded by ``seed`` when given). Returns the info
+        entries."""
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(seed)
+        if self.sim.synth is not None:
+            self.sim.synth.seed = int(self._rng.integers(2**31 - 1))
+        self.sim.reset()  # (moves a following listener to its body)
+        self.audio.reset()
+        self._audible_seen = self.sim.reader.n_audible
+        return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
+
+    @property
+    def _audible(self) -> np.ndarray:
+        """(ngeom,) bool: the geoms whose impacts are heard (the reader's flags, set from
+        :func:`audible_geoms`)."""
+        return self.sim.reader.geoms["audible"].astype(bool)
+
+    def _audible_impacts(self) -> int:
+        """Impacts since the last call that make a sound (:func:`audible_geoms`, counted by
+        the step kernel: ``ContactReader.set_audible``)."""
+        n = self.sim.reader.n_audible
+        new = n - self._audible_seen if n >= self._audible_seen else n  # (the reader was reset: a clock jump)
+        self._audible_seen = n
+        return new
+
+    def _report_clipping(self, clipped: int, peak: float) -> None:
+        """Warn, once per env, that the observation clipped (the agent hears a distorted
+        sound; ``info["audio_clipped"]`` keeps counting)."""
+        self._clip_reported = True
+        fsp = self.audio.full_scale_pa
+        knobs = f"full_scale_pa (now {fsp:g} Pa)"
+        if len(self._contact):
+            knobs += f" or, for the contact channels, contact_full_scale (now {fsp / self._contact_gain:g} m/s^2)"
+        warnings.warn(f"mjsound: the audio observation clipped: {clipped} sample(s) beyond full scale this step, "
+                      f"peak {peak:.3g} Pa (NaN counts as clipped); a larger {knobs} keeps such steps undistorted. "
+                      "The step's info counts every step's (audio_clipped; dm_control: last_info); reported once "
+                      "per env", RuntimeWarning, stacklevel=4)
+
+    def end_step(self) -> tuple[np.ndarray, dict]:
+        """After an env step: render its audio; returns ``(audio observation, info entries)``."""
+        block = self.sim.flush()
+        if len(self._contact):
+            block[self._contact] *= self._contact_gain
+        audio = self.audio
+        clipped, peak = audio.push(block)
+        if clipped and not self._clip_reported:
+            self._report_clipping(clipped, peak)
+        info = {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": block.shape[1],
+                "audio_impacts": self._audible_impacts()}
+        return audio.observe(), info
+
+
+def audible_geoms(model, scene, sim) -> np.ndarray:
+    """(ngeom,) bool: whether an impact on the geom is heard: it belongs to a sounding object
+    (modes), or its body clicks (clicks on, the body moves: not welded to the world, not mocap,
+    with mass; :mod:`mjsound.sim.clicks`), or its body carries a contact microphone."""
+    audible = np.zeros(model.ngeom, bool)
+    for s in scene.sounding:
+        audible[list(s.geom_ids)] = True
+    audible |= sim.pulses.audible_bodies()[np.asarray(model.geom_bodyid)]
+    return audible
