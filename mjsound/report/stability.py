@@ -283,7 +283,7 @@ def case_timesteps(quick):
 
     from ..sim.scene import SoundScene
     from ..sim.simulator import AudioSimulator
-    from .accuracy import E2E_MATERIALS, E2E_MIC, E2E_XML
+    from .accuracy_e2e import E2E_MATERIALS, E2E_MIC, E2E_XML
 
     rows = []
     dur = 0.15
@@ -542,7 +542,7 @@ def run_report(quick: bool = False, output=None, hostile: bool = True) -> int:
     ``output`` (a file, or a directory for ``DIR/stability.md``). Returns the exit status (1
     if any case fails)."""
     from . import hostile as hostile_report
-    from .accuracy import machine_info
+    from .measure import machine_info
 
     info = machine_info()
     t0 = time.perf_counter()
