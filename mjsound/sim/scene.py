@@ -38,24 +38,25 @@ omega_i``). Every truncation is listed in :meth:`SoundScene.report`.
 
 from __future__ import annotations
 
-import heapq
 import os
-import warnings
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..materials import Material, get_material, parse_material
+from ..materials import Material
+from ..modal.band import default_f_max
 from ..modal.model import ModalModel
 from .objects import (checked_mapping, checked_names, close_names, custom_materials, custom_texts,  # noqa: F401
                       geom_mesh_spec, geom_name, group_objects, plan_object, unique_names)  # (geom_mesh_spec re-exported)
 from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, AnalysisOptions, _analyze_with_fallback,  # noqa: F401
                              _finite_or_none, _mode_cap, _sphere_inaudible, _surface_notes, check_masses,
                              object_model, warn_unheard)  # (re-exported)
+from .scene_budget import share_budget
+from .scene_materials import assign_materials, warn_unknown_texts
+from .scene_mics import place_microphones
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
-
-_SILENT_WORDS = {"none", "silent", "off", ""}
 
 #: Estimated frequency errors above this are flagged in the report [cents].
 ERROR_FLAG_CENTS = 50.0
@@ -241,218 +242,34 @@ class SoundScene:
         scene = cls(model=model, budget_modes=budget_modes, sample_rate=int(sample_rate))
         materials = checked_mapping(model, materials, "materials", allow_star=True)
         mesh_texts = custom_texts(model, "mjsound-mesh:")
-        _warn_unknown_texts(model, mesh_texts, "mjsound-mesh:", mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
+        warn_unknown_texts(model, mesh_texts, "mjsound-mesh:", mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
         mesh_texts = {k: v for k, v in mesh_texts.items() if k in checked_names(model)}
         sound_meshes = {**mesh_texts, **checked_mapping(model, sound_meshes, "sound_meshes", allow_star=False)}
         models = dict(models or {})
         custom = custom_materials(model)
-        _warn_unknown_texts(model, custom, "mjsound:", mujoco.mjtObj.mjOBJ_GEOM)
+        warn_unknown_texts(model, custom, "mjsound:", mujoco.mjtObj.mjOBJ_GEOM)
         star = materials.pop("*", None)
 
-        # ---------------------------------------------------------------- materials
-        pair_geoms = set(np.asarray(model.pair_geom1).tolist()) | set(np.asarray(model.pair_geom2).tolist())
-        todo, sources = [], []
-        named = set()  # geoms whose material the user named (mapping or custom text)
-        for g in range(model.ngeom):
-            gname = geom_name(model, g)
-            bname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[g])) or ""
-            mat, source = None, None
-            raw_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
-            for key in (raw_name, gname, g, bname):
-                if key not in ("", None) and key in materials:
-                    mat, source = materials[key], "mapping"
-                    break
-            if source is None and raw_name and raw_name in custom:
-                mat, source = custom[raw_name], "custom"
-            if source is None and model.geom_matid[g] >= 0:
-                mname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MATERIAL, int(model.geom_matid[g])) or ""
-                try:
-                    mat, source = get_material(mname), "mjcf-material"
-                except KeyError:
-                    mat, source = None, None
-            if source is None and star is not None:
-                mat, source = star, "default"
-            if mat is not None and not isinstance(mat, Material):
-                if isinstance(mat, str) and mat.strip().lower() in _SILENT_WORDS:
-                    mat = None
-                else:
-                    try:
-                        mat = parse_material(mat)
-                    except (KeyError, ValueError) as exc:
-                        raise ValueError(f"geom {gname!r}: bad acoustic material ({source}): {exc}") from exc
-            scene.geom_material.append(mat)
-            sources.append(source)
-            collides = bool(model.geom_contype[g] or model.geom_conaffinity[g] or g in pair_geoms)
-            gtype = int(model.geom_type[g])
-            if not collides:
-                scene.silent[gname] = "cannot collide (contype = conaffinity = 0)"
-            elif mat is None:
-                scene.silent[gname] = "no acoustic material"
-            elif gtype == mujoco.mjtGeom.mjGEOM_PLANE:
-                scene.silent[gname] = f"plane (never analysed; material {mat.name} used for contacts)"
-            elif gtype in (mujoco.mjtGeom.mjGEOM_HFIELD, getattr(mujoco.mjtGeom, "mjGEOM_SDF", -99)):
-                scene.silent[gname] = "height field / SDF (not analysed)"
-            else:
-                todo.append(g)
-                if source in ("mapping", "custom"):
-                    named.add(g)
-
-        # ---------------------------------------------------------------- objects
-        groups = group_objects(model, todo, scene.geom_material, objects)
-        per_body = np.bincount([int(model.geom_bodyid[m[0]]) for m in groups], minlength=model.nbody)
-        plans = [plan_object(model, members, sound_meshes, scene.geom_material[members[0]], sources[members[0]],
-                             alone=per_body[int(model.geom_bodyid[members[0]])] == 1)
-                 for members in groups]
-        unique_names(plans)
-        unused = set(sound_meshes) - {p["sound_key"] for p in plans}
-        if unused:
-            k = sorted(unused, key=str)[0]
-            raise ValueError(f"sound mesh for {k!r}: no sounding object is named so (the geom or body has no acoustic "
-                             f"material or cannot collide; see the keys of materials=){close_names(str(k), [p['name'] for p in plans])}")
-        unknown = set(models) - {p["name"] for p in plans}
-        if unknown:
-            names = [p["name"] for p in plans]
-            k = sorted(unknown)[0]
-            raise ValueError(f"models: no sounding object named {k!r}{close_names(k, names)}; "
-                             f"the objects are {', '.join(map(repr, names)) or 'none'}")
-
-        # ---------------------------------------------------------------- analysis
-        import time as _time
-
-        t0 = _time.perf_counter()
-        analysed = []
-        from ..modal.band import default_f_max
-
+        assigned = assign_materials(model, materials, custom, star)
+        scene.geom_material, scene.silent = assigned.materials, assigned.silent
+        plans = _plan_objects(model, assigned, objects, sound_meshes, models)
+        t0 = time.perf_counter()
         f_max = default_f_max(sample_rate)
-        bar = None
         options = AnalysisOptions(method, quality, int(sample_rate), max_modes_per_object, bool(error_estimate),
                                   bool(cache))
-        try:
-            for done, plan in enumerate(plans):
-                name, members, mat = plan["name"], plan["members"], plan["material"]
-                if bar is not None:
-                    bar.set_postfix_str(name, refresh=False)
-                mm, notes = models.get(name), []
-                inaudible = _sphere_inaudible(model, members[0], mat, sample_rate) if len(members) == 1 and \
-                    plan["sound_mesh"] is None else None
-                if mm is None and inaudible:
-                    scene.silent[name] = inaudible
-                elif mm is None:
-                    def start_bar():  # (at the first object to analyse)
-                        nonlocal bar
-                        if progress and bar is None:
-                            bar = _progress_bar(len(plans), done, name)
-
-                    mm, notes = object_model(plan, options, start_bar)
-                    if mm is None:
-                        scene.silent[name] = "analysis failed (see warning)"
-                if bar is not None:
-                    bar.update(1)
-                if mm is None:
-                    continue
-                if mm.n_modes == 0:
-                    scene.silent[name] = f"no audible modes (none between 20 Hz and f_max {mm.info.get('f_max', f_max) / 1000:.1f} kHz)"
-                    continue
-                notes.extend(_surface_notes(mm))
-                body = int(model.geom_bodyid[members[0]])
-                analysed.append(
-                    SoundingGeom(
-                        geom_id=members[0], body_id=body, name=name, material=mat, model=mm,
-                        n_modes_analysed=mm.n_modes, source=plan["source"], mesh=plan["label"],
-                        dynamic=bool(model.body_weldid[body] != 0), method=str(mm.method),
-                        geom_ids=tuple(members), notes=notes,
-                    )
-                )
-        finally:
-            if bar is not None:
-                bar.close()
+        analysed = _analyse_objects(model, plans, models, options, scene.silent, progress)
         for plan in plans:
-            plan["named"] = any(g in named for g in plan["members"])
-        scene.analysis_seconds = _time.perf_counter() - t0
+            plan["named"] = any(g in assigned.named for g in plan["members"])
+        scene.analysis_seconds = time.perf_counter() - t0
         scene.sounding = analysed
         warn_unheard(scene, [p for p in plans if p["named"] and p["name"] in scene.silent], f_max)
         check_masses(scene)
-        scene._apply_budget()
-        scene._setup_microphones(microphones)
+        scene.budget_notes = share_budget(scene.sounding, budget_modes)
+        scene.mic_site_ids, scene.mic_positions, scene.mic_names = place_microphones(model, scene.sounding,
+                                                                                     microphones)
         return scene
 
-    # ------------------------------------------------------------------ budget
-    def _apply_budget(self) -> None:
-        total = sum(s.model.n_modes for s in self.sounding)
-        if self.budget_modes is None or total <= self.budget_modes or not self.sounding:
-            return
-        budget = int(self.budget_modes)
-        n_geoms = len(self.sounding)
-        floor = max(1, min(8, budget // (2 * n_geoms)))
-        counts = [min(s.model.n_modes, floor) for s in self.sounding]
-        scores = [_mode_loudness(s.model) for s in self.sounding]
-        left = budget - sum(counts)
-        heap = [(-scores[i][counts[i]], i) for i in range(n_geoms) if counts[i] < len(scores[i])]
-        heapq.heapify(heap)
-        while left > 0 and heap:
-            _, i = heapq.heappop(heap)
-            counts[i] += 1
-            left -= 1
-            if counts[i] < len(scores[i]):
-                heapq.heappush(heap, (-scores[i][counts[i]], i))
-        for s, n in zip(self.sounding, counts):
-            if n < s.model.n_modes:
-                f_top = s.model.frequencies_hz[n - 1] if n else 0.0
-                self.budget_notes.append(
-                    f"{s.name}: {s.model.n_modes} -> {n} modes (budget {budget}; kept up to {f_top:.0f} Hz)"
-                )
-                s.model = s.model.truncated(n_modes=n)
-        if sum(counts) > budget:
-            self.budget_notes.append(
-                f"budget {budget} < {sum(counts)}: every sounding geom keeps at least {floor} modes"
-            )
-
     # ------------------------------------------------------------------ microphones
-    def _setup_microphones(self, microphones) -> None:
-        mujoco = _mujoco()
-        model = self.model
-        data = mujoco.MjData(model)
-        mujoco.mj_forward(model, data)
-        if microphones is None:
-            ids = []
-            for s in range(model.nsite):
-                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or ""
-                if name.lower().startswith("mic"):
-                    ids.append(s)
-            if ids:
-                self.mic_site_ids = ids
-            else:
-                self.mic_positions = np.asarray([self._default_listener(data)])
-                self.mic_names = ["listener"]
-                return
-        elif len(microphones) and isinstance(microphones[0], str):
-            ids = []
-            for name in microphones:
-                sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
-                if sid < 0:
-                    raise ValueError(f"microphone site {name!r} not in the model")
-                ids.append(sid)
-            self.mic_site_ids = ids
-        else:
-            pos = np.asarray(microphones, dtype=np.float64).reshape(-1, 3)
-            if not np.isfinite(pos).all():
-                raise ValueError("microphone positions must be finite")
-            self.mic_positions = pos
-            self.mic_names = [f"mic{i}" for i in range(len(pos))]
-            return
-        self.mic_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) for s in self.mic_site_ids]
-        self.mic_positions = np.array(data.site_xpos[self.mic_site_ids], dtype=np.float64)
-
-    def _default_listener(self, data) -> np.ndarray:
-        """1 m from the scene centre, 30 degrees above the horizon, towards -y [m]."""
-        if self.sounding:
-            pts = np.array([data.geom_xpos[s.geom_id] for s in self.sounding])
-        else:
-            dyn = [b for b in range(1, self.model.nbody)]
-            pts = np.array(data.xpos[dyn]) if dyn else np.zeros((1, 3))
-        centre = pts.mean(axis=0) if len(pts) else np.zeros(3)
-        return centre + np.array([0.0, -np.cos(np.pi / 6), np.sin(np.pi / 6)])
-
     @property
     def mics_move(self) -> bool:
         """Whether any microphone site sits on a moving body."""
@@ -540,18 +357,79 @@ class SoundScene:
 
 
 # ---------------------------------------------------------------------- helpers
-def _warn_unknown_texts(model, texts: dict, prefix: str, *kinds) -> None:
-    """Warn about MJCF custom texts ``PREFIX + NAME`` whose NAME is no object of ``kinds`` (a typo
-    would do nothing; a text for a geom that a templated scene left out is harmless, so a warning,
-    not an error)."""
-    mujoco = _mujoco()
-    for key in texts:
-        if all(mujoco.mj_name2id(model, kind, key) < 0 for kind in kinds):
-            names = [mujoco.mj_id2name(model, kind, i) for kind in kinds
-                     for i in range({mujoco.mjtObj.mjOBJ_GEOM: model.ngeom, mujoco.mjtObj.mjOBJ_BODY: model.nbody}[kind])]
-            warnings.warn(f"mjsound: MJCF custom text '{prefix}{key}' names nothing in this model (it is ignored)"
-                          f"{close_names(key, [n for n in names if n])}", UserWarning, stacklevel=4)
+def _plan_objects(model, assigned, objects: str, sound_meshes: dict, models: dict) -> list:
+    """The scene's objects (:func:`.objects.group_objects`, :func:`.objects.plan_object`) from
+    the geoms that can sound (``assigned``: :func:`.scene_materials.assign_materials`), uniquely
+    named; a key of ``sound_meshes`` or ``models`` that names no object is an error listing the
+    closest names."""
+    groups = group_objects(model, assigned.sounding, assigned.materials, objects)
+    per_body = np.bincount([int(model.geom_bodyid[m[0]]) for m in groups], minlength=model.nbody)
+    plans = [plan_object(model, members, sound_meshes, assigned.materials[members[0]], assigned.sources[members[0]],
+                         alone=per_body[int(model.geom_bodyid[members[0]])] == 1)
+             for members in groups]
+    unique_names(plans)
+    unused = set(sound_meshes) - {p["sound_key"] for p in plans}
+    if unused:
+        k = sorted(unused, key=str)[0]
+        raise ValueError(f"sound mesh for {k!r}: no sounding object is named so (the geom or body has no acoustic "
+                         f"material or cannot collide; see the keys of materials=){close_names(str(k), [p['name'] for p in plans])}")
+    unknown = set(models) - {p["name"] for p in plans}
+    if unknown:
+        names = [p["name"] for p in plans]
+        k = sorted(unknown)[0]
+        raise ValueError(f"models: no sounding object named {k!r}{close_names(k, names)}; "
+                         f"the objects are {', '.join(map(repr, names)) or 'none'}")
+    return plans
 
+
+def _analyse_objects(model, plans: list, models: dict, options: AnalysisOptions, silent: dict,
+                     progress: bool) -> list:
+    """The :class:`SoundingGeom` of every planned object that rings: its model from ``models``
+    or analysed (:func:`.scene_analysis.object_model`, a progress bar once that takes over a
+    second); an object that cannot ring goes into ``silent`` with the reason."""
+    analysed = []
+    bar = None
+    try:
+        for done, plan in enumerate(plans):
+            name, members, mat = plan["name"], plan["members"], plan["material"]
+            if bar is not None:
+                bar.set_postfix_str(name, refresh=False)
+            mm, notes = models.get(name), []
+            inaudible = _sphere_inaudible(model, members[0], mat, options.sample_rate) if len(members) == 1 and \
+                plan["sound_mesh"] is None else None
+            if mm is None and inaudible:
+                silent[name] = inaudible
+            elif mm is None:
+                def start_bar():  # (at the first object to analyse)
+                    nonlocal bar
+                    if progress and bar is None:
+                        bar = _progress_bar(len(plans), done, name)
+
+                mm, notes = object_model(plan, options, start_bar)
+                if mm is None:
+                    silent[name] = "analysis failed (see warning)"
+            if bar is not None:
+                bar.update(1)
+            if mm is None:
+                continue
+            if mm.n_modes == 0:
+                top = mm.info.get("f_max", default_f_max(options.sample_rate))
+                silent[name] = f"no audible modes (none between 20 Hz and f_max {top / 1000:.1f} kHz)"
+                continue
+            notes.extend(_surface_notes(mm))
+            body = int(model.geom_bodyid[members[0]])
+            analysed.append(
+                SoundingGeom(
+                    geom_id=members[0], body_id=body, name=name, material=mat, model=mm,
+                    n_modes_analysed=mm.n_modes, source=plan["source"], mesh=plan["label"],
+                    dynamic=bool(model.body_weldid[body] != 0), method=str(mm.method),
+                    geom_ids=tuple(members), notes=notes,
+                )
+            )
+    finally:
+        if bar is not None:
+            bar.close()
+    return analysed
 
 
 def geom_contact_radius(model, g: int) -> float:
@@ -568,18 +446,6 @@ def geom_contact_radius(model, g: int) -> float:
         # A mesh touches with its edges and corners; a tenth of its bounding radius.
         return float(0.1 * model.geom_rbound[g]) if model.geom_rbound[g] > 0 else np.inf
     return np.inf
-
-
-def _mode_loudness(mm: ModalModel) -> np.ndarray:
-    """Pressure per unit impulse at 1 m of each mode (ranking only) [Pa / (N s)]."""
-    if mm.n_modes == 0:
-        return np.zeros(0)
-    rms = np.sqrt(np.mean(np.sum(mm.shapes.astype(np.float64) ** 2, axis=1), axis=0))
-    rad = np.abs(mm.radiation)
-    if not np.any(rad > 0):
-        rad = mm.omega**2  # plain modal acceleration
-    return rms * rad / mm.omega
-
 
 
 def _progress_bar(total: int, done: int, name: str):
