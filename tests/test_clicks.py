@@ -137,6 +137,8 @@ def _reference_pulses(p, impacts, time_s, data, mics):
         mat1, mat2 = p._mat[g1], p._mat[g2]
         if mat1 is None and mat2 is None:
             mat1 = mat2 = get_material("abs")
+        known = [m.restitution for m in (p._mat[g1], p._mat[g2]) if m is not None]
+        e = math.sqrt(known[0] * known[1]) if len(known) == 2 else (known[0] if known else 0.5)
         b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
         coef = hertz_coefficient(effective(p._hertz_mass[b1], p._hertz_mass[b2]),
                                  effective(p._radius[g1], p._radius[g2]), mat1, mat2)
@@ -156,7 +158,7 @@ def _reference_pulses(p, impacts, time_s, data, mics):
             R = np.asarray(data.xmat[b]).reshape(3, 3)
             com = np.asarray(data.xpos[b]) + R @ model.body_ipos[b]
             Ri = R @ p._iframe[b]
-            cap = 2.0 * speed
+            cap = (1.0 + e) * speed  # (no velocity change beyond what the approach allows)
             dv = J / p._mass[b]
             dv_norm = float(np.linalg.norm(dv))
             if dv_norm > cap > 0:

@@ -10,7 +10,9 @@ when longer, the thin shells' ``pi sqrt(m* (s1 + s2))``, at most ``pi R / v``
 (:func:`pair_contact_time`). Each dynamic body
 ``b`` of the pair (centre of mass ``o``, principal frame ``Ri``) changes its velocity by
 ``dv = J / m_b`` and its angular velocity by ``dw = Ri (Ri^T ((p - o) x J) / I_b)``, each of
-``|dv|`` and ``|dw x arm|`` capped at ``2 v``. Its click at air microphone ``m`` (distance
+``|dv|`` and ``|dw x arm|`` capped at ``(1 + e) v`` (``e`` the pair's acoustic restitution,
+:func:`mjsound.sim.impulses.restitution_of`: no impact with approach speed ``v`` changes a
+velocity by more, whatever ``J`` says). Its click at air microphone ``m`` (distance
 ``r`` from ``o``, direction ``x^``, equivalent radius ``a``, dipole masses ``M``) is the pulse
 ``b0 = k / r^2``, ``b1 = k / (r c)``, ``d1 = a / c``, ``d2 = a^2 / (2 c^2)`` arriving at
 ``t + (r - a) / c``, ``k = x^ . Ri (M * (Ri^T dv^)) / (4 pi)``, scaled by ``|dv|``
@@ -28,6 +30,7 @@ import numpy as np
 from ..jit import njit, njit_inner
 from ..synth.bandlimited import add_pulses
 from ..synth.pulse import contact_time, effective, hertz_coef, shell_contact_time
+from .impulses import restitution_of
 
 __all__ = ["impact_pulses", "queue_pulses", "pulse_room", "render_waiting", "hertz_coefficient", "pair_contact_time",
            "pulse_rows_needed"]
@@ -107,11 +110,12 @@ def _capped(x, y, z, cap):
 
 
 @njit_inner(cache=True)
-def _body_pulses(cm, b, J, point, speed, tau, time_s, pose, mics, rows, dv, n):
+def _body_pulses(cm, b, J, point, cap, tau, time_s, pose, mics, rows, dv, n):
     """Append body ``b``'s pulses (its clicks, its contact microphones') from row ``n`` on, for
-    the impulse ``J`` (3,) [N s] on it at ``point`` (3,) [m], approach ``speed`` [m/s], pulse
-    length ``tau`` [s] at ``time_s`` [s]; ``pose`` is ``(xpos, xmat)``, the bodies' poses (see
-    :func:`impact_pulses`). Returns the next free row."""
+    the impulse ``J`` (3,) [N s] on it at ``point`` (3,) [m], the largest velocity change
+    ``cap`` [m/s] the impact allows (``(1 + e) v``), pulse length ``tau`` [s] at ``time_s`` [s];
+    ``pose`` is ``(xpos, xmat)``, the bodies' poses (see :func:`impact_pulses`). Returns the
+    next free row."""
     xpos, xmat = pose
     bd = cm.bodies[b]
     prm = cm.prm[0]
@@ -126,7 +130,6 @@ def _body_pulses(cm, b, J, point, speed, tau, time_s, pose, mics, rows, dv, n):
     for i in range(3):
         for j in range(3):
             Ri[i, j] = R[i, 0] * bd.iframe[0, j] + R[i, 1] * bd.iframe[1, j] + R[i, 2] * bd.iframe[2, j]
-    cap = 2.0 * speed
     dvx, dvy, dvz, dv_norm = _capped(J[0] / bd.mass, J[1] / bd.mass, J[2] / bd.mass, cap)
     n_air = prm.n_air
     if prm.clicks and n_air and dv_norm > 0:
@@ -263,12 +266,13 @@ def impact_pulses(cm, impacts, k, time_s, xpos, xmat, mics, rows, dv, n):
             point[c] = point[c] / wsum
             Jm[c] = -J[c]
         tau = pair_contact_time(cm, g1, g2, speed)
+        cap = (1.0 + restitution_of(cm.geoms, g1, g2)) * speed
         b = cm.geoms[g2].body
         if cm.bodies[b].dynamic:
-            n = _body_pulses(cm, b, J, point, speed, tau, time_s, (xpos, xmat), mics, rows, dv, n)
+            n = _body_pulses(cm, b, J, point, cap, tau, time_s, (xpos, xmat), mics, rows, dv, n)
         b = cm.geoms[g1].body
         if cm.bodies[b].dynamic:
-            n = _body_pulses(cm, b, Jm, point, speed, tau, time_s, (xpos, xmat), mics, rows, dv, n)
+            n = _body_pulses(cm, b, Jm, point, cap, tau, time_s, (xpos, xmat), mics, rows, dv, n)
     return n
 
 

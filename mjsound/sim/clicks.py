@@ -14,7 +14,10 @@ Every impact the contact reader finds (a record with fields ``g1``, ``g2``, ``po
 ``dv`` of body b: ``J / m_b`` with ``m_b`` its own mass (exact for a free body), and
 ``dw = I_b^-1 ((p - o_b) x J)``; for a body in an articulated chain, which the rest of the
 chain holds back, this over-estimates the change, so ``|dv|`` and ``|dw x arm|`` are each
-capped at ``2 v`` (``v`` the approach speed: an elastic impact against an immovable body).
+capped at ``(1 + e) v`` (``v`` the approach speed, ``e`` the pair's restitution: an impact
+against an immovable body). The cap is what the impact allows, whatever pushes: a mocap weld or
+an actuator pressing on through the contact adds force over the contact's whole duration, not
+to the impact's velocity change (``docs/clicks.md``).
 Bodies welded to the world and mocap bodies do not move and make no click.
 
 ``tau`` is Hertz's, as for the modal excitation: both geoms' acoustic materials (a missing
@@ -61,11 +64,12 @@ from ..synth.contact_mic import site_pulse
 from ..synth.dispatch import EntryPoint
 from ..synth.pulse import compliance, contact_time, shell_compliance
 from ..synth.records import TRACK, TrackState
+from .bodies import geom_shape_axes, geom_volume_area, quat_mat
 from .click_kernels import impact_pulses, pulse_rows_needed
 from .records import CLICK_BODY, CLICK_GEOM, CLICK_PARAMS, CLICK_SITE, IMPACT, PULSE_COUNTS, ClickModel, PulseState
 
 __all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "SHELL_MAX_WALL_RATIO", "shell_compliances",
-           "geom_volume_area"]
+           "geom_volume_area", "bounded_axes"]
 
 #: Material both sides of an impact count as for the click's duration when neither has one.
 UNKNOWN_MATERIAL = "abs"
@@ -86,49 +90,6 @@ SHELL_MAX_WALL_RATIO = 0.1
 #: capsule, ellipsoid, cylinder); boxes and meshes use ``3 V / A`` of the geom instead (a
 #: sphere's radius from its volume and area: a cube's is its half side).
 _CURVED = (2, 3, 4, 5)
-
-
-def _ellipsoid_area(a, b, c) -> float:
-    """Surface of the ellipsoid of semi-axes ``a, b, c`` [m^2] (Thomsen's formula, within
-    1.1 %)."""
-    p = 1.6075
-    ap, bp, cp = a**p, b**p, c**p
-    return 4.0 * math.pi * ((ap * bp + ap * cp + bp * cp) / 3.0) ** (1.0 / p)
-
-
-def geom_volume_area(model, g: int) -> tuple[float, float] | None:
-    """Volume [m^3] and surface [m^2] of geom ``g`` as MuJoCo weighs it (``geom_size``:
-    sphere, capsule, ellipsoid, cylinder, box; a mesh from its triangles, the divergence
-    theorem's signed tetrahedra), or None for a plane, height field or other shape without a
-    closed volume (and a mesh whose volume is not positive)."""
-    t = int(model.geom_type[g])
-    s = np.asarray(model.geom_size[g], dtype=np.float64)
-    if t == 2:  # sphere
-        r = s[0]
-        return 4.0 / 3.0 * math.pi * r**3, 4.0 * math.pi * r * r
-    if t == 3:  # capsule: radius, half-length of the cylinder
-        r, h = s[0], s[1]
-        return math.pi * r * r * (2.0 * h + 4.0 / 3.0 * r), 2.0 * math.pi * r * (2.0 * h + 2.0 * r)
-    if t == 4:  # ellipsoid: semi-axes
-        return 4.0 / 3.0 * math.pi * s[0] * s[1] * s[2], _ellipsoid_area(s[0], s[1], s[2])
-    if t == 5:  # cylinder: radius, half-height
-        r, h = s[0], s[1]
-        return 2.0 * math.pi * r * r * h, 2.0 * math.pi * r * (2.0 * h + r)
-    if t == 6:  # box: half-sizes
-        return 8.0 * s[0] * s[1] * s[2], 8.0 * (s[0] * s[1] + s[1] * s[2] + s[0] * s[2])
-    if t == 7 and model.geom_dataid[g] >= 0:  # mesh
-        k = int(model.geom_dataid[g])
-        v0, nv = int(model.mesh_vertadr[k]), int(model.mesh_vertnum[k])
-        f0, nf = int(model.mesh_faceadr[k]), int(model.mesh_facenum[k])
-        vert = np.asarray(model.mesh_vert[v0:v0 + nv], dtype=np.float64)
-        face = np.asarray(model.mesh_face[f0:f0 + nf], dtype=np.int64)
-        if not (nv and nf) or face.min() < 0 or face.max() >= nv:
-            return None
-        a, b, c = vert[face[:, 0]], vert[face[:, 1]], vert[face[:, 2]]
-        vol = abs(float(np.einsum("ij,ij->", a, np.cross(b, c)))) / 6.0
-        area = 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
-        return (vol, area) if vol > 0 and area > 0 else None
-    return None
 
 
 def shell_compliances(model, geom_material, geom_radius, dynamic) -> np.ndarray:
@@ -190,13 +151,6 @@ def shell_compliances(model, geom_material, geom_radius, dynamic) -> np.ndarray:
     return out
 
 
-def _quat_mat(q) -> np.ndarray:
-    w, x, y, z = (float(v) for v in q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 _LOADED = [False]
 
 
@@ -213,6 +167,28 @@ def _load_kernels() -> None:
         track.take_into(np.zeros((1, 64), np.float32))
         track.take(64)
         contact_time(1e-4, 1.0)
+
+
+def bounded_axes(axes, shape_axes) -> np.ndarray:
+    """Semi-axes [m] of a body's equivalent ellipsoid, each at most the same axis of the
+    ellipsoid of the body's geoms' own shape (:func:`.bodies.geom_shape_axes`; None or a zero
+    axis: no bound there).
+
+    The ellipsoid of a mass and inertia (:func:`mjsound.synth.accel_noise.ellipsoid_from_inertia`)
+    is the body's own shape only when the inertia is: MJCF files often give small links a
+    rounded-up inertia (MyoSuite's 2-10 g phalanges 1e-4 kg m^2, 0.16-0.35 m ellipsoids around
+    capsules of 5-9 mm; robosuite's 10 g finger pads 0.01 kg m^2, 1.58 m), and the click's
+    dipole grows with the ellipsoid's volume. The air is pushed by the body's surface, not by
+    where its mass sits: no axis reaches beyond the shape's (a hollow body's inertia, its mass
+    on the walls, gives a larger ellipsoid than its shape: the shape's is kept too). A uniform
+    solid body's inertia is its shape's, and nothing changes."""
+    axes = np.asarray(axes, dtype=np.float64).copy()
+    if shape_axes is None:
+        return axes
+    bound = np.asarray(shape_axes, dtype=np.float64)
+    ok = np.isfinite(bound) & (bound > 0)
+    axes[ok] = np.minimum(axes[ok], bound[ok])
+    return axes
 
 
 def silent_pulse_state() -> PulseState:
@@ -280,12 +256,13 @@ class ImpactPulses:
                 self._axes[b] = accel_noise.ellipsoid_from_inertia(self._mass[b], inertia)
             else:  # a point mass: a sphere of the density of water
                 self._axes[b] = (3 * self._mass[b] / (4 * math.pi * 1000.0)) ** (1 / 3)
-            self._iframe[b] = _quat_mat(m.body_iquat[b])
+            self._axes[b] = bounded_axes(self._axes[b], geom_shape_axes(m, b))
+            self._iframe[b] = quat_mat(m.body_iquat[b])
             self._masses[b] = accel_noise.dipole_masses(self._axes[b])
             self._a_eq[b] = accel_noise.equivalent_radius(self._axes[b])
         self._site_body = np.array([m.site_bodyid[s] for s in self.contact_sites], np.int64)
         # each contact microphone's site frame in its body's frame (its axis: the frame's z)
-        self._site_frame = np.array([_quat_mat(m.site_quat[s]) for s in self.contact_sites]).reshape(-1, 3, 3)
+        self._site_frame = np.array([quat_mat(m.site_quat[s]) for s in self.contact_sites]).reshape(-1, 3, 3)
         # the same, as the records the impact kernel reads (click_kernels.impact_pulses)
         bodies = np.zeros(nb, CLICK_BODY)
         bodies["dynamic"] = self._dynamic
@@ -302,6 +279,7 @@ class ImpactPulses:
         geoms["compliance"] = [compliance(mat) for mat in self._mat]
         geoms["radius"] = self._radius
         geoms["shell_compliance"] = shell_compliances(m, self._mat, self._radius, self._dynamic)
+        geoms["restitution"] = [mat.restitution if mat is not None else np.nan for mat in self._mat]
         sites = np.zeros(len(self.contact_sites), CLICK_SITE)
         sites["body"] = self._site_body
         sites["pos"] = np.asarray(m.site_pos, dtype=np.float64).reshape(-1, 3)[self.contact_sites]

@@ -63,6 +63,7 @@ from collections import deque
 
 import numpy as np
 
+from .bodies import moving_tree_mass
 from .contact_types import ContactEvent, ContactFrame, ImpactEvent, ImpactRecord
 from .impulses import restitution_of
 from .pairs import contact_quantities, rehash
@@ -140,7 +141,7 @@ class ContactReader:
         self.geoms["plane"] = np.asarray(model.geom_type) == mujoco.mjtGeom.mjGEOM_PLANE
         self.geoms["restitution"] = e
         self.geoms["audible"] = 1  # (every impact heard until set_audible says otherwise)
-        # moving mass of each body's subtree and of its whole tree (inf: welded to the world)
+        # moving mass of each body's subtree and of its whole moving tree (inf: welded to the world)
         welded = np.asarray(model.body_weldid) == 0
         self.bodies = np.zeros(model.nbody, BODY)
         self.bodies["root"] = model.body_rootid
@@ -148,8 +149,7 @@ class ContactReader:
         self.bodies["dofadr"] = model.body_dofadr
         self.bodies["parent"] = model.body_parentid
         self.bodies["tree_mass"] = np.where(welded, np.inf, np.asarray(model.body_subtreemass))
-        self.bodies["root_mass"] = np.where(welded, np.inf,
-                                            np.asarray(model.body_subtreemass)[np.asarray(model.body_rootid)])
+        self.bodies["root_mass"] = moving_tree_mass(model)
         self.dof_parent = np.asarray(model.dof_parentid, np.int64)
         self.params = np.zeros(1, READER_PARAMS)
         for k, v in (("v_impact", self.v_impact), ("v_hard", self.v_hard), ("min_apart_s", self.min_apart_s),

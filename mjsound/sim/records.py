@@ -180,7 +180,7 @@ CLICK_BODY = np.dtype([("dynamic", i8), ("mass", f8), ("ipos", f8, (3,)), ("ifra
 #: its contact radius [m] (inf: flat) and, where its body is a thin hollow shell, the wall's
 #: point-load compliance ``1 / k`` [m/N] (0: solid; :func:`mjsound.sim.clicks.shell_compliances`).
 CLICK_GEOM = np.dtype([("body", i8), ("has_material", i8), ("compliance", f8), ("radius", f8),
-                       ("shell_compliance", f8)])
+                       ("shell_compliance", f8), ("restitution", f8)])
 
 #: Pulse rows waiting in :class:`PulseState` for the pulse track.
 PULSE_COUNTS = np.dtype([("n", i8)])
