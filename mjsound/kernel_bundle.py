@@ -26,7 +26,7 @@ import. They use the bundle only where it fits:
 
 Then it sets numba's CPU target to the bundle's (numba has one per process: numba code of
 the caller's own, compiled after ``import mjsound``, is compiled for it too; the kernels ran
-as fast with it as with the host's own target, README "First start") and copies the bundle's
+as fast with it as with the host's own target, docs/benchmarks.md) and copies the bundle's
 entries into numba's cache folders, next to whatever is there (an index that already holds
 an entry keeps it), once per folder (a marker file) and under a lock (processes starting
 together). :data:`STATUS` says whether it was used and, if not, why.

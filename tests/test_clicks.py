@@ -76,7 +76,7 @@ def test_block_on_silent_floor_clicks_at_the_closed_form_level():
     peak, want = np.abs(click).max(), np.abs(ref).max()
     assert 20 * math.log10(peak / want) == pytest.approx(0.0, abs=1.0)
     assert np.abs(click[near] - ref).max() < 0.05 * want
-    # the documented level (README): 3.0 Pa, 103.5 dB SPL peak at 0.58 m, 43 degrees off the vertical
+    # the documented level (docs/clicks.md): 3.0 Pa, 103.5 dB SPL peak at 0.58 m, 43 degrees off the vertical
     assert 101 < 20 * math.log10(peak / 2e-5) < 106
     # the block's contact microphone reads its rigid-body pulse (the block has no modes below
     # 7.2 kHz; ``clicks`` switches the air's clicks only): area dv (less the band limit's

@@ -96,7 +96,7 @@ def test_channel_order_and_block_on_silent_floor_clicks():
     assert sim.channel_names == ["mic0", "contact_mic_block", "contact_mic_plate"]
     assert list(sim.contact_channels) == [1, 2]
     peak = float(np.abs(x[0]).max())
-    assert 20 * math.log10(peak / 2e-5) > 80  # a 5 cm block on a silent floor is heard (README)
+    assert 20 * math.log10(peak / 2e-5) > 80  # a 5 cm block on a silent floor is heard (docs/clicks.md)
     assert np.abs(x[1]).max() > 100.0  # its own sensor feels the landing [m/s^2]
     assert not x[2].any()  # the plate was not touched
     quiet, y = _sim(clicks=False, contact_mics=[])

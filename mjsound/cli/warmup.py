@@ -1,7 +1,7 @@
 """``mjsound warmup``: compile every numba kernel once, into numba's on-disk cache.
 
 A process on a machine whose cache is empty compiles the kernels before its first audio
-(tens of seconds; see the README's "First start"); every later process loads them in about
+(tens of seconds; see docs/kernels.md); every later process loads them in about
 a second. Running this once where processes will start (a container image's build, a node
 before it launches vectorised environments) moves that compilation out of every run.
 """
