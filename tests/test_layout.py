@@ -9,13 +9,19 @@ import importlib
 import inspect
 import os
 import re
+import warnings
 
 import pytest
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 PACKAGE = os.path.join(ROOT, "mjsound")
 
-MAX_LINES = 600
+#: Module length, a guideline: above GUIDE_LINES a warning (split where a concept ends: a
+#: class's collaborator, a measurement, a stage of a pipeline), above MAX_LINES a failure.
+GUIDE_LINES = 600
+MAX_LINES = 800
+#: The README is a user's guide; method details and figures go to docs/.
+README_MAX_LINES = 300
 MAX_KERNEL_PARAMETERS = 12
 
 
@@ -70,9 +76,21 @@ def _top_level_imports(name: str, path: str) -> set[str]:
     return {m for m in own if not name.startswith(m + ".")} - {name}
 
 
-def test_no_module_is_longer_than_600_lines():
-    long = {n: sum(1 for _ in open(p)) for n, p in MODULES.items()}
+def test_modules_are_short():
+    """No module over MAX_LINES; a module over GUIDE_LINES is flagged (a warning in the test
+    summary), to be split by concept, not squeezed under the line count."""
+    lines = {n: sum(1 for _ in open(p)) for n, p in MODULES.items()}
+    long = {n: k for n, k in lines.items() if k > GUIDE_LINES}
+    if long:
+        warnings.warn(f"modules over the {GUIDE_LINES}-line guideline: {long}; split each where a concept ends "
+                      "(docs/design.md, \"Code layout\")", UserWarning, stacklevel=1)
     assert {n: k for n, k in long.items() if k > MAX_LINES} == {}
+
+
+def test_the_readme_is_a_short_guide():
+    """README.md stays a user's guide of at most README_MAX_LINES lines (details in docs/)."""
+    n = sum(1 for _ in open(os.path.join(ROOT, "README.md"), encoding="utf-8"))
+    assert n <= README_MAX_LINES, f"README.md has {n} lines (at most {README_MAX_LINES}): move details to docs/"
 
 
 def test_no_numba_kernel_takes_more_than_12_parameters():
@@ -129,7 +147,7 @@ CITED = re.compile(r"(?<![\w/.-])((?:docs|scripts|tests|reports|assets|mjsound)/
 
 
 #: Where code and documents cite repository paths and design sections.
-CITING = ["mjsound", "scripts", "tests", "docs", "README.md"]
+CITING = ["mjsound", "scripts", "tests", "docs", "README.md", "CHANGELOG.md"]
 
 
 def _text_files(where: str) -> list[str]:
