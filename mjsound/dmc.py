@@ -8,7 +8,13 @@ options, spec and reset semantics as the gymnasium wrapper
 * every physics substep is heard: the wrapper replaces ``physics.step`` on the env's
   ``Physics`` instance by one that runs the same MuJoCo calls (dm_control's legacy step:
   ``mj_step2``, ``nstep - 1`` ``mj_step``, ``mj_step1``; or ``nstep`` ``mj_step``) and reads
-  the contacts after each completed step;
+  the contacts after each completed step (:class:`mjsound.env_stepping.DmPhysicsStepping`);
+* composer environments (``dm_control.manipulation``, ``composer.Environment``) build a new
+  ``Physics`` at the first reset and, while they recompile the MJCF every episode (the
+  default of manipulation tasks), at every reset, and free the old one: after each reset the
+  wrapper follows the physics the env steps now (a scene and simulator for it, modal models
+  from the memo and the disk cache when the geometry is the same) and keeps no reference to
+  a freed one;
 * ``reset()`` (and the reset dm_control does by itself on the step after a ``LAST`` step)
   silences the ringing and re-anchors the audio clock (``AudioSimulator.reset``), so nothing of
   the last episode carries over;
@@ -34,7 +40,7 @@ import collections
 import dm_env
 import numpy as np
 
-from .wrappers import EnvAudio
+from .env_audio import EnvAudio
 
 __all__ = ["AudioEnvironment"]
 
@@ -66,53 +72,46 @@ class AudioEnvironment(dm_env.Environment):
     """
 
     def __init__(self, env, seed: int | None = None, **options):
-        physics = getattr(env, "physics", None)
-        model = getattr(getattr(physics, "model", None), "ptr", None)
-        data = getattr(getattr(physics, "data", None), "ptr", None)
-        if model is None or data is None or not callable(getattr(physics, "step", None)):
+        from .env_stepping import DmPhysicsStepping, _is_dm_env
+
+        if not _is_dm_env(env):
             raise TypeError("AudioEnvironment needs a dm_control environment with a MuJoCo physics "
-                            "(env.physics.model.ptr / env.physics.data.ptr), e.g. dm_control.suite.load(...)")
+                            "(env.physics.model.ptr / env.physics.data.ptr, env.control_timestep()), e.g. "
+                            "dm_control.suite.load(...) or a composer.Environment")
         self._env = env
-        self._physics = physics
         self._seed = seed
-        self.core = EnvAudio(model, data, float(env.control_timestep()), **options)
-        self.scene, self.sim, self.audio = self.core.scene, self.core.sim, self.core.audio
+        self._route = DmPhysicsStepping(env)
+        model, data = self._route.current()
+        self.core = EnvAudio(model, data, self._route.step_dt(), dt_source="env.control_timestep()", **options)
+        self.audio = self.core.audio
         self.last_info = {}
-        self._hook()
+        self._route.install(self.core.sim)
 
-    # ------------------------------------------------------------------ stepping
-    def _hook(self) -> None:
-        """Replace ``physics.step`` (on the instance) by the same MuJoCo calls with every
-        completed step read (dm_control's ``Physics.step``: legacy or plain)."""
-        import mujoco
+    @property
+    def sim(self):
+        """The :class:`mjsound.sim.AudioSimulator` of the physics the env steps now (composer
+        builds a new one at resets)."""
+        return self.core.sim
 
-        physics, sim = self._physics, self.sim
-        model, data = physics.model.ptr, physics.data.ptr
+    @property
+    def scene(self):
+        """The :class:`mjsound.sim.SoundScene` of the physics the env steps now."""
+        return self.core.scene
 
-        def step(nstep: int = 1) -> None:
-            nstep = int(nstep)
-            with physics.check_invalid_state():
-                if getattr(physics, "legacy_step", False):
-                    if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4.value:
-                        mujoco.mj_step2(model, data)  # completes the step mj_step1 began
-                        sim.step(render=False)
-                        if nstep > 1:
-                            sim.substeps(nstep - 1, render=True)
-                    else:
-                        sim.substeps(nstep, render=True)
-                    mujoco.mj_step1(model, data)
-                else:
-                    sim.substeps(nstep, render=True)  # (rendered in the same numba call; end_step flushes)
-
-        physics.step = step
+    def _follow_physics(self) -> None:
+        """After a reset: follow the physics composer built (at the first reset, and at every
+        reset while it recompiles the MJCF each episode; it frees the old one)."""
+        model, data = self._route.current()
+        if not self.core.follows(model, data):
+            self.core.rebind(model, data)
+            self._route.install(self.core.sim)
 
     _closed = False
 
     def close(self) -> None:
         """Give the physics its own ``step`` back and close the wrapped env."""
         self._closed = True
-        if "step" in vars(self._physics):
-            del self._physics.step
+        self._route.remove()
         close = getattr(self._env, "close", None)
         if close is not None:
             close()
@@ -132,6 +131,7 @@ class AudioEnvironment(dm_env.Environment):
         return self._after_reset(ts)
 
     def _after_reset(self, ts):
+        self._follow_physics()
         seed, self._seed = self._seed, None  # (seeds the generator once; later resets draw from it)
         self.last_info = self.core.reset(seed)
         return self._with_audio(ts, self.audio.observe())
@@ -167,7 +167,8 @@ class AudioEnvironment(dm_env.Environment):
 
     @property
     def physics(self):
-        return self._physics
+        """The env's physics now (composer's: a weak proxy that dies at its next recompilation)."""
+        return self._env.physics
 
     def __getattr__(self, name):
         if name.startswith("_"):

@@ -14,7 +14,7 @@ import numpy as np
 from .audio_window import AudioWindow
 from .synth.contact_mic import check_contact_full_scale
 
-__all__ = ["EnvAudio", "audible_geoms", "build_scene", "scene_materials"]
+__all__ = ["EnvAudio", "audible_geoms", "build_scene", "model_signature", "scene_materials"]
 
 
 def scene_materials(materials=None, default_material=None) -> dict:
@@ -55,11 +55,8 @@ class EnvAudio:
     def __init__(self, model, data, dt, sample_rate=16000, window_s=None, mode="waveform", mics=None,
                  materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
                  follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
-                 objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True):
-        import mujoco
-
-        from .sim.simulator import AudioSimulator
-
+                 objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True,
+                 dt_source="the env's dt"):
         if mode not in ("waveform", "spectrogram"):
             raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
         fsp = float(full_scale_pa)
@@ -71,25 +68,57 @@ class EnvAudio:
         self.sample_rate = check_sample_rate(sample_rate)
         if mode == "spectrogram" and (isinstance(n_fft, bool) or not isinstance(n_fft, (int, np.integer)) or n_fft < 2):
             raise ValueError(f"n_fft={n_fft!r} must be an integer >= 2 (samples per STFT frame), e.g. 256")
+        if window_s is None and dt is None:
+            raise ValueError(
+                "mjsound cannot tell how much time one env step simulates (the env has no dt, control_timestep, "
+                "control_dt, frame_skip or n_substeps), so it cannot size the audio window: pass window_s= the "
+                "simulated seconds of one env step (e.g. frame_skip * model.opt.timestep)")
         window = int(round((dt if window_s is None else check_duration(window_s, "window_s")) * self.sample_rate))
         check_array_bytes(4.0 * window * max(1, len(mics) if mics is not None else 1), f"window_s={window_s}",
                           "give the audio window in seconds (default: one env step)")
         if window < 2:
             raise ValueError(f"audio window of {window} samples is too short (window_s={window_s}, dt={dt})")
         self.window = window
+        # the window's duration is checked against the first env step's simulated time unless given
+        self._dt_check = None if window_s is not None else (float(dt), dt_source)
         mic_arg = None if mics is None else (list(mics) if len(mics) and isinstance(mics[0], str) else np.asarray(mics, float))
-        self.scene = build_scene(model, scene_materials(materials, default_material), self.sample_rate,
-                                 quality=quality, microphones=mic_arg, budget_modes=budget_modes, progress=progress,
-                                 models=models, objects=objects, sound_meshes=sound_meshes)
-        self.sim = AudioSimulator(model, data, scene=self.scene, sample_rate=self.sample_rate, progress=False,
-                                  **{"keep_events": 0, "contact_mics": contact_mics, "clicks": clicks,
-                                     **(sim_kwargs or {})})
+        self._options = dict(
+            scene=dict(mapping=scene_materials(materials, default_material), sample_rate=self.sample_rate,
+                       quality=quality, microphones=mic_arg, budget_modes=budget_modes, progress=progress,
+                       models=models, objects=objects, sound_meshes=sound_meshes),
+            sim={"keep_events": 0, "contact_mics": contact_mics, "clicks": clicks, **(sim_kwargs or {})},
+            follow=follow if mics is None else None)
+        self._build(model, data)
+        self._signature = model_signature(model)
         self.n_channels = self.sim.n_channels
         # contact channels [m/s^2] enter the window in the air channels' full-scale units
-        self._contact = self.sim.contact_channels
         self._contact_gain = fsp / fsc
+        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
+        self._rng = None
+        self._audible_seen = 0
+        self._clip_reported = False
+        self._t_last = float(data.time)
+
+    def _build(self, model, data) -> None:
+        """Scene and simulator for ``model`` / ``data`` (the modal models from the process's memo
+        and the disk cache when an object's geometry and material were analysed before), a
+        listener that follows the robot, and the geoms whose impacts count."""
+        import mujoco
+
+        from .sim.simulator import AudioSimulator
+
+        opt = self._options
+        sc = opt["scene"]
+        self.scene = build_scene(model, sc["mapping"], sc["sample_rate"], quality=sc["quality"],
+                                 microphones=sc["microphones"], budget_modes=sc["budget_modes"],
+                                 progress=sc["progress"], models=sc["models"], objects=sc["objects"],
+                                 sound_meshes=sc["sound_meshes"])
+        self.sim = AudioSimulator(model, data, scene=self.scene, sample_rate=self.sample_rate, progress=False,
+                                  **opt["sim"])
+        self._contact = self.sim.contact_channels
         # listener that follows a body (translation only; AudioSimulator.follow)
-        if mics is None and not self.scene.mic_site_ids and follow is not None and self.sim.synth is not None:
+        follow = opt["follow"]
+        if not self.scene.mic_site_ids and follow is not None and self.sim.synth is not None:
             if follow == "auto":
                 body = 1 if model.nbody > 1 and model.body_weldid[1] != 0 else None
             else:
@@ -100,12 +129,45 @@ class EnvAudio:
                 d0 = mujoco.MjData(model)
                 mujoco.mj_forward(model, d0)
                 self.sim.follow(int(body), np.asarray(self.scene.mic_positions) - d0.xpos[body])
-        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
         # (the step kernel counts the impacts on these geoms: info["audio_impacts"])
         self.sim.reader.set_audible(audible_geoms(model, self.scene, self.sim))
-        self._rng = None
-        self._audible_seen = 0
-        self._clip_reported = False
+
+    def follows(self, model, data) -> bool:
+        """Whether the simulator steps with this ``model`` and ``data``."""
+        return self.sim.model is model and self.sim.data is data
+
+    def rebind(self, model, data) -> None:
+        """Follow an env that built a new ``MjModel`` / ``MjData`` (composer's new ``Physics``
+        at a reset, robosuite's hard reset); nothing of the old physics is kept.
+
+        A model that sounds the same as the last one (:func:`model_signature`: geometry,
+        masses, names, materials, sites) keeps the scene and synthesizer
+        (:meth:`AudioSimulator.rebind`); another gets a scene and simulator of its own with the
+        same options (modal models from the process's memo and the disk cache for objects
+        analysed before). The observer ``sim.on_block`` carries over; the caller resets after.
+
+        Raises
+        ------
+        RuntimeError
+            The new model gives another number of channels (microphone sites) than the
+            observation space was made for.
+        """
+        signature = model_signature(model)
+        if signature == self._signature:
+            self.sim.rebind(model, data)
+            self.scene.model = model  # (the same geometry: the scene now reports from the live model)
+        else:
+            on_block = getattr(self.sim, "on_block", None)
+            old_channels = self.sim.channel_names
+            self._build(model, data)
+            if self.sim.n_channels != self.n_channels:
+                raise RuntimeError(
+                    f"mjsound: the env rebuilt its model with {self.sim.n_channels} audio channel(s) "
+                    f"({self.sim.channel_names}) where the observation has {self.n_channels} ({old_channels}): "
+                    "give mics= (fixed positions) so that every model is heard by the same microphones")
+            self.sim.on_block = on_block
+            self._signature = signature
+        self._t_last = float(data.time)
 
     def reset(self, seed=None) -> dict:
         """After the env's reset: silence, re-anchor the clock at ``data.time``, draw the noise
@@ -118,6 +180,7 @@ class EnvAudio:
         self.sim.reset()  # (moves a following listener to its body)
         self.audio.reset()
         self._audible_seen = self.sim.reader.n_audible
+        self._t_last = float(self.sim.data.time)
         return dict(audio_clipped=0, audio_peak_pa=0.0, audio_samples=0, audio_impacts=0)
 
     @property
@@ -147,8 +210,26 @@ class EnvAudio:
                       "The step's info counts every step's (audio_clipped; dm_control: last_info); reported once "
                       "per env", RuntimeWarning, stacklevel=4)
 
+    def _check_step_time(self) -> None:
+        """The first env step: the window (one env step by default) must last what the step
+        simulated (``data.time`` advance), else the observation would hold a part of each
+        step's sound (or several steps'), silently."""
+        dt, source = self._dt_check
+        self._dt_check = None
+        now = float(self.sim.data.time)
+        elapsed, self._t_last = now - self._t_last, now
+        timestep = float(self.sim.model.opt.timestep)
+        if abs(elapsed - dt) > 0.5 * timestep and elapsed > 0:
+            raise RuntimeError(
+                f"mjsound: one env step simulated {elapsed:.6g} s ({elapsed / timestep:.3g} physics steps of "
+                f"{timestep:g} s) but the audio window lasts {dt:.6g} s ({self.window} samples, from {source}): "
+                f"each observation would hold {dt / elapsed:.3g} env step(s) of sound. "
+                f"Make the wrapper again with window_s={elapsed:.6g}")
+
     def end_step(self) -> tuple[np.ndarray, dict]:
         """After an env step: render its audio; returns ``(audio observation, info entries)``."""
+        if self._dt_check is not None:
+            self._check_step_time()
         block = self.sim.flush()
         if len(self._contact):
             block[self._contact] *= self._contact_gain
@@ -159,6 +240,31 @@ class EnvAudio:
         info = {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": block.shape[1],
                 "audio_impacts": self._audible_impacts()}
         return audio.observe(), info
+
+
+#: the model fields a scene and simulator are made from (with the names and custom text, where
+#: materials and microphones are named): equal fields, equal sound
+_SOUND_FIELDS = ("geom_type", "geom_size", "geom_pos", "geom_quat", "geom_bodyid", "geom_dataid", "geom_contype",
+                 "geom_conaffinity", "geom_matid", "geom_rbound", "body_parentid", "body_weldid", "body_mass",
+                 "body_inertia", "body_mocapid", "body_dofnum", "mesh_vertadr", "mesh_vertnum", "mesh_vert",
+                 "mesh_faceadr", "mesh_facenum", "mesh_face", "site_bodyid", "site_pos", "site_quat", "names",
+                 "text_data")
+
+
+def model_signature(model) -> bytes:
+    """A digest of what a model's sound is made from (``_SOUND_FIELDS`` and the timestep): two
+    models with the same digest get the same scene, so a simulator can move from one to the
+    other (:meth:`EnvAudio.rebind`)."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=16)
+    for name in _SOUND_FIELDS:
+        value = getattr(model, name, None)
+        if value is not None:
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(value).tobytes())
+    h.update(np.float64(model.opt.timestep).tobytes())
+    return h.digest()
 
 
 def audible_geoms(model, scene, sim) -> np.ndarray:

@@ -1,21 +1,23 @@
 """Gymnasium wrapper: contact sound as an observation (:class:`AudioObservation`).
 
-Any gymnasium environment built on MuJoCo (``env.unwrapped.model`` / ``env.unwrapped.data``)
-gets an ``"audio"`` entry in its observation: the sound the simulation made, computed from the
-contacts of *every* physics substep of an env step. The wrapper replaces the env's stepping
-method on the unwrapped instance with :meth:`mjsound.sim.AudioSimulator.substeps` (single
-``mj_step`` calls, each followed by reading its contacts, run in one numba call,
-:mod:`mjsound.sim.fused`): gymnasium's ``MujocoEnv._step_mujoco_simulation`` (``frame_skip``
-substeps, then ``mj_rnePostConstraint`` as gymnasium does) and gymnasium-robotics'
-``MujocoRobotEnv._mujoco_step`` (``n_substeps``). An env whose stepping it cannot find is
-refused at construction (``substeps="manual"`` lets you call :meth:`AudioObservation.on_substep`
-yourself). :class:`mjsound.env_audio.EnvAudio` is the part shared with the dm_control wrapper
-(:mod:`mjsound.dmc`).
+Any gymnasium environment built on MuJoCo gets an ``"audio"`` entry in its observation: the
+sound the simulation made, computed from the contacts of *every* physics substep of an env
+step. The wrapper finds how the env steps MuJoCo (:mod:`mjsound.env_stepping`) and hooks it on
+the instance: gymnasium's ``MujocoEnv._step_mujoco_simulation`` and gymnasium-robotics'
+``MujocoRobotEnv._mujoco_step`` become :meth:`mjsound.sim.AudioSimulator.substeps` (single
+``mj_step`` calls, each followed by reading its contacts, in one numba call); a dm_control
+physics inside the env (gym-aloha) has its ``physics.step`` hooked; robosuite's ``MjSim``
+(through ``robosuite.wrappers.GymWrapper``) its ``step`` / ``step2``. An env that rebuilds its
+physics at reset (robosuite's hard reset, composer) is followed after each reset. An env whose
+stepping it cannot find is refused at construction (``substeps="manual"`` lets you call
+:meth:`AudioObservation.on_substep` yourself). :class:`mjsound.env_audio.EnvAudio` is the part
+shared with the dm_control wrapper (:mod:`mjsound.dmc`).
 
-Works unmodified on gymnasium's own Ant-v5, Humanoid-v5, HalfCheetah-v5, Pusher-v5, ... and on
-gymnasium-robotics' Fetch and Shadow-hand envs: geoms with no acoustic material get
-``default_material`` (aluminium unless told otherwise), so the robot's links ring like machined
-aluminium parts.
+Works unmodified on gymnasium's own Ant-v5, Humanoid-v5, HalfCheetah-v5, Pusher-v5, ..., on
+Meta-World, gymnasium-robotics' Fetch and Shadow-hand envs, gym-aloha and robosuite (the last
+three families, and the first two on mujoco 4, need an opt-in :mod:`mjsound.compat` call;
+``docs/envs.md``): geoms with no acoustic material get ``default_material`` (aluminium unless
+told otherwise), so the robot's links ring like machined aluminium parts.
 
 Example
 -------
@@ -33,6 +35,7 @@ import numpy as np
 
 from .audio_window import AudioWindow, stft_log1p  # noqa: F401 (re-exported)
 from .env_audio import EnvAudio, audible_geoms, build_scene, scene_materials  # noqa: F401 (re-exported)
+from .env_stepping import find_stepping, steps_of
 from .synth.contact_mic import DEFAULT_CONTACT_FULL_SCALE
 
 __all__ = ["AudioObservation", "AudioWindow", "EnvAudio", "scene_materials", "stft_log1p"]
@@ -44,19 +47,24 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Parameters
     ----------
     env : gymnasium.Env
-        A MuJoCo env: ``env.unwrapped`` has ``model`` and ``data``. Every physics substep is
-        heard: the wrapper hooks gymnasium's ``MujocoEnv._step_mujoco_simulation(ctrl,
-        n_frames)`` and gymnasium-robotics' ``MujocoRobotEnv._mujoco_step(action)``
-        (``n_substeps`` steps). An env that steps another way is refused at construction
-        (``TypeError``) unless ``substeps="manual"``: then call :meth:`on_substep` after every
-        ``mj_step`` yourself.
+        A MuJoCo env: ``env.unwrapped`` has ``model`` and ``data``, or holds a dm_control
+        environment or a robosuite ``MjSim`` (:func:`mjsound.env_stepping.find_stepping`).
+        Every physics substep is heard: the wrapper hooks gymnasium's
+        ``MujocoEnv._step_mujoco_simulation(ctrl, n_frames)``, gymnasium-robotics'
+        ``MujocoRobotEnv._mujoco_step(action)`` (``n_substeps`` steps), dm_control's
+        ``physics.step(n)`` or robosuite's ``MjSim.step`` / ``step2``. An env that steps another
+        way is refused at construction (``TypeError``) unless ``substeps="manual"``: then call
+        :meth:`on_substep` after every ``mj_step`` yourself.
     sample_rate : int
         Audio sample rate [Hz] (default 16 kHz, as SoundSpaces; modes above 0.45 fs are not
         computed).
     window_s : float, optional
         Length of the audio window [s]. Default: one env step, i.e.
-        ``window = round(env.unwrapped.dt * sample_rate)`` samples (Ant-v5 at 16 kHz: 800,
-        Humanoid-v5: 240). The window holds the newest samples, zero-padded after reset
+        ``window = round(dt * sample_rate)`` samples (Ant-v5 at 16 kHz: 800, Humanoid-v5:
+        240), ``dt`` from the env: its ``dt``, ``control_timestep``, ``control_dt``, or
+        ``frame_skip`` / ``n_substeps`` times the timestep (:func:`mjsound.env_stepping.steps_of`);
+        the first step's simulated time must agree (else a ``RuntimeError`` gives the
+        ``window_s`` to pass), and an env that says none of these must be given ``window_s``. The window holds the newest samples, zero-padded after reset
         (a physics step renders ``ceil``-aligned sample ranges, so one env step brings
         ``window`` samples +-1 when ``dt * fs`` is not an integer).
     mode : {"waveform", "spectrogram"}
@@ -179,32 +187,37 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks,
         )
         gym.Wrapper.__init__(self, env)
-        import mujoco
-
-        self._mj = mujoco
         uw = env.unwrapped
-        if not (hasattr(uw, "model") and hasattr(uw, "data")):
-            raise TypeError("AudioObservation needs a MuJoCo env: env.unwrapped must have .model and .data")
         if substeps not in ("auto", "manual"):
             raise ValueError(f"substeps={substeps!r}: choose 'auto' (hook the env's stepping) or 'manual'")
-        stepper, hook = _stepping_target(uw) if substeps == "auto" else (uw, None)
-        if substeps == "auto" and hook is None:
+        route = find_stepping(uw)
+        if route is not None:
+            self._current = route.current
+        elif _has_mujoco(uw):
+            self._current = lambda: (uw.model, uw.data)
+        else:
             raise TypeError(
-                f"AudioObservation cannot find how {type(uw).__name__} steps MuJoCo (neither gymnasium's "
-                "MujocoEnv._step_mujoco_simulation nor gymnasium-robotics' MujocoRobotEnv._mujoco_step, on the "
-                "env or on an inner env that shares its model), so it cannot hear its substeps. Pass "
-                "substeps='manual' and call env.on_substep() after every mj_step of the env, or step the "
-                "physics through env.sim.substeps(n)."
-            )
-        model, data = uw.model, uw.data
-        dt = float(getattr(uw, "dt", getattr(stepper, "dt", model.opt.timestep)))
+                f"AudioObservation needs a MuJoCo env: {type(uw).__name__} (env.unwrapped) has no MjModel / MjData "
+                "(.model, .data), no dm_control environment or Physics, no robosuite MjSim (.sim), itself or in one "
+                "of its attributes. A dm_control environment: mjsound.dmc.AudioEnvironment; any other binding: "
+                "AudioSimulator(model, data), sim.step(render=False) after each mj_step, sim.flush() per env step "
+                "(docs/envs.md)")
+        if substeps == "auto" and route is None:
+            raise TypeError(
+                f"AudioObservation cannot find how {type(uw).__name__} steps MuJoCo (gymnasium's "
+                "MujocoEnv._step_mujoco_simulation, gymnasium-robotics' MujocoRobotEnv._mujoco_step, a dm_control "
+                "physics.step or a robosuite MjSim, on the env or on an object it holds), so it cannot hear its "
+                "substeps. Pass substeps='manual' and call env.on_substep() after every mj_step of the env, or "
+                "step the physics through env.sim.substeps(n).")
+        model, data = self._current()
+        dt, dt_source = steps_of(uw, route)
         self.core = EnvAudio(model, data, dt, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics,
                              materials=materials, default_material=default_material, full_scale_pa=full_scale_pa,
                              n_fft=n_fft, hop=hop, follow=follow, quality=quality, budget_modes=budget_modes,
                              models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
                              sound_meshes=sound_meshes, contact_mics=contact_mics,
-                             contact_full_scale=contact_full_scale, clicks=clicks)
-        self.scene, self.sim, self.audio = self.core.scene, self.core.sim, self.core.audio
+                             contact_full_scale=contact_full_scale, clicks=clicks, dt_source=dt_source)
+        self.audio = self.core.audio
         self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
         self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa
 
@@ -219,34 +232,30 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._dict_obs = False
             self.observation_space = gym.spaces.Dict({"observation": inner, "audio": audio_space})
 
-        self._hooked, self._stepper = None, stepper
-        if hook is not None:
-            self._install_hook(stepper, hook)
+        # the hooks (none with substeps="manual": the caller calls on_substep)
+        self._route = route if substeps == "auto" else None
+        if self._route is not None:
+            self._route.install(self.core.sim)
+
+    @property
+    def sim(self):
+        """The :class:`mjsound.sim.AudioSimulator` of the physics the env steps now (a new one
+        after an env rebuilt its model at a reset)."""
+        return self.core.sim
+
+    @property
+    def scene(self):
+        """The :class:`mjsound.sim.SoundScene` of the physics the env steps now."""
+        return self.core.scene
 
     # ------------------------------------------------------------------ substeps
-    def _install_hook(self, uw, hook) -> None:
-        """Replace the env's stepping method (on the instance) by one that hears every substep."""
-        mj = self._mj
-        model, data = uw.model, uw.data
-        # mj_step + on_substep, n times, and the env step's audio rendered, in one numba call
-        # (end_step's flush returns that block)
-        step = self.sim.stepper()  # (substeps(n, render=True))
-        if hook == "_step_mujoco_simulation":  # gymnasium MujocoEnv
-            # (data.ctrl read once: each read of it makes a new view; its memory lives as the MjData)
-            ctrl_now, rne_post_constraint = data.ctrl, mj.mj_rnePostConstraint
-
-            def _step_mujoco_simulation(ctrl, n_frames):
-                ctrl_now[:] = ctrl
-                step(n_frames)
-                rne_post_constraint(model, data)
-
-            uw._step_mujoco_simulation = _step_mujoco_simulation
-        else:  # gymnasium-robotics MujocoRobotEnv: mj_step(model, data, nstep=n_substeps)
-            def _mujoco_step(action):
-                step(uw.n_substeps)
-
-            uw._mujoco_step = _mujoco_step
-        self._hooked = hook
+    def _follow_physics(self) -> None:
+        """After the env's reset: follow a physics it rebuilt (composer, robosuite's hard reset)."""
+        model, data = self._current()
+        if not self.core.follows(model, data):
+            self.core.rebind(model, data)
+            if self._route is not None:
+                self._route.install(self.core.sim)
 
     def on_substep(self) -> None:
         """Read the contacts of the ``mj_step`` just taken and queue its sound (rendered once
@@ -264,6 +273,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def reset(self, *, seed=None, options=None):
         obs, info = self.env.reset(seed=seed, options=options)
+        self._follow_physics()
         info = {**info, **self.core.reset(seed)}
         return self._observe(obs, self.audio.observe()), info
 
@@ -279,43 +289,12 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def close(self):
         self._closed = True
-        uw = self._stepper
-        if self._hooked and self._hooked in vars(uw):
-            delattr(uw, self._hooked)  # back to the class method
-            self._hooked = None
+        if self._route is not None:
+            self._route.remove()  # (back to the class methods)
         return super().close()
 
 
-def _stepping_target(uw) -> tuple:
-    """``(env, hook)``: the env whose stepping method to hook, and that method's name.
-
-    Usually the unwrapped env itself. Some envs step another env that owns the physics
-    (gymnasium-robotics' mazes: ``AntMazeEnv.ant_env``, ``PointMazeEnv.point_env``); such an
-    inner env, found among the unwrapped env's attributes and sharing its ``model`` and
-    ``data``, is hooked instead. ``(uw, None)``: no stepping method found.
-    """
-    hook = _stepping_hook(uw)
-    if hook is not None:
-        return uw, hook
-    for inner in vars(uw).values():
-        if isinstance(inner, gym.Env) and inner is not uw:
-            iu = inner.unwrapped
-            if getattr(iu, "model", None) is uw.model and getattr(iu, "data", None) is uw.data:
-                hook = _stepping_hook(iu)
-                if hook is not None:
-                    return iu, hook
-    return uw, None
-
-
-def _stepping_hook(uw) -> str | None:
-    """Which stepping method of the unwrapped env to hook: gymnasium's ``MujocoEnv`` steps
-    through ``_step_mujoco_simulation(ctrl, n_frames)``; gymnasium-robotics' ``MujocoRobotEnv``
-    through ``_mujoco_step(action)``, ``mj_step(model, data, nstep=n_substeps)``. None: neither."""
+def _has_mujoco(uw) -> bool:
     import mujoco
 
-    if callable(getattr(uw, "_step_mujoco_simulation", None)):
-        return "_step_mujoco_simulation"
-    if callable(getattr(uw, "_mujoco_step", None)) and isinstance(getattr(uw, "n_substeps", None), (int, np.integer)) \
-            and isinstance(uw.model, mujoco.MjModel) and isinstance(uw.data, mujoco.MjData):
-        return "_mujoco_step"
-    return None
+    return isinstance(getattr(uw, "model", None), mujoco.MjModel) and isinstance(getattr(uw, "data", None), mujoco.MjData)

@@ -26,6 +26,12 @@ def _isolated_cache(tmp_path_factory, monkeypatch):
     yield
 
 
+import os  # noqa: E402
+
+# dm_control renders offscreen through EGL here (gym-aloha's observations are camera images);
+# its default, GLFW, needs a display
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 # gymnasium-robotics 1.4.2 and dm_control 1.0.50 (the releases pip installs) break on mujoco
 # 4.0.0; their envs run in these tests through mjsound.compat's opt-in patches (documented
 # there and in the README, "Your own scenes"). Both do nothing where the upstream works.

@@ -76,3 +76,42 @@ def test_automatic_reset_after_the_last_step_and_close():
 def test_refuses_what_is_not_a_dm_control_env():
     with pytest.raises(TypeError, match="dm_control environment"):
         AudioEnvironment(object())
+
+
+def test_composer_task_is_heard_in_every_episode():
+    """dm_control.manipulation (composer) builds a new Physics at the first reset and at every
+    reset (its MJCF is recompiled each episode) and frees the old one: the wrapper follows
+    it. Each episode a brick is lifted 5 cm and falls: its impact clicks (no modal analysis:
+    default_material=None keeps the test fast)."""
+    import gc
+    import weakref
+
+    import mujoco
+    from dm_control import manipulation
+
+    env = AudioEnvironment(manipulation.load("stack_2_bricks_features", seed=0), seed=0, default_material=None,
+                           progress=False)
+    n_sub = round(env.control_timestep() / env.physics.timestep())
+    zero = np.zeros(env.action_spec().shape)
+    old = []
+    for episode in range(3):
+        ts = env.reset()
+        assert ts.first() and not np.any(ts.observation["audio"])
+        model, data = env.physics.model.ptr, env.physics.data.ptr
+        gc.collect()
+        assert all(ref() is None for ref in old)  # the freed physics of past episodes are gone
+        assert env.sim.model is model and env.sim.data is data  # the physics composer steps now
+        old += [weakref.ref(env.physics.__init__.__self__), weakref.ref(data)]
+        brick = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "duplo2x4/")
+        data.qpos[model.jnt_qposadr[model.body_jntadr[brick]] + 2] += 0.05
+        peak, impacts = 0.0, 0
+        for _ in range(10):
+            ts = env.step(zero)
+            peak = max(peak, env.last_info["audio_peak_pa"])
+            impacts += env.last_info["audio_impacts"]
+        assert env.sim.steps == 10 * n_sub  # every substep of this episode's physics heard
+        assert impacts >= 1 and peak > 0, f"episode {episode} silent"
+    assert len({id(r()) for r in old[::2] if r() is not None}) == 1  # only the last physics lives
+    last = env.physics.__init__.__self__
+    env.close()
+    assert "step" not in vars(last)  # its own step back

@@ -200,7 +200,8 @@ def test_an_env_whose_stepping_cannot_be_found_is_refused():
     with pytest.raises(TypeError, match="substeps='manual'"):
         AudioObservation(_HandSteppedEnv(), materials={"box": "steel"})
     inner = _HandSteppedEnv()
-    env = AudioObservation(inner, materials={"box": "steel"}, substeps="manual", sample_rate=16000)
+    env = AudioObservation(inner, materials={"box": "steel"}, substeps="manual", sample_rate=16000,
+                           window_s=10 * inner.model.opt.timestep)  # (it has no dt: tests/test_env_window.py)
     inner.on_substep = env.on_substep
     env.reset(seed=0)
     for _ in range(30):
