@@ -32,6 +32,7 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from .bank_loops import bank_forced, bank_free
+from .directivity import ModeGains, commit_ramp, gain_at, hear_directions, ramp_poles, scale_sources
 from .pulse import half_sine
 from .queue import take_due
 from .records import AIR, EventRows, SourceRows
@@ -123,7 +124,7 @@ def _scatter(zr, zi, wr, wi, idx, na):
 
 
 @njit_inner(cache=True)
-def render_voice(voice, ev, src, start, n, consts, out, zero):
+def render_voice(voice, ev, src, start, n, consts, out, zero, gains):
     """Render samples ``[start, start + n)`` of one bank of modes into ``out[:n]`` (added).
 
     Parameters
@@ -148,6 +149,11 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
     out : (n,) dtype
         Output, added to.
     zero : dtype scalar
+    gains : :class:`.directivity.ModeGains`
+        The direction factors the state carries: an event's amplitudes are added times
+        ``D(s)`` at its sample, and while they ramp the gathered poles are multiplied by the
+        per-sample factor (:mod:`.directivity`; the caller scaled the forcing rows). A bank
+        without a directional mode (``on`` false) renders exactly as without them.
     """
     zr, zi, peak2, active, pr = voice.zr, voice.zi, voice.peak2, voice.active, voice.pr
     corr_r, corr_i = voice.corr_r, voice.corr_i
@@ -168,7 +174,7 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
     span = np.zeros((2, nsrc), np.int64)
     cols = np.zeros((2, nsrc), np.int64)
     work = (wr, wi, wpr, wpi)
-    gains = (gwr, gwi)
+    sgains = (gwr, gwi)
     for q in range(nsrc):
         # the bank modes of source q's first and last non-zero gain (a stream's row has gains
         # on its object's modes only)
@@ -190,7 +196,9 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                     zr[i] = 0.0
                     zi[i] = 0.0
                     peak2[i] = 0.0
-    na = _gather(voice, gr, gi, cols, work, gains, idx, kof, span)
+    na = _gather(voice, gr, gi, cols, work, sgains, idx, kof, span)
+    if gains.ramp:
+        ramp_poles(wpr, wpi, idx, na, gains)
     # forcing sources must not be culled while they act
     pos = start
     end = start + n
@@ -248,6 +256,10 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                     for i in range(m):
                         a = ev_re[e, i]
                         b = ev_im[e, i]
+                        if (a != 0.0 or b != 0.0) and gains.on and gains.dmode[i]:
+                            c = complex(a, b) * gain_at(gains, i, ev_n[e] - start)
+                            a = c.real
+                            b = c.imag
                         if a != 0.0 or b != 0.0:
                             if not active[i]:
                                 active[i] = True
@@ -268,7 +280,9 @@ def render_voice(voice, ev, src, start, n, consts, out, zero):
                                 zi[i] = 0.0
                                 peak2[i] = 0.0
                 e += 1
-            na = _gather(voice, gr, gi, cols, work, gains, idx, kof, span)
+            na = _gather(voice, gr, gi, cols, work, sgains, idx, kof, span)
+            if gains.ramp:
+                ramp_poles(wpr, wpi, idx, na, gains)
         # ---- run to the next grid point / event / source boundary / block end
         stop = end
         g = (pos // grid + 1) * grid
@@ -304,26 +318,39 @@ def render_all(bank, consts, ev, src, start, n, out, zero):
     1]`` (sorted by sample), its sources rows ``src.ptr[b] .. src.ptr[b + 1]``; amplitudes and
     gains are padded to the widest bank (only the first ``length[b]`` columns are read).
     ``live[b]`` is kept equal to "has running modes" so silent banks cost one branch. The
-    per-bank work is exactly :func:`render_voice`, so block splits stay bit-identical.
+    per-bank work is exactly :func:`render_voice`, so block splits stay bit-identical (but for
+    directional objects turning: :mod:`.directivity`, whose factors for the block
+    :func:`.directivity.hear_directions` made; the forcing rows of directional modes are scaled
+    here by the factor at the block's middle, and each ramp is committed at its end).
     """
     nv = bank.start.shape[0]
     ACT = bank.active
+    dr = bank.direction
     for v in range(nv):
         e0 = ev.ptr[v]
         e1 = ev.ptr[v + 1]
         s0 = src.ptr[v]
         s1 = src.ptr[v + 1]
-        if not bank.live[v] and e0 == e1 and s0 == s1:
-            continue
         o = bank.start[v]
         m = bank.length[v]
-        if m == 0:
+        ramp = dr.ramp[v]
+        if ramp:  # (committed now: render_voice reads the views below, not the flag)
+            dr.ramp[v] = False
+        if (not bank.live[v] and e0 == e1 and s0 == s1) or m == 0:
+            if ramp:
+                commit_ramp(dr, o, m)
             continue
+        gains = ModeGains(dr.on[v], ramp, dr.dmode[o:o + m], dr.ar[o:o + m], dr.ai[o:o + m], dr.lr[o:o + m],
+                          dr.li[o:o + m])
+        if gains.on and s1 > s0:
+            scale_sources(src.gr[s0:s1, :m], src.gi[s0:s1, :m], gains, 0.5 * n)
         voice = Voice(bank.zr[o:o + m], bank.zi[o:o + m], bank.peak2[o:o + m], ACT[o:o + m], bank.pr[o:o + m],
                       bank.pi[o:o + m], bank.corr_r[o:o + m], bank.corr_i[o:o + m])
         ev_v = EventRows(ev.ptr, ev.sample[e0:e1], ev.kind[e0:e1], ev.re[e0:e1, :m], ev.im[e0:e1, :m])
         src_v = SourceRows(src.ptr, src.a[s0:s1], src.b[s0:s1], src.gr[s0:s1, :m], src.gi[s0:s1, :m], src.F[s0:s1])
-        render_voice(voice, ev_v, src_v, start, n, consts, out[bank.mic[v]], zero)
+        render_voice(voice, ev_v, src_v, start, n, consts, out[bank.mic[v]], zero, gains)
+        if ramp:
+            commit_ramp(dr, o, m)
         live = False
         for i in range(o, o + m):
             if ACT[i]:
@@ -494,7 +521,8 @@ def render_streams(synth, bank, layout, start, n, may_regain, out, zero):
     """One block ``[start, start + n)`` without forcing sources, in one call: the due
     streams' gains (:func:`.streams.streams_gains`), the queue's events due in the block
     (:func:`.queue.take_due`), the streams' rows (:func:`.streams.streams_bank_rows`; none
-    without streams) and :func:`render_all`, as ``Synthesizer.render`` does them one call each.
+    without streams), the direction factors (:func:`.directivity.hear_directions`) and
+    :func:`render_all`, as ``Synthesizer.render`` does them one call each.
 
     ``may_regain``: the poses and microphones are current (else, when gains are due, nothing
     is done and :data:`REGAIN_FIRST` is returned: call ``on_regain`` and again). Returns
@@ -518,6 +546,7 @@ def render_streams(synth, bank, layout, start, n, may_regain, out, zero):
         ev = EventRows(np.zeros(synth.consts[0].n_mics + 1, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int8),
                        np.zeros((0, layout.width)), np.zeros((0, layout.width)))
     src = SourceRows(*streams_bank_rows(st, layout, start, end, zero))
+    hear_directions(synth, bank, layout, ev, src, n)
     render_all(bank, synth.consts, ev, src, start, n, out, zero)
     for c in range(out.shape[0]):
         bad = 0

@@ -15,7 +15,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .constants import D_MIN_PER_S, GRID, RHO_AIR
-from .records import Bank, BankLayout, ObjectTable
+from .directivity import DIRECTION_FLOOR, DIRECTION_STEP_DEG, DirectionFit, fit_directions, sh_count
+from .records import DIRECTIONS, Bank, BankLayout, DirectionState, ObjectTable
 
 __all__ = ["finite_array", "VoiceState", "PoseTable", "SynthObject", "ObjectModes", "prepare_object", "Layout", "build_layout"]
 
@@ -33,15 +34,20 @@ def finite_array(x, what, fix):
 
 
 class VoiceState:
-    """State of one (object, microphone) pair: views into the synthesizer's flat state."""
+    """State of one (object, microphone) pair: views into the synthesizer's flat state (the
+    modes' state, and the direction factor ``dr + j di`` it carries, made for the direction
+    ``u``: :mod:`.directivity`)."""
 
-    __slots__ = ("zr", "zi", "peak2", "active")
+    __slots__ = ("zr", "zi", "peak2", "active", "dr", "di", "u")
 
     def __init__(self, n):
         self.zr = np.zeros(n)
         self.zi = np.zeros(n)
         self.peak2 = np.zeros(n)
         self.active = np.zeros(n, dtype=np.bool_)
+        self.dr = np.ones(n)
+        self.di = np.zeros(n)
+        self.u = np.full(3, np.nan)
 
 
 class PoseTable:
@@ -97,9 +103,11 @@ class ObjectModes(NamedTuple):
     damped_omega: np.ndarray  #: (n,) damped angular frequency sqrt(w0^2 - d^2) [rad/s]
     weights: np.ndarray  #: (n,) radiation weight [Pa m]: a modal displacement q gives weights * q / r at r
     mic_distances: np.ndarray  #: (m,) distance to each microphone [m] (floored at R_MIN_M)
+    directions: DirectionFit  #: the direction factors' fit (order -1: the same in every direction)
 
 
-def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiation, f_max, n_mics) -> SynthObject:
+def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiation, f_max, n_mics,
+                   directivity=True) -> SynthObject:
     """Object ``name`` of ``model`` ready to render, at row ``index`` of ``poses`` (placed at
     world ``pos``, rotation ``R``), with ``n_mics`` silent voices.
 
@@ -107,7 +115,9 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
     non-positive frequencies are dropped; a zero or negative decay becomes ``D_MIN_PER_S``.
     ``w_d = sqrt(w0^2 - d^2)``; radiation weights from the model (``radiation``) or the
     modal-acceleration proxy ``-w0^2 rho_air / (4 pi) size^2 rms(phi . n)``; poles rounded to
-    ``dtype`` and the grid correction (module docstring)."""
+    ``dtype`` and the grid correction (module docstring); with ``radiation`` and ``directivity``
+    the direction factors of the model's ``radiation_pattern`` (:func:`.directivity.fit_directions`;
+    the proxy is heard the same in every direction)."""
     rad = np.asarray(model.radiation, dtype=np.float64)
     fs = sample_rate
     f = model.frequencies_hz
@@ -138,6 +148,10 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
             rms = np.zeros(len(keep))
         size = model.size_m if model.size_m > 0 else 0.1
         ob.weights = -(w0[keep] ** 2) * RHO_AIR / (4 * np.pi) * size**2 * rms
+    if radiation and directivity:
+        ob.directions = fit_directions(model, keep, ob.weights, name)
+    else:
+        ob.directions = DirectionFit(-1, np.zeros((len(keep), 0), np.complex128), np.zeros(len(keep)))
     # rounded poles with |p| < 1, and the exact-pole correction
     p = np.exp(ob.lam / fs)
     dt = dtype
@@ -172,6 +186,32 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
     return ob
 
 
+def _direction_state(by_index, nidx, AR, AI, U, DM, mic_off) -> DirectionState:
+    """The banks' :class:`.records.DirectionState` for objects ``by_index`` (index -> object),
+    the applied factors ``AR + j AI`` and directions ``U`` the voices carry, and which modes
+    are directional ``DM``."""
+    order = np.full(nidx, -1, np.int64)
+    coef_off = np.zeros(nidx + 1, np.int64)
+    parts = []
+    for i in range(nidx):
+        ob = by_index.get(i)
+        k = 0
+        if ob is not None and ob.directions.order >= 0:
+            order[i] = ob.directions.order
+            parts.append(ob.directions.coef.ravel())
+            k = parts[-1].size
+        coef_off[i + 1] = coef_off[i] + k
+    coef = np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(0), np.complex128)
+    params = np.zeros(1, DIRECTIONS)
+    params[0]["cos_step"] = np.cos(np.radians(DIRECTION_STEP_DEG))
+    params[0]["floor"] = DIRECTION_FLOOR
+    on = np.array([DM[mic_off[m]: mic_off[m + 1]].any() for m in range(len(mic_off) - 1)], np.bool_)
+    total = len(AR)
+    return DirectionState(order, coef_off, coef, U, AR, AI, AR.copy(), AI.copy(), np.zeros(total), np.zeros(total),
+                          np.zeros(len(on), np.bool_), on, DM, np.array([int((order >= 0).sum())], np.int64), params,
+                          np.zeros(sh_count(max(int(order.max(initial=-1)), 0))))
+
+
 class Layout(NamedTuple):
     """:func:`build_layout`'s result."""
 
@@ -184,10 +224,13 @@ class Layout(NamedTuple):
     nmax: int  # modes of the widest object
 
 
-def build_layout(obs, M, next_index, dtype) -> Layout:
+def build_layout(obs, M, next_index, dtype, air=None) -> Layout:
     """Lay the voices of the objects ``obs`` at ``M`` microphones out in flat arrays (one numba
     call renders them all); each object's per-voice arrays become views of them, so ringing
-    state survives a rebuild. ``next_index``: the next object index to be given out."""
+    state survives a rebuild. ``next_index``: the next object index to be given out; ``air``
+    (M,) bool: which channels are air microphones (default all), whose voices follow the
+    direction (:mod:`.directivity`)."""
+    air = np.ones(M, np.bool_) if air is None else np.asarray(air, np.bool_)
     nv = len(obs) * M
     v_off = np.zeros(nv, np.int64)
     v_len = np.zeros(nv, np.int64)
@@ -215,6 +258,8 @@ def build_layout(obs, M, next_index, dtype) -> Layout:
     ACT = np.zeros(total, np.bool_)
     PR, PI = np.zeros(total, dt), np.zeros(total, dt)
     CR, CI = np.zeros(total), np.zeros(total)
+    AR, AI, DM = np.ones(total), np.zeros(total), np.zeros(total, np.bool_)
+    U = np.full((nv, 3), np.nan)
     j = 0
     for ob in obs:
         for m in range(M):
@@ -223,6 +268,9 @@ def build_layout(obs, M, next_index, dtype) -> Layout:
             v = ob.voices[m]
             Zr[sl], Zi[sl], P2[sl], ACT[sl] = v.zr, v.zi, v.peak2, v.active
             v.zr, v.zi, v.peak2, v.active = Zr[sl], Zi[sl], P2[sl], ACT[sl]
+            AR[sl], AI[sl], U[j] = v.dr, v.di, v.u
+            v.dr, v.di, v.u = AR[sl], AI[sl], U[j]
+            DM[sl] = air[m] and ob.directions.order >= 0
             PR[sl], PI[sl], CR[sl], CI[sl] = ob.pr, ob.pi, ob.corr_r, ob.corr_i
             j += 1
     mic_len = np.diff(mic_off)
@@ -230,11 +278,11 @@ def build_layout(obs, M, next_index, dtype) -> Layout:
     live = np.zeros(M, np.bool_)
     for m in range(M):
         live[m] = ACT[mic_off[m]: mic_off[m + 1]].any()
-    # one bank per microphone (render_all renders banks)
-    bank = Bank(Zr, Zi, P2, ACT, PR, PI, CR, CI, mic_off[:-1].copy(), mic_len, np.arange(M, dtype=np.int64),
-                      live)
     vbase = {ob.index: ob.vbase for ob in obs}
     by_index = {ob.index: ob for ob in obs}
+    # one bank per microphone (render_all renders banks)
+    bank = Bank(Zr, Zi, P2, ACT, PR, PI, CR, CI, mic_off[:-1].copy(), mic_len, np.arange(M, dtype=np.int64),
+                live, _direction_state(by_index, next_index + 1, AR, AI, U, DM, mic_off))
     # every object's gain inputs in flat arrays indexed by object index (streams_gains)
     nidx = next_index + 1
     offs = {k: np.zeros(nidx + 1, np.int64) for k in ("pts_off", "shk_off", "mode_off")}

@@ -13,7 +13,8 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["STREAM", "STREAMS", "EVENT", "QUEUE", "SYNTH_CONSTS", "CHANNEL", "AIR", "DEAF", "ObjectTable", "QueueState", "StreamState",
-           "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank", "RenderTarget", "TRACK", "TrackState"]
+           "SynthState", "EventRows", "SourceRows", "BankLayout", "Bank", "RenderTarget", "TRACK", "TrackState",
+           "DIRECTIONS", "DirectionState"]
 
 i8, f8 = np.int64, np.float64
 
@@ -147,6 +148,39 @@ class BankLayout(NamedTuple):
     width: int  # widest bank [modes]
 
 
+#: How the direction factors follow the microphones (:mod:`.directivity`): the cosine of the
+#: smallest turn of the direction that makes them again, the smallest ``|D|`` heard.
+DIRECTIONS = np.dtype([("cos_step", f8), ("floor", f8)])
+
+
+class DirectionState(NamedTuple):
+    """The direction factors ``D`` of the air microphones' voices (:mod:`.directivity`): per
+    object index ``o`` the order ``order[o]`` of its fit (-1: the same in every direction,
+    never touched) and its coefficients ``coef[coef_off[o] + j (order+1)^2 + k]`` (mode ``j``,
+    harmonic ``k``); per voice (object-major ids, :class:`BankLayout`) the direction ``u`` its
+    factors were made for; per mode of the banks (the flat order of :class:`Bank`) the factor
+    applied to the state ``ar + j ai``, this block's target ``tr + j ti`` and per-sample log
+    ratio ``lr + j li`` (0: none); per bank whether this block ramps and whether it holds a
+    directional mode at all (``on``), per mode whether it is one (``dmode``)."""
+
+    order: np.ndarray  # (objects,) int64
+    coef_off: np.ndarray  # (objects + 1,) int64
+    coef: np.ndarray  # (k,) complex128
+    u: np.ndarray  # (voices, 3) float64 object frame (NaN: not made yet)
+    ar: np.ndarray  # (modes,) float64
+    ai: np.ndarray
+    tr: np.ndarray
+    ti: np.ndarray
+    lr: np.ndarray
+    li: np.ndarray
+    ramp: np.ndarray  # (banks,) bool
+    on: np.ndarray  # (banks,) bool
+    dmode: np.ndarray  # (modes,) bool
+    n_objects: np.ndarray  # (1,) int64 objects with a direction (0: nothing to do)
+    params: np.ndarray  # (1,) DIRECTIONS
+    sh: np.ndarray  # ((max order + 1)^2,) float64 scratch
+
+
 class Bank(NamedTuple):
     """The oscillator state of every mode of every voice, laid out bank after bank, and the
     banks (a bank renders into ``out[mic[b]]``)."""
@@ -163,6 +197,7 @@ class Bank(NamedTuple):
     length: np.ndarray  # (banks,) int64 modes of each bank
     mic: np.ndarray  # (banks,) int64 output channel of each bank
     live: np.ndarray  # (banks,) bool: has running modes (kept up to date by render_all)
+    direction: DirectionState  # the air microphones' direction factors (:mod:`.directivity`)
 
 
 class RenderTarget(NamedTuple):

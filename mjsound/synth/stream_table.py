@@ -9,6 +9,7 @@ import zlib
 import numpy as np
 
 from . import kernels
+from .directivity import hear_directions
 from .dispatch import EntryPoint
 from .records import STREAM, STREAMS, SourceRows, StreamState
 from .streams import any_due, stream_seed, streams_bank_rows, streams_gains
@@ -143,6 +144,7 @@ class StreamMethods:
             # numba kernels called through their compiled entry points (no per-call typing)
             self._render_all_call = EntryPoint(kernels.render_all)
             self._render_streams_call = EntryPoint(kernels.render_streams)
+            self._hear_call = EntryPoint(hear_directions)
         #: changes whenever the synthesizer forgets its streams (stream indices held elsewhere
         #: are stale then)
         self.streams_epoch = getattr(self, "streams_epoch", 0) + 1

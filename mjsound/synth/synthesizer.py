@@ -13,11 +13,16 @@ Hertz theory), and the modal coordinate rings as ``q_i(t) = Im(c_i e^{lambda_i (
 
 Radiation and microphones (``docs/design.md``, "Radiation, microphones, output")
 ------------------------------------------------------------------------
-Each object reaches microphone m, at distance ``r`` from the object's origin, as::
+Each object reaches air microphone m, at distance ``r`` from the object's origin in the
+direction ``u`` (object frame), as::
 
-    p_m(t) = sum_i  w_i q_i(t - r/c) / r        [Pa]
+    p_m(t) = sum_i  D_i(u) w_i q_i(t - r/c) / r        [Pa]
 
 where ``w_i`` is ``model.radiation[i]`` [Pa m per unit modal coordinate] (``radiation=True``)
+and ``D_i(u) = P_i(u) / w_i`` the direction factor of the model's pattern
+``model.radiation_pattern`` (:mod:`.directivity`: followed per render block as objects move
+and turn, ramped across the block; 1 for a model heard the same in every direction, with
+``directivity=False`` or with the proxy)
 or, with ``radiation=False``, a plain modal-acceleration proxy
 ``w_i = -w_i^2 * rho_air / (4 pi) * size^2 * rms_x(phi_i(x) . n(x))`` (a compact source whose
 volume acceleration is the mode's rms normal acceleration times ``size^2``; same units, Pa m,
@@ -96,6 +101,9 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         Seed of the sliding / rolling noise; same calls and seed give bit-identical audio.
     f_max : float or None
         Drop modes above this frequency [Hz] (always also above 0.45 * sample_rate).
+    directivity : bool
+        Hear each mode with the model's radiation pattern in the direction of each air
+        microphone (:mod:`.directivity`; default), or with its RMS over directions (``False``).
 
     Attributes
     ----------
@@ -121,7 +129,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
     """
 
     def __init__(self, sample_rate=48000, microphones=None, dtype="float32", cull_db=-100.0,
-                 radiation=True, speed_of_sound=343.0, seed=0, f_max=None):
+                 radiation=True, speed_of_sound=343.0, seed=0, f_max=None, directivity=True):
         try:
             fs = float(sample_rate)
         except (TypeError, ValueError):
@@ -153,6 +161,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         self.speed_of_sound = c
         self.seed = int(seed)
         self.f_max = f_max
+        self.directivity = bool(directivity)
         self._objects: dict[str, SynthObject] = {}
         self._next_index = 0
         self._poses = PoseTable()
@@ -279,11 +288,19 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
 
     def object_modes(self, name) -> ObjectModes:
         """The kept modes of object ``name`` as this synthesizer renders them (copies): pose,
-        shapes, decay, damped frequency, radiation weights and microphone distances. For
-        references computed outside the renderer (closed forms, bounds)."""
+        shapes, decay, damped frequency, radiation weights, microphone distances and the
+        direction factors' fit. For references computed outside the renderer (closed forms,
+        bounds)."""
         ob = self._get(name)
         return ObjectModes(ob.pos.copy(), ob.R.copy(), ob.model, ob.keep.copy(), ob.shk.copy(), ob.d.copy(),
-                           ob.wd.copy(), np.array(ob.weights, np.float64), self._distances(ob))
+                           ob.wd.copy(), np.array(ob.weights, np.float64), self._distances(ob), ob.directions)
+
+    def direction_factors(self, name) -> np.ndarray:
+        """(channels, n_modes) complex: the direction factor ``D`` (:mod:`.directivity`) each
+        channel hears ``name``'s kept modes with now (after the last rendered block; 1 for
+        contact microphones and objects heard the same in every direction)."""
+        ob = self._get(name)
+        return np.array([v.dr + 1j * v.di for v in ob.voices])
 
     def object_points_world(self, name) -> np.ndarray:
         """The surface samples of ``name``'s model in world coordinates, (p, 3) [m]."""
@@ -325,7 +342,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         if self.radiation and not np.all(np.isfinite(rad)):
             raise ValueError(f"model of {name!r} has non-finite radiation values; recompute it or use radiation=False")
         ob = prepare_object(name, model, self._next_index, self._poses, pos, R, self.sample_rate, self.dtype,
-                            self.radiation, self.f_max, self.n_channels)
+                            self.radiation, self.f_max, self.n_channels, self.directivity)
         self._next_index += 1
         self._objects[name] = ob
         self._dirty = True
@@ -416,7 +433,8 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
     def _rebuild(self) -> None:
         """Lay all voices out in flat arrays (one numba call renders them all); the per-voice
         arrays become views, so ringing state survives the rebuild."""
-        lay = build_layout(list(self._objects.values()), self.n_channels, self._next_index, self.dtype)
+        air = np.array([m not in self._contacts for m in range(self.n_channels)], np.bool_)
+        lay = build_layout(list(self._objects.values()), self.n_channels, self._next_index, self.dtype, air)
         self._bank, self._layout, self._object_table = lay.bank, lay.layout, lay.table
         self._vbase, self._by_index, self._mic_ptr = lay.vbase, lay.by_index, lay.mic_ptr
         M = self.n_channels
@@ -507,6 +525,8 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
                     src = rows
             elif not srcs:
                 src = SourceRows(self._ev_ptr0, *self._empty_src, np.zeros((0, n), dt))
+            if self._bank.direction.n_objects[0]:
+                self._hear_call((self.kernel_state(), self._bank, self._layout), ev, src, n)
             self._render_all_call((self._bank, self._consts), ev, src, start, n, out, dt.type(0))
         self.samples_rendered = end
         return _finite(out.astype(np.float32, copy=False))

@@ -1,0 +1,389 @@
+"""Each air microphone hears each object's modes with the object's radiation pattern in the
+direction from the object to the microphone.
+
+A model's pattern ``P_i(u)`` (:meth:`mjsound.modal.model.ModalModel.radiation_pattern`: far-field
+pressure at 1 m per unit modal coordinate [Pa m] in the direction ``u``, a unit vector of the
+object's frame) is heard through its *direction factor*
+
+    D_i(u) = P_i(u) / w_i,        w_i = model.radiation[i] (the RMS of |P_i| over directions),
+
+so that the events and streams keep their gains ``w_i / r`` (:mod:`.kernels`) and a pattern the
+same in every direction has ``D = 1``: such an object takes none of the steps below and sounds
+bit for bit as before. ``D`` may be complex (a phase that changes with direction); it multiplies
+the mode's complex state ``z_i`` (the output is ``Im z_i``), i.e. a mode ``Im(c e^{lambda t})``
+is heard as ``Im(D c e^{lambda t})``, the time convention of the oscillators (``e^{+j w t}``).
+
+**Stored compactly.** At :func:`fit_directions` (once per object) ``D`` is projected on real
+orthonormal spherical harmonics ``Y_lm`` up to order ``L <= DIRECTION_ORDER`` (Gauss-Legendre
+in ``cos theta`` times a uniform grid in ``phi``: exact for a pattern of order ``<= L``); the
+smallest order that keeps all but ``1e-6`` of every mode's energy is kept (a dipole: ``L =
+1``), and the fit's relative RMS error on an independent set of directions is reported.
+
+**Heard per render block.** :func:`hear_directions` runs at the start of each block, for the
+(object, air microphone) voices that sound in it (ringing modes, or events or forcing rows in
+the block): the direction ``u = R^T (mic - pos) / |mic - pos|`` in the object's current pose;
+only when it turned by more than ``DIRECTION_STEP_DEG`` since the voice's factors were made
+are they evaluated again (``sum_lm Y_lm(u) c_lm``, numba). The voice's state carries its
+applied factor ``A``; a new target ``T`` is reached *across the block*: the ringing modes'
+poles are multiplied by ``rho = (T / A)^(1 / n)`` for the block's ``n`` samples (an exponential
+ramp of the gain at no cost per sample: no zipper noise), an event at sample ``s`` of the block
+is added with ``A rho^s`` and forcing rows with ``A rho^(n/2)``; at the block's end ``A = T``.
+A voice with nothing ringing takes ``T`` at once. ``|D|`` is floored at ``DIRECTION_FLOOR``
+(a mode in an exact null keeps its state, so it comes back when the object turns), and the
+culling peak is rescaled with the gain so that culling stays relative to the mode's own decay.
+The distance ``r`` of ringing modes stays that of their event (as before).
+
+Contact microphones hear their own object's surface (:mod:`.contact_mic`): no direction.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..jit import njit, njit_inner
+from .records import AIR, DIRECTIONS
+
+__all__ = ["DIRECTION_ORDER", "DIRECTION_STEP_DEG", "DIRECTION_FLOOR", "DirectionFit", "real_sh", "sh_count",
+           "fit_directions", "evaluate_fit", "hear_directions", "ModeGains", "gain_at", "ramp_poles", "scale_sources",
+           "commit_ramp"]
+
+#: Highest spherical-harmonic order of a fitted direction factor.
+DIRECTION_ORDER = 8
+#: The direction to a microphone must turn by more than this [degrees] before the factors are
+#: evaluated again.
+DIRECTION_STEP_DEG = 1.0
+#: Smallest ``|D|`` heard (-80 dB under the mode's RMS over directions): a null keeps the state.
+DIRECTION_FLOOR = 1e-4
+#: Energy a fit may leave above its order, relative to the mode's (the order is cut there).
+_ORDER_TOL = 1e-6
+
+
+def sh_count(order: int) -> int:
+    """Number of real spherical harmonics up to ``order``: ``(order + 1)^2``."""
+    return (order + 1) ** 2
+
+
+@njit(cache=True)
+def real_sh(order, x, y, z, out):
+    """Real orthonormal spherical harmonics at the unit vector ``(x, y, z)`` into
+    ``out[l^2 + l + m]`` for ``0 <= l <= order``, ``-l <= m <= l``::
+
+        Y_l0 = N_l0 P_l(z),   Y_l,+m = sqrt(2) N_lm Pb_lm(z) Re (x + j y)^m,
+        Y_l,-m = sqrt(2) N_lm Pb_lm(z) Im (x + j y)^m,   N_lm = sqrt((2l+1)/(4 pi) (l-m)!/(l+m)!)
+
+    with ``Pb_lm = P_l^m / sin^m(theta)`` (no Condon-Shortley sign) from
+    ``Pb_mm = (2m-1)!!``, ``Pb_m+1,m = (2m+1) z Pb_mm``,
+    ``(l-m) Pb_lm = (2l-1) z Pb_l-1,m - (l+m-1) Pb_l-2,m``; ``(x + j y)^m = sin^m(theta) e^{j m phi}``.
+    The basis is orthonormal over the sphere: ``int Y_a Y_b dOmega = delta_ab``."""
+    cm = 1.0  # Re (x + j y)^m
+    sm = 0.0  # Im
+    pmm = 1.0  # Pb_mm
+    for m in range(order + 1):
+        if m > 0:
+            cm, sm = cm * x - sm * y, cm * y + sm * x
+            pmm *= 2 * m - 1
+        p2 = 0.0
+        p1 = 0.0
+        for l in range(m, order + 1):
+            if l == m:
+                p = pmm
+            elif l == m + 1:
+                p = (2 * m + 1) * z * pmm
+            else:
+                p = ((2 * l - 1) * z * p1 - (l + m - 1) * p2) / (l - m)
+            p2 = p1
+            p1 = p
+            ratio = 1.0  # (l - m)! / (l + m)!
+            for k in range(l - m + 1, l + m + 1):
+                ratio /= k
+            nrm = np.sqrt((2 * l + 1) / (4 * np.pi) * ratio)
+            if m == 0:
+                out[l * l + l] = nrm * p
+            else:
+                out[l * l + l + m] = np.sqrt(2.0) * nrm * p * cm
+                out[l * l + l - m] = np.sqrt(2.0) * nrm * p * sm
+
+
+def _basis(order: int, dirs: np.ndarray) -> np.ndarray:
+    """(n_dirs, (order+1)^2) real spherical harmonics at unit vectors ``dirs`` (n_dirs, 3)."""
+    out = np.empty((len(dirs), sh_count(order)))
+    for k, (x, y, z) in enumerate(dirs):
+        real_sh(order, float(x), float(y), float(z), out[k])
+    return out
+
+
+def _quadrature(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Directions (q, 3) and weights (q,) integrating exactly over the sphere every product of
+    two spherical harmonics up to ``order``: Gauss-Legendre in ``cos theta`` (``order + 1``
+    nodes) times ``2 order + 1`` equal steps in ``phi`` (offset by half a step)."""
+    zc, wz = np.polynomial.legendre.leggauss(order + 1)
+    nphi = 2 * order + 1
+    phi = (np.arange(nphi) + 0.5) * 2 * np.pi / nphi
+    s = np.sqrt(1 - zc**2)
+    dirs = np.stack([np.outer(s, np.cos(phi)), np.outer(s, np.sin(phi)), np.repeat(zc[:, None], nphi, 1)], -1)
+    return dirs.reshape(-1, 3), np.repeat(wz * 2 * np.pi / nphi, nphi)
+
+
+def _check_directions(n: int) -> np.ndarray:
+    """``n`` well-spread unit vectors (a Fibonacci lattice), independent of any quadrature grid."""
+    k = np.arange(n) + 0.5
+    z = 1 - 2 * k / n
+    phi = np.pi * (1 + 5**0.5) * k
+    s = np.sqrt(1 - z**2)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], -1)
+
+
+class DirectionFit(NamedTuple):
+    """:func:`fit_directions`' result for one object's kept modes."""
+
+    order: int  #: spherical-harmonic order of the fit; -1: the same in every direction (D = 1)
+    coef: np.ndarray  #: (n_modes, (order+1)^2) complex128 coefficients of D on Y_lm
+    error: np.ndarray  #: (n_modes,) relative RMS error of the fit on independent directions
+
+
+def _pattern(model, directions: np.ndarray, name: str) -> np.ndarray | None:
+    """The model's (n_dirs, n_modes) pattern at ``directions``; ``None`` for a model without
+    one (heard the same in every direction). Checks its shape and values."""
+    fn = getattr(model, "radiation_pattern", None)
+    if fn is None:
+        return None
+    P = np.asarray(fn(directions))
+    n = len(model.frequencies_hz)
+    if P.shape != (len(directions), n):
+        raise ValueError(f"model of {name!r}: radiation_pattern(directions) gave shape {P.shape}, expected "
+                         f"({len(directions)}, {n}) (directions x modes); fix the model's pattern")
+    if not np.all(np.isfinite(P)):
+        raise ValueError(f"model of {name!r}: radiation_pattern has non-finite values; recompute the model's "
+                         "radiation or use Synthesizer(directivity=False)")
+    return P
+
+
+def fit_directions(model, keep: np.ndarray, weights: np.ndarray, name: str = "object",
+                   order_max: int = DIRECTION_ORDER) -> DirectionFit:
+    """The direction factors ``D = P / w`` of the modes ``keep`` of ``model`` as spherical
+    harmonic coefficients (module docstring).
+
+    Parameters
+    ----------
+    model : ModalModel
+        With ``radiation_pattern(directions)`` -> (n_dirs, n_modes) [Pa m] (real or complex);
+        without one it is heard the same in every direction.
+    keep : (n,) int
+        The modes the synthesizer keeps.
+    weights : (n,) float
+        Their gains ``w`` [Pa m] (``model.radiation[keep]``); a mode with ``w = 0`` gets
+        ``D = 1`` (it is silent anyway).
+    name : str
+        For error messages.
+    order_max : int
+        Highest order fitted.
+
+    Returns
+    -------
+    DirectionFit
+        ``order = -1`` when the pattern is exactly ``w`` in every sampled direction.
+
+    Examples
+    --------
+    A pattern ``w sqrt(3) cos(theta)`` (a dipole along z, RMS ``w``) is order 1::
+
+        >>> fit = fit_directions(dipole_model, np.arange(1), np.ones(1))  # doctest: +SKIP
+        >>> fit.order
+        1
+    """
+    keep = np.asarray(keep, np.int64)
+    w = np.asarray(weights, np.float64)
+    n = len(keep)
+    dirs, wq = _quadrature(order_max)
+    P = _pattern(model, dirs, name)
+    if P is None or n == 0:
+        return DirectionFit(-1, np.zeros((n, 0), np.complex128), np.zeros(n))
+    P = P[:, keep]
+    if np.array_equal(P, np.broadcast_to(w, P.shape)):
+        return DirectionFit(-1, np.zeros((n, 0), np.complex128), np.zeros(n))
+    safe = np.where(w != 0, w, 1.0)
+    D = np.where(w != 0, P / safe, 1.0)
+    Y = _basis(order_max, dirs)
+    C = (Y * wq[:, None]).T @ D  # ((L+1)^2, n): c_lm = sum_q w_q Y_lm(u_q) D(u_q)
+    energy = np.abs(C) ** 2
+    total = energy.sum(0)
+    order = order_max
+    for L in range(order_max + 1):
+        tail = energy[sh_count(L):].sum(0)
+        if np.all(tail <= _ORDER_TOL * total):
+            order = L
+            break
+    coef = np.ascontiguousarray(C[: sh_count(order)].T, np.complex128)
+    chk = _check_directions(200)
+    Pc = _pattern(model, chk, name)[:, keep]
+    Dc = np.where(w != 0, Pc / safe, 1.0)
+    fit = _basis(order, chk) @ coef.T
+    err = np.sqrt(np.mean(np.abs(fit - Dc) ** 2, 0) / np.maximum(np.mean(np.abs(Dc) ** 2, 0), 1e-300))
+    return DirectionFit(order, coef, err)
+
+
+def evaluate_fit(fit: DirectionFit, directions) -> np.ndarray:
+    """(n_dirs, n_modes) complex direction factors of ``fit`` at unit vectors ``directions``
+    (n_dirs, 3) of the object's frame (1 everywhere for ``order = -1``), before the floor."""
+    d = np.asarray(directions, np.float64).reshape(-1, 3)
+    if fit.order < 0:
+        return np.ones((len(d), len(fit.coef)), np.complex128)
+    return _basis(fit.order, d / np.linalg.norm(d, axis=1, keepdims=True)) @ fit.coef.T
+
+
+@njit(cache=True)
+def _voice_sounds(bank, layout, ev, src, m, c0, nm, s0):
+    """Whether the voice at columns ``c0 .. c0 + nm`` of bank ``m`` (flat modes from ``s0``) has
+    a ringing mode, and whether it has an event or a forcing row in this block."""
+    for i in range(s0, s0 + nm):
+        if bank.active[i]:
+            return True, True
+    for e in range(ev.ptr[m], ev.ptr[m + 1]):
+        for j in range(c0, c0 + nm):
+            if ev.re[e, j] != 0.0 or ev.im[e, j] != 0.0:
+                return False, True
+    for q in range(src.ptr[m], src.ptr[m + 1]):
+        for j in range(c0, c0 + nm):
+            if src.gr[q, j] != 0.0 or src.gi[q, j] != 0.0:
+                return False, True
+    return False, False
+
+
+@njit(cache=True)
+def hear_directions(synth, bank, layout, ev, src, n):
+    """Make each sounding (object, air microphone) voice's direction factors follow the
+    direction from the object's pose (``synth.pos``, ``synth.R``) to the microphone
+    (``synth.mics``) for the block of ``n`` samples about to be rendered with the events
+    ``ev`` and forcing rows ``src`` (:class:`.records.EventRows`, :class:`.records.SourceRows`);
+    module docstring. Sets ``bank.direction``'s targets ``tr, ti``, per-sample log ratios
+    ``lr, li`` and ``ramp`` (its ringing voices), which :func:`.kernels.render_all` applies
+    and commits; a voice with nothing ringing takes its target at once."""
+    dr = bank.direction
+    if dr.n_objects[0] == 0 or n <= 0:
+        return
+    prm = dr.params[0]
+    cos_step, floor = prm.cos_step, prm.floor
+    chans = synth.channels
+    M = chans.shape[0]
+    Y = dr.sh
+    for o in range(dr.order.shape[0]):
+        L = dr.order[o]
+        if L < 0 or o >= layout.vbase.shape[0] or layout.vbase[o] < 0:
+            continue
+        nsh = (L + 1) * (L + 1)
+        c_off = dr.coef_off[o]
+        pos = synth.pos[o]
+        R = synth.R[o]
+        for m in range(M):
+            if chans[m].owner != AIR:
+                continue
+            v = layout.vbase[o] + m
+            c0 = layout.v_rel[v]
+            nm = layout.v_len[v]
+            s0 = bank.start[m] + c0
+            if nm == 0:
+                continue
+            ringing, sounds = _voice_sounds(bank, layout, ev, src, m, c0, nm, s0)
+            if not sounds:
+                continue
+            dx = synth.mics[m, 0] - pos[0]
+            dy = synth.mics[m, 1] - pos[1]
+            dz = synth.mics[m, 2] - pos[2]
+            r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if not r > 0.0:  # (a microphone at the object's origin: no direction to follow)
+                continue
+            ux = (R[0, 0] * dx + R[1, 0] * dy + R[2, 0] * dz) / r  # u = R^T (mic - pos) / r
+            uy = (R[0, 1] * dx + R[1, 1] * dy + R[2, 1] * dz) / r
+            uz = (R[0, 2] * dx + R[1, 2] * dy + R[2, 2] * dz) / r
+            u = dr.u[v]
+            if ux * u[0] + uy * u[1] + uz * u[2] >= cos_step:  # (NaN: never made: not taken)
+                continue
+            u[0] = ux
+            u[1] = uy
+            u[2] = uz
+            real_sh(L, ux, uy, uz, Y)
+            for j in range(nm):
+                base = c_off + j * nsh
+                t = 0j
+                for k in range(nsh):
+                    t += Y[k] * dr.coef[base + k]
+                a = abs(t)
+                if not a >= floor:  # (a null, or a NaN pattern: the floor, with the phase if any)
+                    t = t / a * floor if a > 0.0 else complex(floor, 0.0)
+                i = s0 + j
+                if ringing:
+                    A = complex(dr.ar[i], dr.ai[i])
+                    ratio = t / A
+                    lg = np.log(ratio) / n
+                    dr.lr[i] = lg.real
+                    dr.li[i] = lg.imag
+                    bank.peak2[i] *= ratio.real * ratio.real + ratio.imag * ratio.imag
+                else:
+                    dr.ar[i] = t.real
+                    dr.ai[i] = t.imag
+                dr.tr[i] = t.real
+                dr.ti[i] = t.imag
+            if ringing:
+                dr.ramp[m] = True
+
+
+# ---------------------------------------------------------------- applied by the render (.kernels)
+class ModeGains(NamedTuple):
+    """One bank's direction factors for this block (views into :class:`.records.DirectionState`;
+    :mod:`.directivity`): mode i carries ``D_i(s) = (ar_i + j ai_i) e^{s (lr_i + j li_i)}`` at
+    sample ``s`` of the block. ``on``: the bank has a directional mode (``dmode``); ``ramp``:
+    some ``lr, li`` is not zero."""
+
+    on: bool
+    ramp: bool
+    dmode: np.ndarray
+    ar: np.ndarray
+    ai: np.ndarray
+    lr: np.ndarray
+    li: np.ndarray
+
+
+@njit_inner(cache=True)
+def gain_at(gains, i, s):
+    """``D_i(s)`` of :class:`ModeGains` (complex)."""
+    d = complex(gains.ar[i], gains.ai[i])
+    if gains.lr[i] != 0.0 or gains.li[i] != 0.0:
+        d = d * np.exp(s * complex(gains.lr[i], gains.li[i]))
+    return d
+
+
+@njit_inner(cache=True)
+def ramp_poles(wpr, wpi, idx, na, gains):
+    """The gathered poles of the ramping modes times ``e^{lr + j li}`` (the gain's per-sample
+    factor: the block's exponential ramp at no cost per sample)."""
+    for k in range(na):
+        i = idx[k]
+        if gains.lr[i] != 0.0 or gains.li[i] != 0.0:
+            p = complex(np.float64(wpr[k]), np.float64(wpi[k])) * np.exp(complex(gains.lr[i], gains.li[i]))
+            wpr[k] = p.real
+            wpi[k] = p.imag
+
+
+@njit_inner(cache=True)
+def scale_sources(gr, gi, gains, s):
+    """Forcing rows' gains ``gr + j gi`` (q, m) of the directional modes times ``D(s)``."""
+    for i in range(gr.shape[1]):
+        if gains.dmode[i]:
+            d = gain_at(gains, i, s)
+            for q in range(gr.shape[0]):
+                g = complex(np.float64(gr[q, i]), np.float64(gi[q, i])) * d
+                gr[q, i] = g.real
+                gi[q, i] = g.imag
+
+
+@njit_inner(cache=True)
+def commit_ramp(dr, o, m):
+    """The ramped modes ``o .. o + m`` of :class:`.records.DirectionState` reached their target."""
+    for i in range(o, o + m):
+        if dr.lr[i] != 0.0 or dr.li[i] != 0.0:
+            dr.ar[i] = dr.tr[i]
+            dr.ai[i] = dr.ti[i]
+            dr.lr[i] = 0.0
+            dr.li[i] = 0.0
