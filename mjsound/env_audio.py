@@ -13,6 +13,7 @@ import numpy as np
 
 from .audio_window import AudioWindow
 from .synth.contact_mic import check_contact_full_scale
+from .user_frame import user_stacklevel
 
 __all__ = ["EnvAudio", "audible_geoms", "build_scene", "model_signature", "scene_materials"]
 
@@ -208,7 +209,7 @@ class EnvAudio:
         warnings.warn(f"mjsound: the audio observation clipped: {clipped} sample(s) beyond full scale this step, "
                       f"peak {peak:.3g} Pa (NaN counts as clipped); a larger {knobs} keeps such steps undistorted. "
                       "The step's info counts every step's (audio_clipped; dm_control: last_info); reported once "
-                      "per env", RuntimeWarning, stacklevel=4)
+                      "per env", RuntimeWarning, stacklevel=user_stacklevel())
 
     def _check_step_time(self) -> None:
         """The first env step: the window (one env step by default) must last what the step

@@ -32,6 +32,8 @@ import warnings
 import numpy as np
 import trimesh
 
+from .user_frame import user_stacklevel
+
 __all__ = ["load_mesh", "builtin_mesh", "mesh_digest", "surface_report", "BUILTIN_SHAPES"]
 
 BUILTIN_SHAPES = {
@@ -171,7 +173,7 @@ def load_mesh(mesh, *, check_size: bool = True) -> trimesh.Trimesh:
         warnings.warn(
             f"{label}: longest side is {ext:.3g} m; a mesh in millimetres is 1000x too large "
             "(scale it by 0.001). Analysing it as given.",
-            stacklevel=2,
+            stacklevel=user_stacklevel(),
         )
     return tm
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from .result import FitResult, FitWarning
 from .signal import _blas_single, _correlate_valid, _esprit, _frames, _kaiser_lowpass, _ls_amplitudes
+from ..user_frame import user_stacklevel
 
 __all__ = ["fit_recording", "read_recording"]
 
@@ -95,7 +96,7 @@ def _clipped_samples(x, peak):
 
 def _warn(msgs, text):
     msgs.append(text)
-    warnings.warn(text, FitWarning, stacklevel=4)  # the caller of fit_recording
+    warnings.warn(text, FitWarning, stacklevel=user_stacklevel())  # the caller of fit_recording
 
 
 def fit_recording(audio, sample_rate: int | None = None, n_modes: int | None = None, *, channel=None,

@@ -57,6 +57,7 @@ from .error_estimate import (FACET_DRAFT_ERROR_ORDER, FACET_ERROR_ORDER, HEX_STA
 from .model import ModalModel
 from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cells, hex_moments, hex_refine,
                    plan_analysis, quality_preset, thin_wall)
+from ..user_frame import user_stacklevel
 
 __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "default_f_max", "AnalysisBudgetError"]
 
@@ -280,7 +281,7 @@ def analyze(
         try:
             return ModalModel.load(path)
         except ValueError as exc:
-            warnings.warn(f"cache entry {path} is corrupt ({exc}); recomputing", stacklevel=2)
+            warnings.warn(f"cache entry {path} is corrupt ({exc}); recomputing", stacklevel=user_stacklevel())
 
     t0 = time.perf_counter()
     try:
@@ -302,7 +303,7 @@ def analyze(
         try:
             model.save(path)
         except OSError as exc:
-            warnings.warn(f"could not write cache entry {path}: {exc}", stacklevel=2)
+            warnings.warn(f"could not write cache entry {path}: {exc}", stacklevel=user_stacklevel())
     return model
 
 

@@ -71,6 +71,7 @@ from .block_lanczos import (BLOCK_TOL, PROJECT_SPLIT_MIN, SERIAL_PRODUCTS_DOFS, 
 from .node_mass import mass_rows
 from .pardiso import PARDISO_MIN_DOFS, backend_name, count_below, factorize, factorize_indefinite  # noqa: F401
 from .pencil import Pencil
+from ..user_frame import user_stacklevel
 
 __all__ = ["solve_band", "solve_modes", "factorize", "count_below", "BandSolution", "backend_name"]
 
@@ -363,7 +364,7 @@ def _slice_band(K, M, lam_min, lam_max, slice_modes, backend, progress, max_mode
             f"eigensolver found {n_below + total} eigenvalues below the band top but the inertia "
             f"count is {n_target}; the factorization may be inaccurate (badly scaled K, M?)",
             RuntimeWarning,
-            stacklevel=3,
+            stacklevel=user_stacklevel(),
         )
     w = np.concatenate(vals) if vals else np.zeros(0)
     V = np.concatenate(vecs, axis=1) if vecs else np.zeros((n, 0))

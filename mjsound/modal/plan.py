@@ -52,6 +52,7 @@ import trimesh
 from ..limits import DEFAULT_MAX_MEMORY_GB, MAX_MEMORY_ENV, max_memory_gb
 from ..materials import Material
 from .surface import face_components
+from ..user_frame import user_stacklevel
 
 __all__ = ["Plan", "plan_analysis", "estimate_modes", "max_memory_gb", "DEFAULT_MAX_MEMORY_GB",
            "MAX_MEMORY_ENV", "AnalysisBudgetError", "thin_wall", "QUALITY", "QUALITY_ORDER", "quality_preset", "hex_refine", "hex_moments",
@@ -550,7 +551,7 @@ def plan_analysis(mesh: trimesh.Trimesh, material: Material, f_max: float, *, me
                 msg = (f"analysis: quality={quality!r} would need about {tried[0][1]:.3g} dofs and "
                        f"{tried[0][2]:.3g} GB, over the cap of {cap:g} GB (max_memory_gb / ${MAX_MEMORY_ENV}); "
                        f"using quality={q!r}'s resolution ({dofs:.3g} dofs, {mem:.3g} GB): expect a larger error")
-                warnings.warn(msg, RuntimeWarning, stacklevel=3)
+                warnings.warn(msg, RuntimeWarning, stacklevel=user_stacklevel())
                 notes.append(msg)
             return Plan(method="tet" if kind == "tet-wall" else kind, order=order if kind not in ("shell", "facet") else 1, h=h,
                         f_max=f_max, quality=q, reason=reason, modes=modes, dofs=int(dofs), memory_gb=mem,

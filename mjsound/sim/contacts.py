@@ -69,6 +69,7 @@ from .impulses import restitution_of
 from .pairs import contact_quantities, rehash
 from .records import (BODY, GEOM, HIT, IMPACT, LOG, MISSING, ONSET, PAIR, PAIR_ROW, READER_COUNTS, READER_PARAMS,
                       RECORD, ReaderState, StepBuffers, contact_quantities_of, pair_scratch)
+from ..user_frame import user_stacklevel
 
 __all__ = ["ContactReader", "ContactFrame", "ImpactEvent", "ContactEvent", "ImpactRecord"]
 
@@ -219,7 +220,8 @@ class ContactReader:
     @property
     def n_impacts_made(self) -> int:
         """Impacts made since the last reset: the impact events with a positive impulse
-        (those the synthesizer is asked to sound)."""
+        (those the synthesizer is asked to sound), one per geom pair and substep however
+        many contact points it has."""
         return int(self.counts[0]["impacts"])
 
     @property
@@ -390,7 +392,7 @@ class ContactReader:
     def _warn_once(self, key, msg):
         if key not in self._warned:
             self._warned.add(key)
-            warnings.warn(msg, RuntimeWarning, stacklevel=4)
+            warnings.warn(msg, RuntimeWarning, stacklevel=user_stacklevel())
 
     @property
     def impacts(self) -> list[ImpactRecord]:

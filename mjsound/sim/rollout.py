@@ -34,6 +34,7 @@ import zipfile
 import numpy as np
 
 from ..limits import check_array_bytes, check_duration, check_sample_rate, check_steps, check_timestep
+from ..user_frame import user_stacklevel
 
 __all__ = ["load_rollout", "sonify", "write_spectrogram_png", "load_materials"]
 
@@ -468,7 +469,7 @@ def write_spectrogram_png(path, audio, sample_rate, title="mjsound demo", labels
         import warnings
 
         warnings.warn("matplotlib not installed; no spectrogram picture (pip install 'mjsound[report]')",
-                      stacklevel=2)
+                      stacklevel=user_stacklevel())
         return None
     from ..io import atomic_path
 

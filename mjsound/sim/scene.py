@@ -53,7 +53,7 @@ from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, AnalysisOptions, _a
                              _finite_or_none, _mode_cap, _sphere_inaudible, _surface_notes, check_masses,
                              object_model, warn_unheard)  # (re-exported)
 from .scene_budget import share_budget
-from .scene_materials import assign_materials, warn_unknown_texts
+from .scene_materials import CANNOT_COLLIDE, NO_MATERIAL, assign_materials, warn_unknown_texts
 from .scene_mics import place_microphones
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
@@ -146,6 +146,8 @@ class SoundScene:
         One line per geom whose model the budget truncated.
     sample_rate : int
         Sample rate the models were analysed for [Hz].
+    quality : str
+        The analysis quality asked for (``"draft"``, ``"default"``, ``"high"``).
     """
 
     model: object
@@ -159,6 +161,7 @@ class SoundScene:
     budget_notes: list = field(default_factory=list)
     sample_rate: int = 48000
     analysis_seconds: float = 0.0
+    quality: str = "default"
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -239,7 +242,7 @@ class SoundScene:
         mujoco = _mujoco()
         if not isinstance(model, mujoco.MjModel):
             model = mujoco.MjModel.from_xml_path(os.fspath(model))
-        scene = cls(model=model, budget_modes=budget_modes, sample_rate=int(sample_rate))
+        scene = cls(model=model, budget_modes=budget_modes, sample_rate=int(sample_rate), quality=str(quality))
         materials = checked_mapping(model, materials, "materials", allow_star=True)
         mesh_texts = custom_texts(model, "mjsound-mesh:")
         warn_unknown_texts(model, mesh_texts, "mjsound-mesh:", mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
@@ -325,9 +328,15 @@ class SoundScene:
             "analysis_seconds": self.analysis_seconds,
         }
 
-    def report(self) -> str:
+    def report(self, details: bool = False) -> str:
         """Human-readable summary: what sounds (modes, range, error estimate, flagged ``(!)``
-        above 50 cents), what each object is made of, every budget and note, what is silent."""
+        above 50 cents), what each object is made of, every budget and note, what is silent.
+
+        Geoms that are silent for a reason of no interest (they cannot collide: visual
+        geoms; they have no acoustic material) are counted in one line per reason, with the
+        first names, when there are more than :data:`LISTED_SILENT`; ``details=True`` lists
+        every one.
+        """
         lines = [f"{len(self.sounding)} sounding object(s), {self.n_modes} modes, mics: {', '.join(self.mic_names)}"]
         flagged = 0
         for s in self.sounding:
@@ -348,12 +357,38 @@ class SoundScene:
                 lines.append(f"      {note}")
         if flagged:
             lines.append(f"  (!) {flagged} object(s) with an estimated frequency error above {ERROR_FLAG_CENTS:.0f} cents: "
-                         "a higher quality ('default', 'high') makes them more accurate")
+                         f"{_finer_quality_hint(self.quality)}")
         for note in self.budget_notes:
             lines.append(f"  budget: {note}")
+        grouped: dict = {}
         for name, why in self.silent.items():
-            lines.append(f"  silent {name}: {why}")
+            grouped.setdefault(why if why in UNINTERESTING_SILENCE else name, []).append((name, why))
+        for entries in grouped.values():
+            if details or len(entries) <= LISTED_SILENT:
+                lines += [f"  silent {name}: {why}" for name, why in entries]
+            else:
+                names = ", ".join(name for name, _ in entries[:LISTED_SILENT])
+                lines.append(f"  silent: {len(entries)} geoms {entries[0][1]} ({names}, ...; report(details=True) "
+                             "lists them)")
         return "\n".join(lines)
+
+
+#: silent reasons counted in one line by :meth:`SoundScene.report` (visual geoms, geoms left
+#: without a material): per-geom lines of them drown the objects that matter
+UNINTERESTING_SILENCE = frozenset({CANNOT_COLLIDE, NO_MATERIAL})
+#: how many such geoms the report names before it counts them
+LISTED_SILENT = 3
+
+
+def _finer_quality_hint(quality: str) -> str:
+    """What to do about flagged frequency errors at analysis ``quality``: the qualities above
+    it, or, at the highest, that the estimate is what it resolves."""
+    from ..modal.plan import QUALITY_ORDER
+
+    finer = QUALITY_ORDER[:QUALITY_ORDER.index(quality)][::-1] if quality in QUALITY_ORDER else ()
+    if finer:
+        return f"a higher quality ({', '.join(repr(q) for q in finer)}; now {quality!r}) makes them more accurate"
+    return f"quality {quality!r} is the finest preset: these estimates are what it resolves"
 
 
 # ---------------------------------------------------------------------- helpers

@@ -19,7 +19,9 @@ from ..io import file_lock, sources_digest
 from ..limits import max_memory_gb
 from ..modal.band import default_f_max, ringing_below
 from ..modal.model import ModalModel
+from ..user_frame import user_stacklevel
 from .objects import object_mesh, solid_mode_count
+from .scene_materials import NO_MATERIAL
 
 #: A body's sounding mass and MuJoCo's may differ by this fraction before the scene warns.
 MASS_TOLERANCE = 0.05
@@ -48,7 +50,7 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
     f1 = 2.6 * np.sqrt(mat.shear_modulus / mat.rho) / (2 * np.pi * R)
     f_max = min(20000.0, 0.45 * float(sample_rate))
     if 0.5 * f1 > f_max:
-        return f"no audible modes (lowest mode ~{f1 / 1000:.0f} kHz > f_max {f_max / 1000:.1f} kHz); still excites what it hits"
+        return f"no audible modes (lowest mode ~{f1 / 1000:.0f} kHz > f_max {f_max / 1000:.1f} kHz)"
     return None
 
 
@@ -82,7 +84,7 @@ def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, c
             return mm
         except (ValueError, RuntimeError, MemoryError) as exc:
             tried.append(f"{m}: {exc}")
-    warnings.warn(f"{name!r} stays silent: modal analysis failed ({'; '.join(tried)})", stacklevel=3)
+    warnings.warn(f"{name!r} stays silent: modal analysis failed ({'; '.join(tried)})", stacklevel=user_stacklevel())
     return None
 
 
@@ -216,7 +218,7 @@ def save_object_model(key: str | None, mm: ModalModel, label: str, notes: list) 
     try:
         entry.save(_object_path(key))
     except OSError as exc:
-        warnings.warn(f"could not write the object cache entry {_object_path(key)}: {exc}", stacklevel=3)
+        warnings.warn(f"could not write the object cache entry {_object_path(key)}: {exc}", stacklevel=user_stacklevel())
 
 
 # ---------------------------------------------------------------------- construction helpers
@@ -274,21 +276,27 @@ def _surface_notes(mm: ModalModel) -> list:
 
 def warn_unheard(scene, plans, f_max) -> None:
     """A warning for every object the user gave a material that will not ring, and one when
-    nothing in the scene rings although some objects have materials."""
+    nothing in the scene rings (objects with materials too high-pitched, or no material at all)."""
     if not scene.sounding and any("no audible modes" in why for why in scene.silent.values()):
         quiet = [n for n, why in scene.silent.items() if "no audible modes" in why]
         warnings.warn(f"mjsound: nothing in this scene rings: {len(quiet)} object(s) with a material have no mode "
                       f"between 20 Hz and f_max {f_max / 1000:.1f} kHz ({', '.join(quiet[:4])}"
                       f"{' ...' if len(quiet) > 4 else ''}). A higher sample_rate (f_max = 0.45 x sample_rate) or "
                       "lower-pitched materials would make them ring (moving bodies still click on impact).", UserWarning,
-                      stacklevel=3)
+                      stacklevel=user_stacklevel())
+    elif not scene.sounding and any(why == NO_MATERIAL for why in scene.silent.values()):
+        bare = sum(why == NO_MATERIAL for why in scene.silent.values())
+        warnings.warn(f"mjsound: nothing in this scene rings: no colliding geom has an acoustic material ({bare} "
+                      "without one). Give materials= (a geom, body or '*': a material name such as 'steel'), name "
+                      "MJCF materials after mjsound's, or default_material= in the env wrappers (moving bodies still "
+                      "click on impact).", UserWarning, stacklevel=user_stacklevel())
     for p in plans:
         why = scene.silent[p["name"]]
         fix = ("a lower-pitched object (larger, or a softer or denser material) or a higher sample_rate "
                f"(f_max = 0.45 x sample_rate, now {f_max / 1000:.1f} kHz) would make it ring"
                if "no audible modes" in why else "see the warning above")
         warnings.warn(f"mjsound: {p['name']!r} ({p['material'].name}, {p['label']}) will not ring: {why}. "
-                      f"It still excites what it hits (and clicks when it moves); {fix}.", UserWarning, stacklevel=3)
+                      f"It still excites what it hits (and clicks when it moves); {fix}.", UserWarning, stacklevel=user_stacklevel())
 
 def check_masses(scene) -> None:
     """Compare every body's sounding mass with MuJoCo's ``body_mass``; note and warn > 5 % off.
@@ -324,5 +332,5 @@ def check_masses(scene) -> None:
     if off:
         warnings.warn(f"mjsound: {len(off)} object(s) differ in mass from MuJoCo's by more than "
                       f"{100 * MASS_TOLERANCE:.0f} % (the sound and the physics disagree; scene.report() says "
-                      f"more): {'; '.join(off[:6])}{' ...' if len(off) > 6 else ''}", UserWarning, stacklevel=3)
+                      f"more): {'; '.join(off[:6])}{' ...' if len(off) > 6 else ''}", UserWarning, stacklevel=user_stacklevel())
 

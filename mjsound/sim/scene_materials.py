@@ -16,11 +16,15 @@ import numpy as np
 
 from ..materials import Material, get_material, parse_material
 from .objects import close_names, geom_name
+from ..user_frame import user_stacklevel
 
-__all__ = ["GeomMaterials", "assign_materials", "warn_unknown_texts", "SILENT_WORDS"]
+__all__ = ["GeomMaterials", "assign_materials", "warn_unknown_texts", "SILENT_WORDS", "CANNOT_COLLIDE", "NO_MATERIAL"]
 
 #: A material value that makes a geom silent (case-insensitive).
 SILENT_WORDS = {"none", "silent", "off", ""}
+#: why a geom is silent: it never touches anything (a visual geom) / it was given no material
+CANNOT_COLLIDE = "cannot collide (contype = conaffinity = 0)"
+NO_MATERIAL = "no acoustic material"
 
 
 class GeomMaterials(NamedTuple):
@@ -93,9 +97,9 @@ def assign_materials(model, materials: dict, custom: dict, star=None) -> GeomMat
         collides = bool(model.geom_contype[g] or model.geom_conaffinity[g] or g in pair_geoms)
         gtype = int(model.geom_type[g])
         if not collides:
-            silent[gname] = "cannot collide (contype = conaffinity = 0)"
+            silent[gname] = CANNOT_COLLIDE
         elif mat is None:
-            silent[gname] = "no acoustic material"
+            silent[gname] = NO_MATERIAL
         elif gtype == mujoco.mjtGeom.mjGEOM_PLANE:
             silent[gname] = f"plane (never analysed; material {mat.name} used for contacts)"
         elif gtype in (mujoco.mjtGeom.mjGEOM_HFIELD, getattr(mujoco.mjtGeom, "mjGEOM_SDF", -99)):
@@ -118,4 +122,4 @@ def warn_unknown_texts(model, texts: dict, prefix: str, *kinds) -> None:
             names = [mujoco.mj_id2name(model, kind, i) for kind in kinds
                      for i in range({mujoco.mjtObj.mjOBJ_GEOM: model.ngeom, mujoco.mjtObj.mjOBJ_BODY: model.nbody}[kind])]
             warnings.warn(f"mjsound: MJCF custom text '{prefix}{key}' names nothing in this model (it is ignored)"
-                          f"{close_names(key, [n for n in names if n])}", UserWarning, stacklevel=4)
+                          f"{close_names(key, [n for n in names if n])}", UserWarning, stacklevel=user_stacklevel())

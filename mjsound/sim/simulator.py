@@ -40,6 +40,7 @@ from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_p
 from .step import PULSES, AMPLITUDE, CLOCK_JUMP, RING, STREAMS
 from .substeps import make_substeps
 from .warmup import notice_first_compile
+from ..user_frame import user_stacklevel
 
 __all__ = ["AudioSimulator", "SampleClock"]
 
@@ -213,7 +214,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self._fused = use_c and self._kernel.can_step
         if use_c and not self._fused:
             warnings.warn("mjsound: substeps run through Python (MuJoCo's C functions or struct layout could not be "
-                          "checked)", RuntimeWarning, stacklevel=2)
+                          "checked)", RuntimeWarning, stacklevel=user_stacklevel())
         self._drive = None
         self._sidx = np.full((16, 2), -1, np.int64)
         self._sync_poses_call = EntryPoint(sync_poses)

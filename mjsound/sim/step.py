@@ -121,6 +121,18 @@ def _log(log, rn, t, kind, g1, g2, value):
         rn.n_log += 1
 
 
+@njit_inner(cache=True)
+def _impact_pairs(impacts, n):
+    """Impacts of a substep counted per geom pair: ``impacts[:n]`` holds each pair's contact
+    points next to each other (``event_impulses``), so a box landing flat on its four corners
+    is one impact."""
+    pairs = 0
+    for i in range(n):
+        if i == 0 or impacts[i].g1 != impacts[i - 1].g1 or impacts[i].g2 != impacts[i - 1].g2:
+            pairs += 1
+    return pairs
+
+
 @njit_inner(cache=True, inline="always")
 def _render_block(synth, target, rn, ck, out):
     """Render the pending block ``out`` (mics, n) (``run.render``): the synthesizer's samples
@@ -226,16 +238,23 @@ def advance(table, layout, out):
                 rn.reason = AMPLITUDE
                 rn.need = rn.n_imp
                 return
-            cnt.impacts += rn.n_imp
+            cnt.impacts += _impact_pairs(buf.impacts, rn.n_imp)
             if pulses:  # their clicks and contact-microphone pulses, rendered into the track after the substeps
                 queue_pulses(drive.pulses, buf.impacts, rn.n_imp, t_ev, views, synth.mics)
             rn.stage = STAGE_LOG
         if rn.stage == STAGE_LOG:
             if rn.n_log < rn.log_limit:  # (no log, as in the wrappers, or a full one: no call per row)
                 log = buf.log
-                for i in range(rn.n_imp):
+                i = 0
+                while i < rn.n_imp:  # one entry per geom pair: its contact points' impulses summed
                     im = buf.impacts[i]
-                    _log(log, rn, rn.t0, np.int64(LOG_IMPACT), im.g1, im.g2, im.impulse)  # (one _log for both kinds)
+                    total = im.impulse
+                    j = i + 1
+                    while j < rn.n_imp and buf.impacts[j].g1 == im.g1 and buf.impacts[j].g2 == im.g2:
+                        total += buf.impacts[j].impulse
+                        j += 1
+                    _log(log, rn, rn.t0, np.int64(LOG_IMPACT), im.g1, im.g2, total)  # (one _log for both kinds)
+                    i = j
                 for i in range(rn.n_sust):
                     row = buf.sustained[i]
                     _log(log, rn, rn.t0, row.kind, row.g1, row.g2, row.speed)
