@@ -5,13 +5,20 @@ compiled together with kernels of other modules (the step kernel in ``sim/step.p
 the contact reader's, the drive's and the synthesizer's) would then load stale machine code
 after an edit to, or a ``git pull`` of, only those other modules: the old sound, without a word.
 Here each kernel is stamped with the digest of every source of its group
-(:data:`KERNEL_GROUPS`), so an edit anywhere in a group recompiles that group once.
+(:data:`KERNEL_GROUPS`: the modules that hold the group's kernels and those they import at
+load time, whose names and constants the kernels can read), so an edit to any of them
+recompiles that group once, and an edit elsewhere (the simulator's Python, the scene, the
+wrappers) recompiles nothing.
+
+Whether the kernels shipped with mjsound (:mod:`mjsound.kernel_bundle`) fit is decided by
+the group's *code* instead (:func:`code_digest`: the sources parsed, without docstrings,
+comments, blank lines or formatting), so an edit to a docstring leaves them usable.
 
 Importing this module registers the group-stamped cache locators with numba (in front of
 numba's own, for mjsound's files only); kernel modules take ``njit`` from here so that the
 registration always precedes their decorators. It also decides whether this process loads
-the kernels shipped with mjsound (:mod:`mjsound.kernel_bundle`, :data:`SHIPPED`): before any
-kernel is declared, which is why ``mjsound/__init__`` imports this module first.
+the kernels shipped with mjsound (:data:`SHIPPED`): before any kernel is declared, which is
+why ``mjsound/__init__`` imports this module first.
 
 A kernel that only other kernels call is declared with :func:`njit_inner`: compiled without
 the entries numba makes for calls from Python and C, which for kernels taking the state
@@ -37,17 +44,26 @@ from .io import file_lock
 from .io import sources_digest as files_digest
 
 __all__ = ["njit", "njit_inner", "call_inner", "InnerDispatcher", "KERNEL_GROUPS", "kernel_group", "sources_digest",
-           "cache_folder", "folder_cache_path", "folder_stamp", "kernel_digests", "compile_lock", "COMPILE_WAIT_S",
-           "SHIPPED", "seed_shipped_kernels"]
+           "code_digest", "cache_folder", "folder_cache_path", "folder_stamp", "kernel_digests", "kernel_code_digests",
+           "compile_lock", "COMPILE_WAIT_S", "SHIPPED", "seed_shipped_kernels"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
-#: Sources whose kernels can call each other or read each other's constants: a member is a
-#: folder (its ``.py`` files) or a file, relative to the package. A kernel outside ``modal/``
-#: belongs to ``"sim"``.
+#: The sources of each group's kernels: the modules that define them and every module of the
+#: package those import at load time (files relative to the package). A kernel in ``modal/``
+#: belongs to ``"modal"``, any other to ``"sim"``. ``tests/test_kernel_bundle.py`` checks that
+#: each list holds its kernels' import closure: add a module here when a kernel module of the
+#: group starts importing it.
 KERNEL_GROUPS = {
-    "modal": ("modal",),
-    "sim": ("sim", "synth", "report", "audio_window.py", "limits.py", "materials.py", "jit.py"),
+    "modal": ("io.py", "jit.py", "materials.py", "modal/banded.py", "modal/block_lanczos.py",
+              "modal/discretization.py", "modal/facet_shell.py", "modal/hex.py", "modal/hex_cell.py",
+              "modal/midsurface.py", "modal/node_mass.py", "modal/pencil.py", "modal/quadratic_forms.py",
+              "modal/surface.py", "modal/voxelize.py"),
+    "sim": ("audio_window.py", "io.py", "jit.py", "sim/click_kernels.py", "sim/drive.py", "sim/fused.py",
+            "sim/impulses.py", "sim/pairs.py", "sim/records.py", "sim/step.py", "synth/bandlimited.py",
+            "synth/bank_loops.py", "synth/constants.py", "synth/directivity.py", "synth/dispatch.py",
+            "synth/interrupt.py", "synth/kernels.py", "synth/packing.py", "synth/pulse.py", "synth/queue.py",
+            "synth/records.py", "synth/sorting.py", "synth/streams.py"),
 }
 
 njit = numba.njit
@@ -131,9 +147,26 @@ def _folder_file(folder: str) -> str:
 
 
 def kernel_digests() -> dict:
-    """``{group: hex digest}`` of the kernel sources as they are: what a shipped bundle's
-    manifest must carry (:mod:`mjsound.kernel_bundle`)."""
+    """``{group: hex digest}`` of the kernel sources' bytes as they are (numba's stamps)."""
     return {g: sources_digest(g).hex() for g in KERNEL_GROUPS}
+
+
+@functools.lru_cache(maxsize=None)
+def code_digest(group: str, root: str = _ROOT) -> bytes:
+    """The digest of the group's code (:func:`mjsound.kernel_bundle.code_digest`: docstrings,
+    comments and formatting left out), what the shipped kernels must match; kept in numba's
+    cache folder of the package under the sources' byte digest."""
+    from . import kernel_bundle
+
+    memo = folder_cache_path(".") if root == _ROOT else None
+    key = f"{group}-{sources_digest(group, root).hex()[:32]}"
+    return kernel_bundle.code_digest(root, KERNEL_GROUPS[group], memo, key)
+
+
+def kernel_code_digests() -> dict:
+    """``{group: hex digest}`` of the kernels' code as it is (:func:`code_digest`): what a
+    shipped bundle's manifest must carry (:mod:`mjsound.kernel_bundle`)."""
+    return {g: code_digest(g).hex() for g in KERNEL_GROUPS}
 
 
 def folder_stamp(folder: str) -> bytes:
@@ -163,7 +196,7 @@ def _choose_shipped_kernels():
     from . import kernel_bundle
 
     try:
-        return kernel_bundle.activate(kernel_digests())
+        return kernel_bundle.activate(kernel_digests(), lambda g: code_digest(g).hex())
     except Exception as e:  # (never fail an import over a cache: compile instead)
         kernel_bundle.STATUS.used, kernel_bundle.STATUS.reason = False, f"shipped kernels not used ({e!r})"
         return kernel_bundle.STATUS
@@ -174,7 +207,10 @@ def seed_shipped_kernels():
     (:func:`mjsound.kernel_bundle.seed_cache`); ``mjsound/__init__`` calls it last."""
     from . import kernel_bundle
 
-    return kernel_bundle.seed_cache(locate=folder_cache_path, stamp_of=folder_stamp)
+    return kernel_bundle.seed_cache(locate=folder_cache_path, stamp_of=folder_stamp,
+                                    group_of=lambda folder: kernel_group(_folder_file(folder)),
+                                    name_of=lambda folder, name: kernel_bundle.index_name_now(
+                                        _ROOT, [m for g in KERNEL_GROUPS.values() for m in g], folder, name))
 
 
 #: Whether this process loads mjsound's shipped kernels (:mod:`mjsound.kernel_bundle`), and why not.

@@ -16,9 +16,12 @@ in ``mjsound/kernel_bundle/``: ``manifest.json`` (what it was built with) and
 fixes its CPU target when the first one is), and :func:`seed_cache` at the end of that
 import. They use the bundle only where it fits:
 
-- the same numba version, Python version and platform as the build, and the same kernel
-  sources (the digests of :data:`mjsound.jit.KERNEL_GROUPS`: after an edit to a kernel
-  source the bundle is stale and mjsound compiles, as before);
+- the same numba version, Python version and platform as the build (``pyproject.toml`` pins
+  the numba the bundle is built with; numba rejects a cache of any other version);
+- per kernel group (:data:`mjsound.jit.KERNEL_GROUPS`), the same kernel code: the sources'
+  bytes (:func:`mjsound.jit.sources_digest`), or else their code without docstrings,
+  comments and formatting (:func:`mjsound.jit.code_digest`). A group whose code changed
+  compiles, as before; the other group still loads;
 - a CPU with the target's instructions (``manifest["cpu_requires"]``);
 - numba's CPU target not chosen otherwise: neither ``NUMBA_CPU_NAME``/``NUMBA_CPU_FEATURES``
   set to something else, nor numba code compiled in this process before ``import mjsound``;
@@ -34,6 +37,7 @@ together). :data:`STATUS` says whether it was used and, if not, why.
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import io
 import json
@@ -44,6 +48,7 @@ import tarfile
 from dataclasses import dataclass
 
 __all__ = ["BUNDLE_DIR", "ENV_SWITCH", "Status", "STATUS", "activate", "seed_cache", "fits", "mismatches", "seed",
+           "stale_groups", "code_digest", "first_lines", "index_name_now",
            "read_manifest", "host_platform", "write_bundle"]
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
@@ -65,6 +70,8 @@ class Status:
     used: bool = False
     reason: str = "not checked yet"
     added: int = 0  # cache entries this process copied in
+    groups: tuple = ()  # the kernel groups loaded from the bundle
+    stale: tuple = ()  # the kernel groups whose code differs from the bundle's (they compile)
 
 
 #: What :func:`activate` decided in this process.
@@ -90,6 +97,88 @@ def host_platform() -> dict:
             "triple": ll.get_process_triple()}
 
 
+def _code_of(source: bytes) -> str:
+    """A module's code without what does not compile into it: parsed, the docstrings of the
+    module, its classes and functions dropped, dumped without line and column numbers (so
+    comments, blank lines and formatting are gone too)."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) \
+                    and isinstance(first.value.value, str):
+                node.body = node.body[1:] or [ast.Pass()]
+    return ast.dump(tree, annotate_fields=False)
+
+
+def code_digest(root: str, members, memo_dir: str | None = None, memo_key: str | None = None) -> bytes:
+    """sha256 of the code of the sources ``members`` (files relative to ``root``): each
+    :func:`_code_of`, with its name. What the shipped kernels of a group must match: an edit
+    to a docstring, a comment or the layout leaves it as it was. Parsing takes a tenth of a
+    second or more, so with ``memo_dir`` the result is kept there under ``memo_key`` (the
+    sources' byte digest: only an edit computes it again)."""
+    memo = os.path.join(memo_dir, f"mjsound-code-{memo_key}") if memo_dir and memo_key else None
+    if memo is not None:
+        try:
+            with open(memo) as f:
+                return bytes.fromhex(f.read().strip())
+        except (OSError, ValueError):
+            pass
+    h = hashlib.sha256()
+    for member in sorted(members):
+        with open(os.path.join(root, member), "rb") as f:
+            h.update(member.encode() + b"\0" + _code_of(f.read()).encode() + b"\0")
+    digest = h.digest()
+    if memo is not None:
+        tmp = f"{memo}.{os.getpid()}.tmp"
+        try:
+            os.makedirs(memo_dir, exist_ok=True)
+            with open(tmp, "w") as f:
+                f.write(digest.hex() + "\n")
+            os.replace(tmp, memo)
+        except OSError:  # (a read-only install: computed again next time)
+            pass
+    return digest
+
+
+def first_lines(root: str, members, folder: str) -> dict:
+    """``{"module.qualname": first line}`` of the functions of the sources ``members`` that lie
+    in the package folder ``folder``, as numba names their cache files
+    (``module.qualname-LINE.pyXY.nbi``, LINE the first decorator's): module-level functions
+    and methods, from the sources as they are."""
+    out = {}
+    for member in sorted(members):
+        if os.path.dirname(member) != ("" if folder == "." else folder):
+            continue
+        stem = os.path.basename(member)[:-3]
+        with open(os.path.join(root, member), "rb") as f:
+            tree = ast.parse(f.read())
+        for node in tree.body:
+            scopes = [(n, node.name + ".") for n in node.body] if isinstance(node, ast.ClassDef) else [(node, "")]
+            for fn, prefix in scopes:
+                if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    out[f"{stem}.{prefix}{fn.name}"] = min([fn.lineno] + [d.lineno for d in fn.decorator_list])
+    return out
+
+
+_LINES: dict = {}
+
+
+def index_name_now(root: str, members, folder: str, name: str) -> str:
+    """The name numba gives today to the bundle's cache file ``name``
+    (``module.qualname-LINE.pyXY.nbi``) of the package folder ``folder``: the same with the
+    function's current first line (a line added above a kernel, a comment or a docstring's,
+    moves it; the code is the bundle's, :func:`fits` checked); ``name`` itself for a function
+    not found (a closure)."""
+    if (root, folder) not in _LINES:
+        _LINES[root, folder] = first_lines(root, members, folder)
+    head, sep, tail = name.rpartition("-")
+    line = _LINES[root, folder].get(head)
+    if not sep or line is None or "." not in tail:
+        return name
+    return f"{head}-{line}.{tail.split('.', 1)[1]}"
+
+
 def _target_taken() -> bool:
     """Whether numba's CPU target is set up in this process already (a kernel was declared)."""
     from numba.core.registry import cpu_target
@@ -97,18 +186,35 @@ def _target_taken() -> bool:
     return "_toplevel_target_context" in vars(cpu_target)
 
 
-def mismatches(manifest: dict, digests: dict, here: dict | None = None) -> list[str]:
+def stale_groups(manifest: dict, digests: dict, code_digest=None) -> list[str]:
+    """The kernel groups whose code is not the bundle's, sorted: the sources' byte digest
+    (``digests``: ``{group: hex digest}``) differs from the manifest's ``digests`` and, when
+    ``code_digest(group)`` (hex) is given, the code digest from its ``code_digests`` too (an
+    edit to a docstring or a comment leaves a group usable)."""
+    out = []
+    for g in sorted(digests):
+        if manifest.get("digests", {}).get(g) == digests[g]:
+            continue
+        if code_digest is not None and manifest.get("code_digests", {}).get(g) == code_digest(g):
+            continue
+        out.append(g)
+    return out
+
+
+def mismatches(manifest: dict, digests: dict, here: dict | None = None, code_digest=None) -> list[str]:
     """What the bundle ``manifest`` was built with that differs here: the keys of
     :func:`host_platform` (``here``, default this process's), then the kernel groups whose
-    source digest (``digests``: ``{group: hex digest}``) is not the bundle's, sorted."""
+    code is not the bundle's (:func:`stale_groups`)."""
     here = host_platform() if here is None else here
     keys = [k for k in here if manifest.get(k) != here[k]]
-    return keys + sorted(g for g in digests if manifest.get("digests", {}).get(g) != digests[g])
+    return keys + stale_groups(manifest, digests, code_digest)
 
 
-def fits(manifest: dict | None, digests: dict) -> str | None:
-    """Why the bundle ``manifest`` cannot be used in this process, or None when it can.
-    ``digests``: ``{group: hex digest}`` of the current kernel sources."""
+def fits(manifest: dict | None, digests: dict, code_digest=None) -> str | None:
+    """Why the bundle ``manifest`` cannot be used in this process, or None when it can (for
+    at least one kernel group: :func:`stale_groups`). ``digests``: ``{group: hex digest}`` of
+    the current kernel sources' bytes; ``code_digest(group)``: the hex digest of a group's
+    code, asked only for a group whose bytes differ."""
     import llvmlite.binding as ll
     from numba.core import config
 
@@ -117,12 +223,13 @@ def fits(manifest: dict | None, digests: dict) -> str | None:
     if manifest is None:
         return "no bundle in this install"
     here = host_platform()
-    differ = mismatches(manifest, digests, here)
-    for key in differ:
-        if key in here:
-            return f"built for {key} {manifest.get(key)}, this is {here[key]}"
-    if differ:
-        return (f"the kernel sources ({', '.join(differ)}) differ from the bundle's "
+    for key in here:
+        if manifest.get(key) != here[key]:
+            fix = f" (pip install numba=={manifest.get(key)} loads them)" if key == "numba" else ""
+            return f"built for {key} {manifest.get(key)}, this is {here[key]}{fix}"
+    stale = stale_groups(manifest, digests, code_digest)
+    if len(stale) == len(digests):
+        return (f"the kernel code ({', '.join(stale)}) differs from the bundle's "
                 "(rebuild it with scripts/build_kernel_bundle.py)")
     features = ll.get_host_cpu_features()
     missing = [f for f in manifest.get("cpu_requires", []) if not features.get(f, False)]
@@ -158,29 +265,35 @@ def _bundle_id(manifest: dict) -> str:
     return hashlib.sha256(json.dumps(manifest, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def seed(manifest: dict, locate, stamp_of, bundle_dir: str = BUNDLE_DIR) -> int:
+def seed(manifest: dict, locate, stamp_of, bundle_dir: str = BUNDLE_DIR, folders=None, name_of=None) -> int:
     """Copy the bundle's cache entries into numba's cache folders; returns how many were added.
 
     ``locate(folder)``: numba's cache folder for the kernels of the package folder ``folder``
     ("sim", "synth", "." ...), or None; ``stamp_of(folder)``: the source stamp numba's
-    index there must carry. For each index of the bundle the entries the folder's index lacks
-    are added (data files under free names, then the index, each replaced atomically); an
-    index with another stamp (older sources) is replaced. A marker file per folder makes
-    later processes skip the work; a lock keeps processes that start together from doing it
-    twice."""
+    index there must carry (the sources as they are: the caller checked that their code is
+    the bundle's); ``folders``: the package folders to seed (default all of the bundle's);
+    ``name_of(folder, index name)``: the index's name today (numba's names carry the
+    function's first line, which an edit above it moves; default: unchanged).
+    For each index of the bundle the entries the folder's index lacks are added (data files
+    under free names, then the index, each replaced atomically, stamped ``stamp_of(folder)``);
+    an index with another stamp (older sources) is replaced. A marker file per folder and
+    stamp makes later processes skip the work (an edit that changes the stamp seeds again); a
+    lock keeps processes that start together from doing it twice."""
     from numba.core.caching import IndexDataCacheFile
 
     from .io import file_lock
 
-    marker = f"mjsound-bundle-{_bundle_id(manifest)}.seeded"
-    folders = {f: locate(f) for f in manifest["folders"]}
-    todo = {f: p for f, p in folders.items() if p and not os.path.exists(os.path.join(p, marker))}
+    wanted = manifest["folders"] if folders is None else [f for f in manifest["folders"] if f in folders]
+    paths = {f: locate(f) for f in wanted}
+    markers = {f: f"mjsound-bundle-{_bundle_id(manifest)}-{stamp_of(f).hex()[:16]}.seeded" for f in paths}
+    todo = {f: p for f, p in paths.items() if p and not os.path.exists(os.path.join(p, markers[f]))}
     if not todo:
         return 0
     with tarfile.open(os.path.join(bundle_dir, "kernels.tar.xz")) as tar:
         entries = _entries(tar)
     added = 0
     for folder, path in todo.items():
+        marker = markers[folder]
         with file_lock(os.path.join(path, "mjsound-bundle.lock"), SEED_WAIT_S):
             if os.path.exists(os.path.join(path, marker)):
                 continue
@@ -189,10 +302,10 @@ def seed(manifest: dict, locate, stamp_of, bundle_dir: str = BUNDLE_DIR) -> int:
             for name, raw in sorted(files.items()):
                 if not name.endswith(".nbi"):
                     continue
-                version, src_stamp, src = _read_index(raw)
-                index = IndexDataCacheFile(path, name[:-4], stamp)
-                if version != index._version or src_stamp != stamp:
-                    continue  # (fits() compared the digests: a bundle at odds with itself)
+                version, _, src = _read_index(raw)  # (its stamp: the build's sources, whose code fits() compared)
+                index = IndexDataCacheFile(path, (name if name_of is None else name_of(folder, name))[:-4], stamp)
+                if version != index._version:
+                    continue  # (fits() compared numba's version: a bundle at odds with itself)
                 have = index._load_index()
                 used = set(have.values())
                 new = {}
@@ -215,31 +328,41 @@ def seed(manifest: dict, locate, stamp_of, bundle_dir: str = BUNDLE_DIR) -> int:
     return added
 
 
-def activate(digests: dict, bundle_dir: str = BUNDLE_DIR) -> Status:
+def activate(digests: dict, code_digest=None, bundle_dir: str = BUNDLE_DIR) -> Status:
     """Choose the shipped kernels for this process if they fit (:func:`fits`): set numba's
-    CPU target to the bundle's. Sets and returns :data:`STATUS`; :func:`seed_cache` then
-    copies them into numba's cache (after ``mjsound`` is imported: reading numba's indexes
-    imports the modules that define the kernels' argument types)."""
+    CPU target to the bundle's, and note in :data:`STATUS` which kernel groups load from it
+    (a group whose code changed compiles). Sets and returns :data:`STATUS`;
+    :func:`seed_cache` then copies them into numba's cache (after ``mjsound`` is imported:
+    reading numba's indexes imports the modules that define the kernels' argument types)."""
     from numba.core import config
 
     manifest = read_manifest(bundle_dir)
-    why = fits(manifest, digests)
+    why = fits(manifest, digests, code_digest)
     if why is not None:
         STATUS.used, STATUS.reason = False, why
         return STATUS
+    stale = stale_groups(manifest, digests, code_digest)
     config.CPU_NAME, config.CPU_FEATURES = manifest["cpu_name"], manifest["cpu_features"]
     STATUS.used, STATUS.reason = True, f"shipped kernels for {manifest['cpu_name']}"
+    STATUS.groups, STATUS.stale = tuple(g for g in sorted(digests) if g not in stale), tuple(stale)
+    if stale:
+        STATUS.reason += (f" ({', '.join(STATUS.groups)}; the {', '.join(stale)} kernels compile: their code "
+                          "differs from the bundle's, rebuild it with scripts/build_kernel_bundle.py)")
     return STATUS
 
 
-def seed_cache(locate, stamp_of, bundle_dir: str = BUNDLE_DIR) -> Status:
-    """:func:`seed` the chosen bundle (:func:`activate`) into numba's cache. A bundle that
-    cannot be read or copied is reported in :data:`STATUS`, never raised: the kernels are
-    compiled then (for the bundle's CPU target, which is set already)."""
+def seed_cache(locate, stamp_of, bundle_dir: str = BUNDLE_DIR, group_of=None, name_of=None) -> Status:
+    """:func:`seed` the chosen bundle (:func:`activate`) into numba's cache: the package
+    folders whose kernel group (``group_of(folder)``) loads from it. A bundle that cannot be
+    read or copied is reported in :data:`STATUS`, never raised: the kernels are compiled then
+    (for the bundle's CPU target, which is set already)."""
     if not STATUS.used:
         return STATUS
     try:
-        STATUS.added = seed(read_manifest(bundle_dir), locate, stamp_of, bundle_dir)
+        manifest = read_manifest(bundle_dir)
+        folders = None if group_of is None or not STATUS.stale else \
+            [f for f in manifest["folders"] if group_of(f) in STATUS.groups]
+        STATUS.added = seed(manifest, locate, stamp_of, bundle_dir, folders, name_of)
     except Exception as e:  # (a torn archive, a full disk, numba internals moved: compile instead)
         STATUS.used, STATUS.reason = False, f"the bundle could not be copied into numba's cache ({e!r})"
     return STATUS

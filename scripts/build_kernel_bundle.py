@@ -7,13 +7,16 @@
    gymnasium wrapper's, the modal analysis's).
 2. Its cache folders, one per package folder, are packed into ``kernels.tar.xz`` with a
    ``manifest.json``: numba's and Python's versions, the platform, the CPU target and the
-   instructions it needs, and the digests of the kernel sources (:data:`mjsound.jit.KERNEL_GROUPS`).
+   instructions it needs, and per kernel group (:data:`mjsound.jit.KERNEL_GROUPS`) the digests
+   of its sources' bytes and of its code (docstrings, comments and formatting left out).
 3. A second child with another empty cache and the new bundle runs the same warm-up and must
    compile nothing of mjsound's: the bundle is whole.
 
-Run it after editing any kernel source (``tests/test_kernel_bundle.py`` fails until then),
-and after moving to another numba version. ``--check`` only says whether the bundle matches
-the sources and this numba (exit status 1 when not). About a minute and a half on two cores.
+Run it once per release, on the release commit (``docs/kernels.md``): not after every edit
+(until then a group whose code changed compiles once per machine, and the test suite warns).
+It refuses to build with a numba other than the one ``pyproject.toml`` pins. ``--check``
+only says whether the bundle matches the kernels' code and this numba (exit status 1 when
+not). About two minutes on two cores.
 
 Usage: python scripts/build_kernel_bundle.py [--check]
 """
@@ -95,18 +98,32 @@ def package_folders(cache_dir: str) -> dict:
     return out
 
 
+def pinned_numba() -> str | None:
+    """The numba version ``pyproject.toml`` pins (``numba==X``), or None."""
+    import re
+
+    with open(os.path.join(ROOT, "pyproject.toml")) as f:
+        m = re.search(r'"numba==([0-9][0-9a-z.]*)"', f.read())
+    return m.group(1) if m else None
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--check", action="store_true", help="only check that the bundle matches the sources and numba")
     args = p.parse_args(argv)
+    import numba
+
     from mjsound import kernel_bundle
-    from mjsound.jit import kernel_digests
+    from mjsound.jit import code_digest, kernel_code_digests, kernel_digests
 
     manifest = kernel_bundle.read_manifest()
     if args.check:
-        stale = kernel_bundle.mismatches(manifest or {}, kernel_digests())
+        stale = kernel_bundle.mismatches(manifest or {}, kernel_digests(), code_digest=lambda g: code_digest(g).hex())
         print("build_kernel_bundle: " + (f"stale ({', '.join(stale)})" if stale else "the bundle matches"))
         return 1 if stale else 0
+    if numba.__version__ != pinned_numba():
+        raise SystemExit(f"build_kernel_bundle: this is numba {numba.__version__}, pyproject.toml pins "
+                         f"{pinned_numba()}: build with the pinned numba (or change the pin and the docs with it)")
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="mjsound-bundle-") as cache:
@@ -117,7 +134,7 @@ def main(argv=None) -> int:
         import llvmlite.binding as ll
 
         manifest = dict(kernel_bundle.host_platform(), cpu_name=CPU_NAME, cpu_features="", cpu_requires=CPU_REQUIRES,
-                        digests=kernel_digests(),
+                        digests=kernel_digests(), code_digests=kernel_code_digests(),
                         built={"host_cpu": ll.get_host_cpu_name(), "functions": len(built["compiled"])})
         archive = kernel_bundle.write_bundle(kernel_bundle.BUNDLE_DIR, package_folders(cache), manifest)
     print(f"build_kernel_bundle: {len(built['compiled'])} functions compiled in {time.perf_counter() - t0:.0f} s; "
