@@ -61,6 +61,9 @@ while caught < int(sys.argv[1]):
     except KeyboardInterrupt:
         caught += 1
         print("KeyboardInterrupt", flush=True)
+        # the interrupt may fall between mj_step and sim.step(): that step's contacts were
+        # never read, which the simulator rightly refuses to skip over; start clean
+        restart()
     except BaseException as e:
         print("ERROR", type(e).__name__, e, flush=True)
         sys.exit(4)
