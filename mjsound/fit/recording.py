@@ -7,6 +7,7 @@ import math
 import os
 import time as _time
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
@@ -145,9 +146,73 @@ def fit_recording(audio, sample_rate: int | None = None, n_modes: int | None = N
                          band_hz, max_decay_per_s)
 
 
+class _Impact(NamedTuple):
+    """Where the first impact of a recording is and what of it the fit analyses (sample
+    indices into the mean-free mono recording)."""
+
+    n_on: int  # the onset
+    n_a: int  # the analysed span's start (after the contact transient and any clipping)
+    n_e: int  # its end (the end of the decay, a second impact, or max_seconds)
+    floor: float  # noise variance per sample
+    snr_db: float  # the loudest frame over the noise floor [dB]
+
+
 def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, max_seconds, skip_s, band_hz,
               max_decay_per_s):
+    """:func:`fit_recording`'s stages: checked input, the impact and its analysed span, the
+    band-split ESPRIT poles, the full-rate amplitudes pruned by SNR, the onset refined from the
+    phases."""
     t_start = _time.perf_counter()
+    x, fs, chdesc, f_max, source = _checked_input(audio, sample_rate, n_modes, channel, f_min, f_max)
+    msgs: list[str] = []
+    imp = _find_impact(x, fs, f_min, f_max, skip_s, max_seconds, msgs)
+    x = x - np.mean(x)
+    seg = x[imp.n_a:imp.n_e]
+    if n_modes is not None and len(seg) < 8 * n_modes:
+        raise ValueError(f"recording too short for {n_modes} modes: {len(seg)} samples of decay; need about "
+                         f"{8 * n_modes} (ask for fewer modes or record the whole ring-out)")
+    tau_a = (imp.n_a - imp.n_on) / fs  # time of seg[0] after the onset
+    lam, noise_k = _band_poles(seg, fs, f_min, f_max, band_hz, min_snr_db, max_decay_per_s)
+    lam, b, res, n_significant = _significant_modes(seg, fs, tau_a, lam, noise_k, n_modes, min_snr_db)
+    if n_modes is not None and n_significant < n_modes:
+        _warn(msgs, f"{n_modes} modes asked for, but the recording supports only {n_significant} above "
+                    f"min_snr_db={min_snr_db:g} dB; the fit returns those and invents none. Record longer, closer "
+                    "or with less noise for more")
+    if len(lam) == 0:
+        _warn(msgs, "no mode rose above the noise: the fit is empty. Record closer to the object, strike harder "
+                    "or lower min_snr_db")
+    sig_e = float(np.sum(seg**2))
+    residual_db = 10 * math.log10(max(float(np.sum(res**2)), 1e-300) / max(sig_e, 1e-300))
+    b, t0, impulse_like = _refine_onset(lam, b, fs, tau_a, imp.n_on / fs, msgs)
+
+    d = -lam.real
+    fd = lam.imag / (2 * np.pi)
+    f0 = np.sqrt((2 * np.pi * fd) ** 2 + d**2) / (2 * np.pi)
+    order = np.argsort(f0)
+    return FitResult(
+        frequencies_hz=f0[order],
+        decay_per_s=d[order],
+        amplitudes=np.abs(b)[order],
+        phases_rad=np.angle(b)[order],
+        sample_rate=fs,
+        onset_s=float(t0),
+        residual_db=float(residual_db),
+        snr_db=float(imp.snr_db),
+        noise_rms=float(math.sqrt(imp.floor)),
+        analysis_start_s=imp.n_a / fs,
+        analysis_end_s=imp.n_e / fs,
+        channels=chdesc,
+        impulse_like=impulse_like,
+        warnings=msgs,
+        modes_supported=n_significant,
+        seconds=_time.perf_counter() - t_start,
+        source=source,
+    )
+
+
+def _checked_input(audio, sample_rate, n_modes, channel, f_min, f_max):
+    """The recording as a mono float array with its rate, checked: ``(x, fs, channels'
+    description, f_max, source)``. Raises ValueError naming the bad input and the fix."""
     source = "array"
     if isinstance(audio, (str, os.PathLike)):
         source = os.fspath(audio)
@@ -172,18 +237,24 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
     f_max = 0.45 * fs if f_max is None else float(f_max)
     if not (0 <= f_min < f_max <= 0.5 * fs):
         raise ValueError(f"need 0 <= f_min < f_max <= fs/2, got f_min={f_min}, f_max={f_max}, fs={fs}")
-    msgs: list[str] = []
     n = len(x)
-    dur = n / fs
-    if dur < MIN_DURATION_S:
+    if n / fs < MIN_DURATION_S:
         raise ValueError(
-            f"recording too short: {dur * 1000:.1f} ms ({n} samples at {fs} Hz); a fit needs at least "
+            f"recording too short: {n / fs * 1000:.1f} ms ({n} samples at {fs} Hz); a fit needs at least "
             f"{MIN_DURATION_S * 1000:.0f} ms of decay: record the whole ring-out"
         )
-    peak = float(np.max(np.abs(x)))
-    if peak == 0.0:
+    if float(np.max(np.abs(x))) == 0.0:
         raise ValueError("recording is silent (all samples are zero): check the input channel / microphone and record the impact again")
+    return x, fs, chdesc, f_max, source
 
+
+def _find_impact(x, fs, f_min, f_max, skip_s, max_seconds, msgs) -> _Impact:
+    """The first impact of the mono recording ``x``: noise floor (the lower of the quietest
+    frames' level and the band's spectral median), onset, a second impact (warned), clipping
+    (warned, skipped) and the analysed span from ``skip_s`` after the onset to the end of the
+    decay. Raises ValueError when there is no impact or too little decay."""
+    n = len(x)
+    peak = float(np.max(np.abs(x)))
     # ---------------------------------------------------------------- clipping
     clip_idx = _clipped_samples(x, peak)
     n_clip = len(clip_idx)
@@ -252,14 +323,16 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
             f"{n_on / fs:.3f} s (need {MIN_DURATION_S * 1000:.0f} ms). Record the whole ring-out"
             + (" and leave time between strikes" if n_end_event < n else "")
         )
-    seg = x[n_a:n_e]
-    N = len(seg)
-    if n_modes is not None and N < 8 * n_modes:
-        raise ValueError(f"recording too short for {n_modes} modes: {N} samples of decay; need about {8 * n_modes} "
-                         "(ask for fewer modes or record the whole ring-out)")
-    tau_a = (n_a - n_on) / fs  # time of seg[0] after the onset
+    return _Impact(n_on, n_a, n_e, floor, snr_db)
 
-    # ---------------------------------------------------------------- bands
+
+def _band_poles(seg, fs, f_min, f_max, band_hz, min_snr_db, max_decay_per_s):
+    """The poles ``lam`` (complex, [1/s]) of the significant modes of the decay ``seg``, and
+    each one's band noise density: the band ``[f_min, f_max]`` cut into bands of ``band_hz``,
+    each shifted to baseband, low-passed, decimated and fitted by ESPRIT (:func:`.signal._esprit`);
+    a pole is kept when it lies in its band's centre, decays (slower than ``max_decay_per_s``,
+    underdamped) and carries ``min_snr_db`` over the band's noise."""
+    N = len(seg)
     Xs = np.fft.rfft(seg)
     Ps = np.abs(Xs) ** 2 / N
     fb = np.fft.rfftfreq(N, 1 / fs)
@@ -319,8 +392,15 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
         cand_noise.extend([noise_b] * int(keep.sum()))
     lam = np.array(cand_lam, complex)
     noise_k = np.array(cand_noise, float)
+    return np.array(cand_lam, complex), np.array(cand_noise, float)
 
-    # ---------------------------------------------------------------- full-rate amplitudes, pruning
+
+def _significant_modes(seg, fs, tau_a, lam, noise_k, n_modes, min_snr_db):
+    """Full-rate amplitudes of the poles ``lam`` (least squares over ``seg``, which starts
+    ``tau_a`` after the onset), pruned up to three times to the modes whose energy over the
+    span is ``min_snr_db`` above their band's noise (at most ``n_modes``, the most energetic):
+    ``(lam, amplitudes, residual, modes significant before the n_modes limit)``."""
+    N = len(seg)
     b, res = _ls_amplitudes(seg, fs, tau_a, lam)
     beyond_limit = 0  # significant modes dropped by the n_modes limit
     for _ in range(3):
@@ -342,21 +422,14 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
             break
         lam, noise_k = lam[ok], noise_k[ok]
         b, res = _ls_amplitudes(seg, fs, tau_a, lam)
+    return lam, b, res, len(lam) + beyond_limit
 
-    n_significant = len(lam) + beyond_limit
-    if n_modes is not None and n_significant < n_modes:
-        _warn(msgs, f"{n_modes} modes asked for, but the recording supports only {n_significant} above "
-                    f"min_snr_db={min_snr_db:g} dB; the fit returns those and invents none. Record longer, closer "
-                    "or with less noise for more")
-    if len(lam) == 0:
-        _warn(msgs, "no mode rose above the noise: the fit is empty. Record closer to the object, strike harder "
-                    "or lower min_snr_db")
-    sig_e = float(np.sum(seg**2))
-    residual_db = 10 * math.log10(max(float(np.sum(res**2)), 1e-300) / max(sig_e, 1e-300))
 
-    # ---------------------------------------------------------------- onset refinement from phases
+def _refine_onset(lam, b, fs, tau_a, t0, msgs):
+    """The onset refined from the modes' phases: the shift (within -1 .. +0.5 ms) that makes
+    the phases those of one impulse, applied to the amplitudes ``b`` when they fit one
+    (mismatch under 0.05; warned when far from one). Returns ``(b, onset [s], impulse-like)``."""
     wd = lam.imag
-    t0 = n_on / fs
     impulse_like = False
     if len(lam):
         wgt = np.abs(b) ** 2
@@ -378,27 +451,4 @@ def _fit_core(audio, sample_rate, n_modes, channel, f_min, f_max, min_snr_db, ma
             _warn(msgs, f"the phases are not those of a single short impulse (mismatch {cf[jf]:.2f}); the "
                         "modal model replays the amplitudes with impulse phases. A mallet or a long contact "
                         "does this; it is harmless for synthesis")
-
-    d = -lam.real
-    fd = lam.imag / (2 * np.pi)
-    f0 = np.sqrt((2 * np.pi * fd) ** 2 + d**2) / (2 * np.pi)
-    order = np.argsort(f0)
-    return FitResult(
-        frequencies_hz=f0[order],
-        decay_per_s=d[order],
-        amplitudes=np.abs(b)[order],
-        phases_rad=np.angle(b)[order],
-        sample_rate=fs,
-        onset_s=float(t0),
-        residual_db=float(residual_db),
-        snr_db=float(snr_db),
-        noise_rms=float(math.sqrt(floor)),
-        analysis_start_s=n_a / fs,
-        analysis_end_s=n_e / fs,
-        channels=chdesc,
-        impulse_like=impulse_like,
-        warnings=msgs,
-        modes_supported=n_significant,
-        seconds=_time.perf_counter() - t_start,
-        source=source,
-    )
+    return b, t0, impulse_like
