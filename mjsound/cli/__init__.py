@@ -13,6 +13,7 @@ module                 subcommands
 :mod:`.fit`            ``fit``
 :mod:`.report`         ``report accuracy``, ``report stability``
 :mod:`.warmup`         ``warmup``
+:mod:`.view`           ``view``
 =====================  ==========================================================
 
 Errors a user can fix (bad input, a file that cannot be written, a full disk) end with one
@@ -30,12 +31,12 @@ import signal
 import sys
 import threading
 
-from . import analyze, events, fit, report, sonify, warmup
+from . import analyze, events, fit, report, sonify, view, warmup
 from ..synth.interrupt import interrupt_in_chain
 
 __all__ = ["main", "build_parser", "error_message"]
 
-_GROUPS = (analyze, sonify, events, fit, report, warmup)
+_GROUPS = (analyze, sonify, events, fit, report, warmup, view)
 
 
 def build_parser() -> argparse.ArgumentParser:
