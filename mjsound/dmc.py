@@ -61,7 +61,7 @@ class AudioEnvironment(dm_env.Environment):
         ``window_s`` (default one control step), ``mode``, ``mics``, ``materials``,
         ``default_material`` ("aluminium"), ``full_scale_pa``, ``n_fft``, ``hop``,
         ``follow``, ``quality`` ("draft"), ``budget_modes``, ``models``, ``progress``,
-        ``sim_kwargs``, ``objects``, ``sound_meshes``.
+        ``sim_kwargs``, ``objects``, ``sound_meshes``, ``play`` (live audio, docs/live.md).
 
     Attributes
     ----------
@@ -111,6 +111,7 @@ class AudioEnvironment(dm_env.Environment):
     def close(self) -> None:
         """Give the physics its own ``step`` back and close the wrapped env."""
         self._closed = True
+        self.core.close()
         self._route.remove()
         close = getattr(self._env, "close", None)
         if close is not None:

@@ -57,7 +57,7 @@ class EnvAudio:
                  materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
                  follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
                  objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True,
-                 dt_source="the env's dt"):
+                 dt_source="the env's dt", play=None):
         if mode not in ("waveform", "spectrogram"):
             raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
         fsp = float(full_scale_pa)
@@ -99,6 +99,12 @@ class EnvAudio:
         self._audible_seen = 0
         self._clip_reported = False
         self._t_last = float(data.time)
+        self.player = None  # (play: each step's audio also to a device, live: mjsound.live)
+        if play is not None and play is not False:
+            from .live import LivePlayer, output_channels
+
+            self._heard = output_channels(self.n_channels, self._contact)
+            self.player = LivePlayer(self.sample_rate, len(self._heard), device=None if play is True else play).start()
 
     def _build(self, model, data) -> None:
         """Scene and simulator for ``model`` / ``data`` (the modal models from the process's memo
@@ -236,11 +242,19 @@ class EnvAudio:
             block[self._contact] *= self._contact_gain
         audio = self.audio
         clipped, peak = audio.push(block)
+        if self.player is not None:  # (waits until the step is due: the env runs in real time)
+            self.player.push(block[self._heard] * np.float64(1.0 / audio.full_scale_pa))  # (as the window rounds)
         if clipped and not self._clip_reported:
             self._report_clipping(clipped, peak)
         info = {"audio_clipped": clipped, "audio_peak_pa": peak, "audio_samples": block.shape[1],
                 "audio_impacts": self._audible_impacts()}
         return audio.observe(), info
+
+    def close(self) -> None:
+        """Play what is queued and close the live player (``play``), if any."""
+        if self.player is not None:
+            self.player, player = None, self.player
+            player.close()
 
 
 #: the model fields a scene and simulator are made from (with the names and custom text, where

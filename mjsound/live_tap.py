@@ -30,16 +30,22 @@ NEEDED = ("pulseaudio", "pacat")
 
 class PulseTap:
     """Start with :meth:`start` (about 3 s), stop with :meth:`stop`; ``directory`` holds the
-    server socket, the ALSA configuration and ``played.wav``."""
+    server socket, the ALSA configuration and one recording per tap: ``NAME.wav`` for each
+    ALSA device name in ``names`` (:attr:`wav`: the first one's)."""
 
-    def __init__(self, directory):
+    def __init__(self, directory, names=("livetap",)):
         self.dir = os.fspath(directory)
-        self.wav = os.path.join(self.dir, "played.wav")
+        self.names = tuple(names)
+        self.wav = self.wav_of(self.names[0])
         self.procs = []
         # the clients' environment (their HOME, so caches stay where they are) and the server's
         self.env = dict(os.environ, PULSE_RUNTIME_PATH=self.dir, PULSE_SERVER=f"unix:{self.dir}/native",
                         ALSA_CONFIG_PATH=f"/usr/share/alsa/alsa.conf:{self.dir}/asound.conf")
         self.server_env = dict(self.env, HOME=self.dir)
+
+    def wav_of(self, name: str) -> str:
+        """The recording of the tap ``name``."""
+        return os.path.join(self.dir, f"{name}.wav")
 
     def start(self) -> "PulseTap":
         missing = [t for t in NEEDED if shutil.which(t) is None]
@@ -47,9 +53,10 @@ class PulseTap:
             raise RuntimeError(f"{', '.join(missing)} not found: apt-get install -y --no-install-recommends "
                                "libportaudio2 pulseaudio pulseaudio-utils libasound2-plugins xvfb xauth (as .ci/run does)")
         with open(os.path.join(self.dir, "asound.conf"), "w") as f:
-            f.write('pcm.livetap {\n  type file\n  slave.pcm "pulse"\n'
-                    f'  file "{self.wav}"\n  format "wav"\n  truncate true\n'
-                    '  hint { show on description "file tap -> pulse null sink" }\n}\n')
+            for name in self.names:
+                f.write(f'pcm.{name} {{\n  type file\n  slave.pcm "pulse"\n'
+                        f'  file "{self.wav_of(name)}"\n  format "wav"\n  truncate true\n'
+                        '  hint { show on description "file tap -> pulse null sink" }\n}\n')
         server = subprocess.Popen(
             ["pulseaudio", "-n", "--daemonize=no", "--exit-idle-time=-1", "--disallow-exit=yes", "--use-pid-file=no",
              "--system=no", "--disable-shm=yes",

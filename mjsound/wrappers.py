@@ -132,6 +132,10 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     substeps : {"auto", "manual"}
         ``"auto"``: hook the env's stepping (above) or refuse the env; ``"manual"``: no hook,
         call :meth:`on_substep` after every ``mj_step``.
+    play : bool | str | int, optional
+        Also play the audio live (True: the default output device; a name or number: that
+        device; docs/live.md): each step waits until its sound is due, so the env runs in
+        real time (the inner env's ``render_mode="human"`` shows the picture).
 
     Observation
     -----------
@@ -179,12 +183,13 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         objects: str = "body",
         sound_meshes: dict | None = None,
         substeps: str = "auto",
+        play=None,
     ):
         gym.utils.RecordConstructorArgs.__init__(
             self, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics, materials=materials,
             default_material=default_material, full_scale_pa=full_scale_pa, n_fft=n_fft, hop=hop,
             follow=follow, quality=quality, budget_modes=budget_modes, objects=objects, substeps=substeps,
-            contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks,
+            contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks, play=play,
         )
         gym.Wrapper.__init__(self, env)
         uw = env.unwrapped
@@ -216,7 +221,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                              n_fft=n_fft, hop=hop, follow=follow, quality=quality, budget_modes=budget_modes,
                              models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
                              sound_meshes=sound_meshes, contact_mics=contact_mics,
-                             contact_full_scale=contact_full_scale, clicks=clicks, dt_source=dt_source)
+                             contact_full_scale=contact_full_scale, clicks=clicks, dt_source=dt_source,
+                             play=play)
         self.audio = self.core.audio
         self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
         self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa
@@ -289,6 +295,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def close(self):
         self._closed = True
+        self.core.close()
         if self._route is not None:
             self._route.remove()  # (back to the class methods)
         return super().close()

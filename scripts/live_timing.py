@@ -45,7 +45,7 @@ def onsets(x: np.ndarray, level: float = 0.01, quiet_s: float = 0.02) -> np.ndar
 
 
 def measure(tap, out, duration, lead, latency, stall_at, stall_s) -> dict:
-    r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), os.path.join(ROOT, "assets", "demo_scene.xml"),
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), "view", os.path.join(ROOT, "assets", "demo_scene.xml"),
                         out, "livetap", str(duration), str(lead), str(latency), str(stall_at), str(stall_s)],
                        env=tap.env, capture_output=True, text=True, timeout=600)
     if r.returncode:

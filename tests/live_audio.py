@@ -1,7 +1,10 @@
-"""``python tests/live_audio.py SCENE OUT.npz DEVICE DURATION LEAD DEVICE_LATENCY STALL_AT STALL_S``: the
-live player's side of tests/test_live.py and scripts/live_timing.py, run in a process of its
-own (the tap's variables must be set before sounddevice is imported:
-:class:`mjsound.live_tap.PulseTap`)."""
+"""The live player's side of tests/test_live.py and scripts/live_timing.py, run in a process of
+its own (the tap's variables must be set before sounddevice is imported:
+:class:`mjsound.live_tap.PulseTap`):
+
+- ``python tests/live_audio.py view SCENE OUT.npz DEVICE DURATION LEAD DEVICE_LATENCY STALL_AT STALL_S``
+- ``python tests/live_audio.py envs OUT.npz GYM_DEVICE DMC_DEVICE STEPS``
+"""
 
 from __future__ import annotations
 
@@ -10,8 +13,8 @@ import time
 import numpy as np
 
 
-def _play_main(argv) -> None:
-    """``python tests/live_audio.py SCENE OUT.npz DEVICE DURATION LEAD DEVICE_LATENCY STALL_AT STALL_S``:
+def _view_main(argv) -> None:
+    """``view SCENE OUT.npz DEVICE DURATION LEAD DEVICE_LATENCY STALL_AT STALL_S``:
     :func:`mjsound.live_view.view` without the viewer, keeping every block it sent; the
     simulation stalls once for ``STALL_S`` seconds of wall time after ``STALL_AT`` seconds
     of audio (0: never), as a slow simulation would. Writes what was sent, the player's
@@ -40,6 +43,47 @@ def _play_main(argv) -> None:
              callbacks=timing["callbacks"], pushes=timing["pushes"])
 
 
+def _envs_main(argv) -> None:
+    """``envs OUT.npz GYM_DEVICE DMC_DEVICE SECONDS``: gymnasium's Ant-v5 through
+    ``AudioObservation(play=GYM_DEVICE)`` and dm_control's ball_in_cup through
+    ``AudioEnvironment(play=DMC_DEVICE)``, SECONDS of random env steps each; writes each
+    env's audio observations, its step, the wall time each step returned (``time.monotonic``)
+    and the player's underflows to ``OUT.npz``."""
+    import gymnasium as gym
+    from dm_control import suite
+
+    from mjsound.compat import patch_dm_control
+    from mjsound.dmc import AudioEnvironment
+    from mjsound.wrappers import AudioObservation
+
+    out, gym_device, dmc_device, seconds = argv
+    patch_dm_control()
+    env = AudioObservation(gym.make("Ant-v5"), play=gym_device, progress=False)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    obs, wall, player = [], [], env.core.player
+    for _ in range(round(float(seconds) / env.unwrapped.dt)):
+        o = env.step(env.action_space.sample())[0]
+        wall.append(time.monotonic())
+        obs.append(o["audio"])
+    gym_dt = env.unwrapped.dt
+    env.close()
+    gym_underflows = player.stats()["underflows"]
+    denv = AudioEnvironment(suite.load("ball_in_cup", "catch", task_kwargs={"random": 0}), seed=3, play=dmc_device,
+                            progress=False)
+    denv.reset()
+    spec, rng = denv.action_spec(), np.random.default_rng(0)
+    dobs, dwall, player = [], [], denv.core.player
+    for _ in range(round(float(seconds) / denv.control_timestep())):
+        dobs.append(denv.step(rng.uniform(spec.minimum, spec.maximum, spec.shape)).observation["audio"])
+        dwall.append(time.monotonic())
+    dmc_dt = denv.control_timestep()
+    denv.close()
+    np.savez(out, gym=np.concatenate(obs, axis=1).T, gym_wall=wall, gym_dt=gym_dt, gym_underflows=gym_underflows,
+             dmc=np.concatenate(dobs, axis=1).T, dmc_wall=dwall, dmc_dt=dmc_dt,
+             dmc_underflows=player.stats()["underflows"])
+
+
 class _Keep(__import__("logging").Handler):
     def __init__(self, records):
         super().__init__()
@@ -52,4 +96,4 @@ class _Keep(__import__("logging").Handler):
 if __name__ == "__main__":
     import sys
 
-    _play_main(sys.argv[1:])
+    {"view": _view_main, "envs": _envs_main}[sys.argv[1]](sys.argv[2:])

@@ -25,7 +25,7 @@ FS = 48000
 def tap(tmp_path_factory):
     """A running tap; its ``env`` runs a client with the shared model cache of this module
     (the demo scene is analysed once for all its tests)."""
-    t = PulseTap(tmp_path_factory.mktemp("pulse")).start()
+    t = PulseTap(tmp_path_factory.mktemp("pulse"), names=("livetap", "livetap_dmc")).start()
     t.env.update(MJSOUND_CACHE_DIR=str(tmp_path_factory.mktemp("live_cache")), PYTHONPATH=ROOT, MUJOCO_GL="glfw")
     t.env.pop("DISPLAY", None)
     yield t
@@ -34,7 +34,7 @@ def tap(tmp_path_factory):
 
 def _play(tap, lead_s, stall_at, stall_s, out):
     """The demo scene for 2 s without the viewer (tests/live_audio.py), stalled once."""
-    r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), DEMO, out, "livetap", "2",
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), "view", DEMO, out, "livetap", "2",
                         str(lead_s), str(lead_s), str(stall_at), str(stall_s)], env=tap.env, capture_output=True, text=True,
                        timeout=240)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -125,6 +125,31 @@ def test_view_opens_the_viewer_and_plays_the_scene_live(tap, tmp_path):
     assert np.all(rms > 0.01), rms  # (the demo's impacts, heard on both channels)
     if s["underflows"] == 0:
         assert s["pace"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_the_gymnasium_and_dm_control_wrappers_play_their_observations_live(tap, tmp_path):
+    """``AudioObservation(play=...)`` and ``AudioEnvironment(play=...)``: the device plays
+    exactly the audio observations, one after the other, and the env steps in real time."""
+    for attempt in range(3):  # (a busy machine may underflow: run again)
+        out = str(tmp_path / f"envs{attempt}.npz")
+        r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), "envs", out, "livetap",
+                            "livetap_dmc", "1.0"], env=tap.env, capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr[-3000:]
+        z = np.load(out)
+        if z["gym_underflows"] == 0 and z["dmc_underflows"] == 0:
+            break
+    for key, name in (("gym", "livetap"), ("dmc", "livetap_dmc")):
+        assert z[f"{key}_underflows"] == 0
+        sent, wall, dt = z[key], z[f"{key}_wall"], float(z[f"{key}_dt"])
+        played, rate = read_tap(tap.wav_of(name))
+        assert rate == 16000 and played.shape[1] == sent.shape[1] == 1
+        assert np.abs(sent).max() > 0.001, key  # (heard: Ant's feet, the ball in the cup)
+        k, rho = align(played, sent)
+        assert rho > 0.999999, key
+        np.testing.assert_array_equal(played[k:k + len(sent)], sent)
+        # real time: after the first steps (the ring's lead fills at once) one step per dt
+        pace = (wall[-1] - wall[5]) / ((len(wall) - 6) * dt)
+        assert 0.9 < pace < 1.1, (key, pace)
 
 
 def test_view_names_the_fix_for_a_device_that_is_not_there(tap):
