@@ -36,7 +36,7 @@ def _play(tap, lead_s, stall_at, stall_s, out):
     """The demo scene for 2 s without the viewer (tests/live_audio.py), stalled once."""
     r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), "view", DEMO, out, "livetap", "2",
                         str(lead_s), str(lead_s), str(stall_at), str(stall_s)], env=tap.env, capture_output=True, text=True,
-                       timeout=240)
+                       timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     z = np.load(out)
     return (read_tap(tap.wav), np.clip(z["sent"], -1.0, 1.0), json.loads(str(z["stats"])), json.loads(str(z["log"])),
@@ -114,7 +114,7 @@ def test_view_opens_the_viewer_and_plays_the_scene_live(tap, tmp_path):
     assert shutil.which("xvfb-run"), "xvfb-run missing: apt-get install xvfb xauth (.ci/run does)"
     r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "mjsound.cli", "view",
                         DEMO, "--duration", "2", "--audio-device", "livetap", "--json"],
-                       env=tap.env, capture_output=True, text=True, timeout=240, cwd=str(tmp_path))
+                       env=tap.env, capture_output=True, text=True, timeout=600, cwd=str(tmp_path))
     assert r.returncode == 0, r.stderr[-3000:]
     s = json.loads(r.stdout.strip().splitlines()[-1])
     assert s["sim_seconds"] == pytest.approx(2.0) and s["frames_played"] == 2 * FS
@@ -133,7 +133,7 @@ def test_the_gymnasium_and_dm_control_wrappers_play_their_observations_live(tap,
     for attempt in range(3):  # (a busy machine may underflow: run again)
         out = str(tmp_path / f"envs{attempt}.npz")
         r = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "live_audio.py"), "envs", out, "livetap",
-                            "livetap_dmc", "1.0"], env=tap.env, capture_output=True, text=True, timeout=300)
+                            "livetap_dmc", "1.0"], env=tap.env, capture_output=True, text=True, timeout=600)
         assert r.returncode == 0, r.stderr[-3000:]
         z = np.load(out)
         if z["gym_underflows"] == 0 and z["dmc_underflows"] == 0:
