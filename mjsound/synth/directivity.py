@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit, njit_inner
+from .bank_loops import FAST
 from .records import AIR, DIRECTIONS
 
 __all__ = ["DIRECTION_ORDER", "DIRECTION_STEP_DEG", "DIRECTION_FLOOR", "DirectionFit", "real_sh", "sh_count",
@@ -251,6 +252,17 @@ def _voice_sounds(bank, layout, ev, src, m, c0, nm, s0):
     return False, False
 
 
+@njit_inner(cache=True, fastmath=FAST)
+def _factor(Y, cr, ci, base, nsh):
+    """``sum_k Y[k] (cr + j ci)[base + k]`` for ``k < nsh`` (one mode's factor; vectorised)."""
+    re = 0.0
+    im = 0.0
+    for k in range(nsh):
+        re += Y[k] * cr[base + k]
+        im += Y[k] * ci[base + k]
+    return complex(re, im)
+
+
 @njit(cache=True)
 def hear_directions(synth, bank, layout, ev, src, n):
     """Make each sounding (object, air microphone) voice's direction factors follow the
@@ -305,10 +317,7 @@ def hear_directions(synth, bank, layout, ev, src, n):
             u[2] = uz
             real_sh(L, ux, uy, uz, Y)
             for j in range(nm):
-                base = c_off + j * nsh
-                t = 0j
-                for k in range(nsh):
-                    t += Y[k] * dr.coef[base + k]
+                t = _factor(Y, dr.coef_r, dr.coef_i, c_off + j * nsh, nsh)
                 a = abs(t)
                 if not a >= floor:  # (a null, or a NaN pattern: the floor, with the phase if any)
                     t = t / a * floor if a > 0.0 else complex(floor, 0.0)
@@ -317,8 +326,11 @@ def hear_directions(synth, bank, layout, ev, src, n):
                     A = complex(dr.ar[i], dr.ai[i])
                     ratio = t / A
                     lg = np.log(ratio) / n
+                    rho = np.exp(lg)
                     dr.lr[i] = lg.real
                     dr.li[i] = lg.imag
+                    dr.rho_r[i] = rho.real
+                    dr.rho_i[i] = rho.imag
                     bank.peak2[i] *= ratio.real * ratio.real + ratio.imag * ratio.imag
                 else:
                     dr.ar[i] = t.real
@@ -343,6 +355,8 @@ class ModeGains(NamedTuple):
     ai: np.ndarray
     lr: np.ndarray
     li: np.ndarray
+    rho_r: np.ndarray
+    rho_i: np.ndarray
 
 
 @njit_inner(cache=True)
@@ -356,14 +370,15 @@ def gain_at(gains, i, s):
 
 @njit_inner(cache=True)
 def ramp_poles(wpr, wpi, idx, na, gains):
-    """The gathered poles of the ramping modes times ``e^{lr + j li}`` (the gain's per-sample
-    factor: the block's exponential ramp at no cost per sample)."""
+    """The gathered poles of the ramping modes times ``rho = e^{lr + j li}`` (the gain's
+    per-sample factor: the block's exponential ramp at no cost per sample)."""
     for k in range(na):
         i = idx[k]
         if gains.lr[i] != 0.0 or gains.li[i] != 0.0:
-            p = complex(np.float64(wpr[k]), np.float64(wpi[k])) * np.exp(complex(gains.lr[i], gains.li[i]))
-            wpr[k] = p.real
-            wpi[k] = p.imag
+            a = np.float64(wpr[k])
+            b = np.float64(wpi[k])
+            wpr[k] = a * gains.rho_r[i] - b * gains.rho_i[i]
+            wpi[k] = a * gains.rho_i[i] + b * gains.rho_r[i]
 
 
 @njit_inner(cache=True)
@@ -387,3 +402,5 @@ def commit_ramp(dr, o, m):
             dr.ai[i] = dr.ti[i]
             dr.lr[i] = 0.0
             dr.li[i] = 0.0
+            dr.rho_r[i] = 1.0
+            dr.rho_i[i] = 0.0

@@ -341,7 +341,7 @@ def render_all(bank, consts, ev, src, start, n, out, zero):
                 commit_ramp(dr, o, m)
             continue
         gains = ModeGains(dr.on[v], ramp, dr.dmode[o:o + m], dr.ar[o:o + m], dr.ai[o:o + m], dr.lr[o:o + m],
-                          dr.li[o:o + m])
+                          dr.li[o:o + m], dr.rho_r[o:o + m], dr.rho_i[o:o + m])
         if gains.on and s1 > s0:
             scale_sources(src.gr[s0:s1, :m], src.gi[s0:s1, :m], gains, 0.5 * n)
         voice = Voice(bank.zr[o:o + m], bank.zi[o:o + m], bank.peak2[o:o + m], ACT[o:o + m], bank.pr[o:o + m],

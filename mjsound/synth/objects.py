@@ -201,13 +201,14 @@ def _direction_state(by_index, nidx, AR, AI, U, DM, mic_off) -> DirectionState:
             parts.append(ob.directions.coef.ravel())
             k = parts[-1].size
         coef_off[i + 1] = coef_off[i] + k
-    coef = np.ascontiguousarray(np.concatenate(parts) if parts else np.zeros(0), np.complex128)
+    coef = np.concatenate(parts) if parts else np.zeros(0, np.complex128)
     params = np.zeros(1, DIRECTIONS)
     params[0]["cos_step"] = np.cos(np.radians(DIRECTION_STEP_DEG))
     params[0]["floor"] = DIRECTION_FLOOR
     on = np.array([DM[mic_off[m]: mic_off[m + 1]].any() for m in range(len(mic_off) - 1)], np.bool_)
     total = len(AR)
-    return DirectionState(order, coef_off, coef, U, AR, AI, AR.copy(), AI.copy(), np.zeros(total), np.zeros(total),
+    return DirectionState(order, coef_off, np.ascontiguousarray(coef.real), np.ascontiguousarray(coef.imag), U, AR, AI,
+                          AR.copy(), AI.copy(), np.zeros(total), np.zeros(total), np.ones(total), np.zeros(total),
                           np.zeros(len(on), np.bool_), on, DM, np.array([int((order >= 0).sum())], np.int64), params,
                           np.zeros(sh_count(max(int(order.max(initial=-1)), 0))))
 

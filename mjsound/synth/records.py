@@ -156,16 +156,18 @@ DIRECTIONS = np.dtype([("cos_step", f8), ("floor", f8)])
 class DirectionState(NamedTuple):
     """The direction factors ``D`` of the air microphones' voices (:mod:`.directivity`): per
     object index ``o`` the order ``order[o]`` of its fit (-1: the same in every direction,
-    never touched) and its coefficients ``coef[coef_off[o] + j (order+1)^2 + k]`` (mode ``j``,
-    harmonic ``k``); per voice (object-major ids, :class:`BankLayout`) the direction ``u`` its
-    factors were made for; per mode of the banks (the flat order of :class:`Bank`) the factor
-    applied to the state ``ar + j ai``, this block's target ``tr + j ti`` and per-sample log
-    ratio ``lr + j li`` (0: none); per bank whether this block ramps and whether it holds a
+    never touched) and its coefficients ``coef_r + j coef_i`` at ``coef_off[o] + j (order+1)^2
+    + k`` (mode ``j``, harmonic ``k``); per voice (object-major ids, :class:`BankLayout`) the
+    direction ``u`` its factors were made for; per mode of the banks (the flat order of
+    :class:`Bank`) the factor applied to the state ``ar + j ai``, this block's target
+    ``tr + j ti``, per-sample log ratio ``lr + j li`` (0: none) and per-sample factor
+    ``rho_r + j rho_i = e^{lr + j li}``; per bank whether this block ramps and whether it holds a
     directional mode at all (``on``), per mode whether it is one (``dmode``)."""
 
     order: np.ndarray  # (objects,) int64
     coef_off: np.ndarray  # (objects + 1,) int64
-    coef: np.ndarray  # (k,) complex128
+    coef_r: np.ndarray  # (k,) float64
+    coef_i: np.ndarray  # (k,) float64
     u: np.ndarray  # (voices, 3) float64 object frame (NaN: not made yet)
     ar: np.ndarray  # (modes,) float64
     ai: np.ndarray
@@ -173,6 +175,8 @@ class DirectionState(NamedTuple):
     ti: np.ndarray
     lr: np.ndarray
     li: np.ndarray
+    rho_r: np.ndarray
+    rho_i: np.ndarray
     ramp: np.ndarray  # (banks,) bool
     on: np.ndarray  # (banks,) bool
     dmode: np.ndarray  # (modes,) bool
