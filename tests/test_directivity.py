@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mjsound import ModalModel, get_material
-from mjsound.synth.directivity import DIRECTION_FLOOR, evaluate_fit, fit_directions, real_sh, sh_count
+from mjsound.synth.directivity import DIRECTION_FLOOR, evaluate_fit, fit_directions, real_sh, sh_count, sh_tables
 from mjsound.synth.synthesizer import Synthesizer
 
 FS = 48000
@@ -61,7 +61,7 @@ def test_real_harmonics_are_the_closed_forms_and_orthonormal():
     u = rng.normal(size=3)
     u /= np.linalg.norm(u)
     Y = np.empty(sh_count(2))
-    real_sh(2, *u, Y)
+    real_sh(2, *u, Y, sh_tables(2))
     x, y, z = u
     c1, c2 = np.sqrt(3 / (4 * np.pi)), np.sqrt(15 / (4 * np.pi))
     ref = [0.5 / np.sqrt(np.pi), c1 * y, c1 * z, c1 * x, c2 * x * y, c2 * y * z,
@@ -70,9 +70,9 @@ def test_real_harmonics_are_the_closed_forms_and_orthonormal():
     # orthonormal on the sphere (a fine Gauss-Legendre x uniform grid integrates them exactly)
     from mjsound.synth.directivity import _basis, _quadrature
 
-    dirs, w = _quadrature(8)
-    B = _basis(6, dirs)
-    np.testing.assert_allclose((B * w[:, None]).T @ B, np.eye(sh_count(6)), atol=1e-12)
+    dirs, w = _quadrature(16)
+    B = _basis(16, dirs)
+    np.testing.assert_allclose((B * w[:, None]).T @ B, np.eye(sh_count(16)), atol=1e-12)
 
 
 def test_fit_finds_the_order_and_reproduces_the_pattern():
@@ -84,13 +84,13 @@ def test_fit_finds_the_order_and_reproduces_the_pattern():
 
     m = model(pattern, f=(300.0, 900.0, 2000.0), d=(2.0, 2.0, 2.0), rad=(2.0, 0.5, 0.0))
     fit = fit_directions(m, np.arange(3), m.radiation, "test")
-    assert fit.order == 2 and fit.coef.shape == (3, 9)
+    assert fit.order == 2 and fit.orders.tolist() == [1, 2, 0] and fit.coef.shape == (3, 9)
     assert fit.error.max() < 1e-12
     rng = np.random.default_rng(0)
     u = rng.normal(size=(50, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     D = evaluate_fit(fit, u)
-    ref = pattern(u) / np.array([2.0, 0.5, 1.0])
+    ref = np.conj(pattern(u)) / np.array([2.0, 0.5, 1.0])  # (e^{-j w t} pattern, e^{+j w t} oscillators)
     ref[:, 2] = 1.0  # a mode with no radiation at all is heard with D = 1 (it is silent anyway)
     np.testing.assert_allclose(D, ref, atol=1e-12)
     # the same pattern broadcast everywhere is order -1; a model without one too
@@ -144,6 +144,26 @@ def test_sliding_and_rotated_objects_hear_the_pattern_in_their_own_frame():
     peak = np.abs(out[False][0]).max()
     np.testing.assert_allclose(out[True][0], SQ3 * out[False][0], rtol=0, atol=1e-6 * peak)
     assert np.abs(out[True][1]).max() <= 1.01 * DIRECTION_FLOOR * np.abs(out[False][1]).max()
+
+
+def test_a_patterns_phase_is_heard_as_a_delay_of_the_mode():
+    """``radiation_pattern`` is ``F`` of ``p = Re(F Q e^{j(k r - w t)}) / r`` for a mode
+    ``q = Re(Q e^{-j w t})``: ``F = w e^{j w tau}`` delays the mode by ``tau``. With tau = 10
+    samples the sound is the direction-free one 10 samples later (times ``e^{-d tau}``, the
+    decay not delayed)."""
+    f, d, lag = 523.0, 4.0, 10
+    wd = np.sqrt((2 * np.pi * f) ** 2 - d * d)
+    phase = np.exp(1j * wd * lag / FS)
+    out = {}
+    for directivity in (True, False):
+        syn = Synthesizer(FS, microphones=[[0.2, 0.1, 1.0]], dtype="float64", cull_db=None, directivity=directivity)
+        syn.add_object("bell", model(lambda u: np.full((len(u), 1), phase), f=(f,), d=(d,)))
+        syn.impact("bell", [0, 0, 0], [0, 0, 0.01], 0.0, pulse_s=0.0)
+        out[directivity] = syn.render(4800)[0].astype(np.float64)
+    y, iso = out[True], out[False]
+    start = np.flatnonzero(iso)[0] + lag + 1
+    np.testing.assert_allclose(y[start:], np.exp(-d * lag / FS) * iso[start - lag: len(iso) - lag], rtol=0,
+                               atol=1e-5 * np.abs(iso).max())
 
 
 # ---------------------------------------------------------------- turning

@@ -3,27 +3,34 @@ direction from the object to the microphone.
 
 A model's pattern ``P_i(u)`` (:meth:`mjsound.modal.model.ModalModel.radiation_pattern`: far-field
 pressure at 1 m per unit modal coordinate [Pa m] in the direction ``u``, a unit vector of the
-object's frame) is heard through its *direction factor*
+object's frame; complex, for a mode ``q(t) = Re(Q e^{-j w t})``) is heard through its
+*direction factor*
 
-    D_i(u) = P_i(u) / w_i,        w_i = model.radiation[i] (the RMS of |P_i| over directions),
+    D_i(u) = conj(P_i(u)) / w_i,      w_i = model.radiation[i] (the RMS of |P_i| over directions),
 
 so that the events and streams keep their gains ``w_i / r`` (:mod:`.kernels`) and a pattern the
 same in every direction has ``D = 1``: such an object takes none of the steps below and sounds
-bit for bit as before. ``D`` may be complex (a phase that changes with direction); it multiplies
-the mode's complex state ``z_i`` (the output is ``Im z_i``), i.e. a mode ``Im(c e^{lambda t})``
-is heard as ``Im(D c e^{lambda t})``, the time convention of the oscillators (``e^{+j w t}``).
+bit for bit as before. ``D`` multiplies the mode's complex state ``z_i`` (the output is
+``Im z_i``): a mode ``q = Im(c e^{lambda t})`` is heard as ``Im(D c e^{lambda t})``. The
+oscillators turn as ``e^{+j w t}``, the pattern's convention as ``e^{-j w t}``: with
+``q = Re(Q e^{-j w t}) = Im(c e^{j w t})``, ``Re(P Q e^{-j w t}) = Im(conj(P) c e^{j w t})``,
+hence the conjugate. The pattern's phase is referred to the model's ``radiation_centre``; the
+delay ``r / c`` is taken from the object's origin (a centre off the origin by ``x`` shifts the
+phase by ``k u.x``, which is not added).
 
 **Stored compactly.** At :func:`fit_directions` (once per object) ``D`` is projected on real
-orthonormal spherical harmonics ``Y_lm`` up to order ``L <= DIRECTION_ORDER`` (Gauss-Legendre
-in ``cos theta`` times a uniform grid in ``phi``: exact for a pattern of order ``<= L``); the
-smallest order that keeps all but ``1e-6`` of every mode's energy is kept (a dipole: ``L =
-1``), and the fit's relative RMS error on an independent set of directions is reported.
+orthonormal spherical harmonics ``Y_lm`` up to order ``DIRECTION_ORDER`` (Gauss-Legendre in
+``cos theta`` times a uniform grid in ``phi``, at the stored pattern's own degree when finer:
+exact for a band-limited pattern); each mode keeps the lowest order that leaves at most
+``ORDER_TOL`` of its energy above it (a dipole: 1; a mode of low ``ka`` few, one of high
+``ka`` up to 16), and the fit's relative RMS error on an independent set of directions is
+reported (:attr:`DirectionFit.error`).
 
 **Heard per render block.** :func:`hear_directions` runs at the start of each block, for the
 (object, air microphone) voices that sound in it (ringing modes, or events or forcing rows in
 the block): the direction ``u = R^T (mic - pos) / |mic - pos|`` in the object's current pose;
 only when it turned by more than ``DIRECTION_STEP_DEG`` since the voice's factors were made
-are they evaluated again (``sum_lm Y_lm(u) c_lm``, numba). The voice's state carries its
+are they evaluated again (``sum_lm Y_lm(u) c_lm`` up to each mode's order, numba). The voice's state carries its
 applied factor ``A``; a new target ``T`` is reached *across the block*: the ringing modes'
 poles are multiplied by ``rho = (T / A)^(1 / n)`` for the block's ``n`` samples (an exponential
 ramp of the gain at no cost per sample: no zipper noise), an event at sample ``s`` of the block
@@ -46,19 +53,22 @@ from ..jit import njit, njit_inner
 from .bank_loops import FAST
 from .records import AIR, DIRECTIONS
 
-__all__ = ["DIRECTION_ORDER", "DIRECTION_STEP_DEG", "DIRECTION_FLOOR", "DirectionFit", "real_sh", "sh_count",
+__all__ = ["DIRECTION_ORDER", "DIRECTION_STEP_DEG", "DIRECTION_FLOOR", "ORDER_TOL", "DirectionFit", "real_sh",
+           "sh_count", "sh_tables",
            "fit_directions", "evaluate_fit", "hear_directions", "ModeGains", "gain_at", "ramp_poles", "scale_sources",
            "commit_ramp"]
 
-#: Highest spherical-harmonic order of a fitted direction factor.
-DIRECTION_ORDER = 8
+#: Highest spherical-harmonic order of a fitted direction factor (the analysis stores up to 16
+#: at its default quality).
+DIRECTION_ORDER = 16
 #: The direction to a microphone must turn by more than this [degrees] before the factors are
 #: evaluated again.
 DIRECTION_STEP_DEG = 1.0
 #: Smallest ``|D|`` heard (-80 dB under the mode's RMS over directions): a null keeps the state.
 DIRECTION_FLOOR = 1e-4
-#: Energy a fit may leave above its order, relative to the mode's (the order is cut there).
-_ORDER_TOL = 1e-6
+#: Energy a mode's fit may leave above its order, relative to the mode's (1 % of the RMS
+#: amplitude): each mode keeps the lowest order that leaves no more.
+ORDER_TOL = 1e-4
 
 
 def sh_count(order: int) -> int:
@@ -66,52 +76,67 @@ def sh_count(order: int) -> int:
     return (order + 1) ** 2
 
 
+def sh_tables(order: int) -> np.ndarray:
+    """(3, (order+1)^2) recurrence factors of :func:`real_sh` at index ``l^2 + l + m`` (m >= 0):
+    ``a_lm = sqrt((4 l^2 - 1) / (l^2 - m^2))``, ``b_lm = sqrt(((l-1)^2 - m^2) / (4 (l-1)^2 - 1))``
+    (l >= m + 2) and ``s_m = sqrt((2m + 1) / (2m))`` (at l = m)."""
+    tab = np.zeros((3, sh_count(order)))
+    for m in range(order + 1):
+        for l in range(m, order + 1):
+            i = l * l + l + m
+            if l >= m + 2:
+                tab[0, i] = np.sqrt((4 * l * l - 1) / (l * l - m * m))
+                tab[1, i] = np.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
+            if l == m and m > 0:
+                tab[2, i] = np.sqrt((2 * m + 1) / (2 * m))
+    return tab
+
+
 @njit(cache=True)
-def real_sh(order, x, y, z, out):
+def real_sh(order, x, y, z, out, tab):
     """Real orthonormal spherical harmonics at the unit vector ``(x, y, z)`` into
     ``out[l^2 + l + m]`` for ``0 <= l <= order``, ``-l <= m <= l``::
 
-        Y_l0 = N_l0 P_l(z),   Y_l,+m = sqrt(2) N_lm Pb_lm(z) Re (x + j y)^m,
-        Y_l,-m = sqrt(2) N_lm Pb_lm(z) Im (x + j y)^m,   N_lm = sqrt((2l+1)/(4 pi) (l-m)!/(l+m)!)
+        Y_l0 = a_l0(z),   Y_l,+m = sqrt(2) a_lm(z) Re (x + j y)^m,   Y_l,-m = sqrt(2) a_lm(z) Im (x + j y)^m
 
-    with ``Pb_lm = P_l^m / sin^m(theta)`` (no Condon-Shortley sign) from
-    ``Pb_mm = (2m-1)!!``, ``Pb_m+1,m = (2m+1) z Pb_mm``,
-    ``(l-m) Pb_lm = (2l-1) z Pb_l-1,m - (l+m-1) Pb_l-2,m``; ``(x + j y)^m = sin^m(theta) e^{j m phi}``.
-    The basis is orthonormal over the sphere: ``int Y_a Y_b dOmega = delta_ab``."""
+    with ``a_lm = N_lm P_l^m(z) / sin^m(theta)``, ``N_lm = sqrt((2l+1)/(4 pi) (l-m)!/(l+m)!)``
+    (no Condon-Shortley sign), ``(x + j y)^m = sin^m(theta) e^{j m phi}``, from the normalised
+    recurrences ``a_00 = 1 / sqrt(4 pi)``, ``a_mm = s_m a_m-1,m-1``, ``a_m+1,m = sqrt(2m+3) z a_mm``,
+    ``a_lm = a_lm' (z a_l-1,m - b_lm a_l-2,m)`` with the factors ``tab`` of :func:`sh_tables`
+    (``a_lm'``, ``b_lm``, ``s_m``). The basis is orthonormal: ``int Y_a Y_b dOmega = delta_ab``."""
     cm = 1.0  # Re (x + j y)^m
     sm = 0.0  # Im
-    pmm = 1.0  # Pb_mm
+    amm = 0.5 / np.sqrt(np.pi)  # a_mm
+    r2 = np.sqrt(2.0)
     for m in range(order + 1):
         if m > 0:
             cm, sm = cm * x - sm * y, cm * y + sm * x
-            pmm *= 2 * m - 1
+            amm *= tab[2, m * m + 2 * m]
         p2 = 0.0
         p1 = 0.0
         for l in range(m, order + 1):
+            i = l * l + l + m
             if l == m:
-                p = pmm
+                p = amm
             elif l == m + 1:
-                p = (2 * m + 1) * z * pmm
+                p = np.sqrt(2.0 * m + 3.0) * z * amm
             else:
-                p = ((2 * l - 1) * z * p1 - (l + m - 1) * p2) / (l - m)
+                p = tab[0, i] * (z * p1 - tab[1, i] * p2)
             p2 = p1
             p1 = p
-            ratio = 1.0  # (l - m)! / (l + m)!
-            for k in range(l - m + 1, l + m + 1):
-                ratio /= k
-            nrm = np.sqrt((2 * l + 1) / (4 * np.pi) * ratio)
             if m == 0:
-                out[l * l + l] = nrm * p
+                out[i] = p
             else:
-                out[l * l + l + m] = np.sqrt(2.0) * nrm * p * cm
-                out[l * l + l - m] = np.sqrt(2.0) * nrm * p * sm
+                out[i] = r2 * p * cm
+                out[l * l + l - m] = r2 * p * sm
 
 
 def _basis(order: int, dirs: np.ndarray) -> np.ndarray:
     """(n_dirs, (order+1)^2) real spherical harmonics at unit vectors ``dirs`` (n_dirs, 3)."""
     out = np.empty((len(dirs), sh_count(order)))
+    tab = sh_tables(order)
     for k, (x, y, z) in enumerate(dirs):
-        real_sh(order, float(x), float(y), float(z), out[k])
+        real_sh(order, float(x), float(y), float(z), out[k], tab)
     return out
 
 
@@ -139,9 +164,15 @@ def _check_directions(n: int) -> np.ndarray:
 class DirectionFit(NamedTuple):
     """:func:`fit_directions`' result for one object's kept modes."""
 
-    order: int  #: spherical-harmonic order of the fit; -1: the same in every direction (D = 1)
+    order: int  #: highest spherical-harmonic order of its modes; -1: the same in every direction (D = 1)
+    orders: np.ndarray  #: (n_modes,) int64 each mode's order (its coefficients beyond are zero)
     coef: np.ndarray  #: (n_modes, (order+1)^2) complex128 coefficients of D on Y_lm
     error: np.ndarray  #: (n_modes,) relative RMS error of the fit on independent directions
+
+    @classmethod
+    def none(cls, n: int) -> "DirectionFit":
+        """``n`` modes heard the same in every direction."""
+        return cls(-1, np.full(n, -1, np.int64), np.zeros((n, 0), np.complex128), np.zeros(n))
 
 
 def _pattern(model, directions: np.ndarray, name: str) -> np.ndarray | None:
@@ -163,14 +194,14 @@ def _pattern(model, directions: np.ndarray, name: str) -> np.ndarray | None:
 
 def fit_directions(model, keep: np.ndarray, weights: np.ndarray, name: str = "object",
                    order_max: int = DIRECTION_ORDER) -> DirectionFit:
-    """The direction factors ``D = P / w`` of the modes ``keep`` of ``model`` as spherical
-    harmonic coefficients (module docstring).
+    """The direction factors ``D = conj(P) / w`` of the modes ``keep`` of ``model`` as
+    spherical-harmonic coefficients, each mode cut at its own order (module docstring).
 
     Parameters
     ----------
     model : ModalModel
-        With ``radiation_pattern(directions)`` -> (n_dirs, n_modes) [Pa m] (real or complex);
-        without one it is heard the same in every direction.
+        With ``radiation_pattern(directions)`` -> (n_dirs, n_modes) [Pa m] (real or complex,
+        in the ``e^{-j w t}`` convention); without one it is heard the same in every direction.
     keep : (n,) int
         The modes the synthesizer keeps.
     weights : (n,) float
@@ -179,7 +210,7 @@ def fit_directions(model, keep: np.ndarray, weights: np.ndarray, name: str = "ob
     name : str
         For error messages.
     order_max : int
-        Highest order fitted.
+        Highest order kept (a finer stored pattern is sampled at its own degree and smoothed).
 
     Returns
     -------
@@ -197,32 +228,35 @@ def fit_directions(model, keep: np.ndarray, weights: np.ndarray, name: str = "ob
     keep = np.asarray(keep, np.int64)
     w = np.asarray(weights, np.float64)
     n = len(keep)
-    dirs, wq = _quadrature(order_max)
+    sh = getattr(model, "radiation_sh", None)  # (sampled at its own degree when finer: no aliasing)
+    q_order = max(order_max, int(round(np.sqrt(np.shape(sh)[1]))) - 1 if np.ndim(sh) == 2 else 0)
+    dirs, wq = _quadrature(q_order)
     P = _pattern(model, dirs, name)
     if P is None or n == 0:
-        return DirectionFit(-1, np.zeros((n, 0), np.complex128), np.zeros(n))
+        return DirectionFit.none(n)
     P = P[:, keep]
     if np.array_equal(P, np.broadcast_to(w, P.shape)):
-        return DirectionFit(-1, np.zeros((n, 0), np.complex128), np.zeros(n))
+        return DirectionFit.none(n)
     safe = np.where(w != 0, w, 1.0)
-    D = np.where(w != 0, P / safe, 1.0)
+    D = np.where(w != 0, np.conj(P) / safe, 1.0)  # (e^{-j w t} -> the oscillators' e^{+j w t})
     Y = _basis(order_max, dirs)
     C = (Y * wq[:, None]).T @ D  # ((L+1)^2, n): c_lm = sum_q w_q Y_lm(u_q) D(u_q)
     energy = np.abs(C) ** 2
-    total = energy.sum(0)
-    order = order_max
-    for L in range(order_max + 1):
-        tail = energy[sh_count(L):].sum(0)
-        if np.all(tail <= _ORDER_TOL * total):
-            order = L
-            break
-    coef = np.ascontiguousarray(C[: sh_count(order)].T, np.complex128)
+    # each mode's order: the lowest that leaves at most ORDER_TOL of its energy above it
+    tail = energy.sum(0)[None, :] - np.cumsum(np.add.reduceat(energy, [l * l for l in range(order_max + 1)], 0), 0)
+    orders = np.argmax(tail <= ORDER_TOL * energy.sum(0)[None, :] + 1e-300, axis=0).astype(np.int64)
+    orders[~np.any(tail <= ORDER_TOL * energy.sum(0)[None, :] + 1e-300, axis=0)] = order_max
+    order = int(orders.max(initial=0))
+    C = C[: sh_count(order)].T.copy()
+    for j in range(n):
+        C[j, sh_count(orders[j]):] = 0.0
+    coef = np.ascontiguousarray(C, np.complex128)
     chk = _check_directions(200)
     Pc = _pattern(model, chk, name)[:, keep]
-    Dc = np.where(w != 0, Pc / safe, 1.0)
+    Dc = np.where(w != 0, np.conj(Pc) / safe, 1.0)
     fit = _basis(order, chk) @ coef.T
     err = np.sqrt(np.mean(np.abs(fit - Dc) ** 2, 0) / np.maximum(np.mean(np.abs(Dc) ** 2, 0), 1e-300))
-    return DirectionFit(order, coef, err)
+    return DirectionFit(order, orders, coef, err)
 
 
 def evaluate_fit(fit: DirectionFit, directions) -> np.ndarray:
@@ -284,8 +318,7 @@ def hear_directions(synth, bank, layout, ev, src, n):
         L = dr.order[o]
         if L < 0 or o >= layout.vbase.shape[0] or layout.vbase[o] < 0:
             continue
-        nsh = (L + 1) * (L + 1)
-        c_off = dr.coef_off[o]
+        g0 = synth.objects.mode_off[o]
         pos = synth.pos[o]
         R = synth.R[o]
         for m in range(M):
@@ -315,9 +348,10 @@ def hear_directions(synth, bank, layout, ev, src, n):
             u[0] = ux
             u[1] = uy
             u[2] = uz
-            real_sh(L, ux, uy, uz, Y)
+            real_sh(L, ux, uy, uz, Y, dr.sh_tab)
             for j in range(nm):
-                t = _factor(Y, dr.coef_r, dr.coef_i, c_off + j * nsh, nsh)
+                k0 = dr.msh_off[g0 + j]
+                t = _factor(Y, dr.coef_r, dr.coef_i, k0, dr.msh_off[g0 + j + 1] - k0)
                 a = abs(t)
                 if not a >= floor:  # (a null, or a NaN pattern: the floor, with the phase if any)
                     t = t / a * floor if a > 0.0 else complex(floor, 0.0)

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .constants import D_MIN_PER_S, GRID, RHO_AIR
-from .directivity import DIRECTION_FLOOR, DIRECTION_STEP_DEG, DirectionFit, fit_directions, sh_count
+from .directivity import DIRECTION_FLOOR, DIRECTION_STEP_DEG, DirectionFit, fit_directions, sh_count, sh_tables
 from .records import DIRECTIONS, Bank, BankLayout, DirectionState, ObjectTable
 
 __all__ = ["finite_array", "VoiceState", "PoseTable", "SynthObject", "ObjectModes", "prepare_object", "Layout", "build_layout"]
@@ -151,7 +151,7 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
     if radiation and directivity:
         ob.directions = fit_directions(model, keep, ob.weights, name)
     else:
-        ob.directions = DirectionFit(-1, np.zeros((len(keep), 0), np.complex128), np.zeros(len(keep)))
+        ob.directions = DirectionFit.none(len(keep))
     # rounded poles with |p| < 1, and the exact-pole correction
     p = np.exp(ob.lam / fs)
     dt = dtype
@@ -191,26 +191,29 @@ def _direction_state(by_index, nidx, AR, AI, U, DM, mic_off) -> DirectionState:
     the applied factors ``AR + j AI`` and directions ``U`` the voices carry, and which modes
     are directional ``DM``."""
     order = np.full(nidx, -1, np.int64)
-    coef_off = np.zeros(nidx + 1, np.int64)
-    parts = []
+    counts, parts = [], []  # (every kept mode in object-index order, as ObjectTable.mode_off counts them)
     for i in range(nidx):
         ob = by_index.get(i)
-        k = 0
-        if ob is not None and ob.directions.order >= 0:
-            order[i] = ob.directions.order
-            parts.append(ob.directions.coef.ravel())
-            k = parts[-1].size
-        coef_off[i + 1] = coef_off[i] + k
+        if ob is None:
+            continue
+        fit = ob.directions
+        order[i] = fit.order
+        for j in range(len(ob.keep)):
+            k = sh_count(fit.orders[j]) if fit.order >= 0 else 0
+            counts.append(k)
+            parts.append(fit.coef[j, :k])
+    msh_off = np.concatenate([[0], np.cumsum(counts, dtype=np.int64)]).astype(np.int64)
     coef = np.concatenate(parts) if parts else np.zeros(0, np.complex128)
+    top = max(int(order.max(initial=-1)), 0)
     params = np.zeros(1, DIRECTIONS)
     params[0]["cos_step"] = np.cos(np.radians(DIRECTION_STEP_DEG))
     params[0]["floor"] = DIRECTION_FLOOR
     on = np.array([DM[mic_off[m]: mic_off[m + 1]].any() for m in range(len(mic_off) - 1)], np.bool_)
     total = len(AR)
-    return DirectionState(order, coef_off, np.ascontiguousarray(coef.real), np.ascontiguousarray(coef.imag), U, AR, AI,
+    return DirectionState(order, msh_off, np.ascontiguousarray(coef.real), np.ascontiguousarray(coef.imag), U, AR, AI,
                           AR.copy(), AI.copy(), np.zeros(total), np.zeros(total), np.ones(total), np.zeros(total),
                           np.zeros(len(on), np.bool_), on, DM, np.array([int((order >= 0).sum())], np.int64), params,
-                          np.zeros(sh_count(max(int(order.max(initial=-1)), 0))))
+                          np.zeros(sh_count(top)), sh_tables(top))
 
 
 class Layout(NamedTuple):

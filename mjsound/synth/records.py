@@ -155,9 +155,10 @@ DIRECTIONS = np.dtype([("cos_step", f8), ("floor", f8)])
 
 class DirectionState(NamedTuple):
     """The direction factors ``D`` of the air microphones' voices (:mod:`.directivity`): per
-    object index ``o`` the order ``order[o]`` of its fit (-1: the same in every direction,
-    never touched) and its coefficients ``coef_r + j coef_i`` at ``coef_off[o] + j (order+1)^2
-    + k`` (mode ``j``, harmonic ``k``); per voice (object-major ids, :class:`BankLayout`) the
+    object index ``o`` the highest order ``order[o]`` of its modes' fits (-1: the same in every
+    direction, never touched); per kept mode ``g`` (the flat order of
+    :attr:`ObjectTable.mode_off`) its coefficients ``coef_r + j coef_i`` at ``msh_off[g] .. msh_off[g + 1]``
+    (harmonic ``k`` at ``msh_off[g] + k``, up to the mode's own order); per voice (object-major ids, :class:`BankLayout`) the
     direction ``u`` its factors were made for; per mode of the banks (the flat order of
     :class:`Bank`) the factor applied to the state ``ar + j ai``, this block's target
     ``tr + j ti``, per-sample log ratio ``lr + j li`` (0: none) and per-sample factor
@@ -165,7 +166,7 @@ class DirectionState(NamedTuple):
     directional mode at all (``on``), per mode whether it is one (``dmode``)."""
 
     order: np.ndarray  # (objects,) int64
-    coef_off: np.ndarray  # (objects + 1,) int64
+    msh_off: np.ndarray  # (kept modes + 1,) int64
     coef_r: np.ndarray  # (k,) float64
     coef_i: np.ndarray  # (k,) float64
     u: np.ndarray  # (voices, 3) float64 object frame (NaN: not made yet)
@@ -183,6 +184,7 @@ class DirectionState(NamedTuple):
     n_objects: np.ndarray  # (1,) int64 objects with a direction (0: nothing to do)
     params: np.ndarray  # (1,) DIRECTIONS
     sh: np.ndarray  # ((max order + 1)^2,) float64 scratch
+    sh_tab: np.ndarray  # (3, (max order + 1)^2) float64 recurrence factors (:func:`.directivity.sh_tables`)
 
 
 class Bank(NamedTuple):
