@@ -97,6 +97,21 @@ def _f(x, fmt="{:.1f}"):
 
 
 def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, seconds):
+    """Write ``accuracy.md``: the run's header, then a section per measurement that ran
+    (modal analysis and the f_max sweep, synthesis, end to end), then the knobs' summary."""
+    L = _header(info, command, quick, seconds) + _modal_section(modal, fmax, plots, info)
+    if synth:
+        L += _synth_section(synth, plots)
+    if e2e:
+        L += _e2e_section(e2e, plots)
+    L += ["## 4. Recommended defaults and what each knob costs and buys (measured above)", ""]
+    L += _knobs(modal, fmax, synth, e2e) + [""]
+    with atomic_open(path) as fh:
+        fh.write("\n".join(L))
+
+
+def _header(info, command, quick, seconds) -> list:
+    """The page's title, command, machine and load."""
     L = []
     w = L.append
     w("# mjsound accuracy against run time" + (" (quick subset)" if quick else ""))
@@ -115,7 +130,13 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
       "around the analysis call (no imports, no JIT), peak memory = rise of the child's peak "
       "resident set over its start.")
     w("")
-    # ---------------- modal
+    return L
+
+
+def _modal_section(modal, fmax, plots, info) -> list:
+    """Section 1: the references, each modal point against its wall time, the f_max sweep."""
+    L = []
+    w = L.append
     w("## 1. Modal analysis: frequency error against wall time")
     w("")
     w("References (aluminium E = 70 GPa, nu = 0.33, rho = 2700 kg/m^3, free-free):")
@@ -195,60 +216,63 @@ def write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, s
         w("")
     if fmax:
         L.extend(fmax_markdown(fmax, _f))
-    # ---------------- synth
-    if synth:
-        w("## 2. Synthesis: error against the float64 exact reference, against cost")
-        w("")
-        w(f"Model: {synth['model']} (analysis {synth['analysis_s']:.1f} s, cached after the first run). "
-          f"{synth['events']} impacts at random surface points over the first second, "
-          f"{synth['duration_s']:.0f} s rendered at 48 kHz in 1024-sample blocks, one microphone at 0.54 m. "
-          "Reference: float64 state, no culling. Error = RMS(y - y_ref) / RMS(y_ref); peak error = "
-          "max|y - y_ref| / max|y_ref|. Cost = render wall time / (modes of the model x samples), best of "
-          "3 (so culled or dropped modes show up as a lower cost per mode of the model).")
-        w("")
-        w("| variant | modes run | error [dB] | peak error [dB] | ns / mode-sample | render wall [s] |")
-        w("|---|---:|---:|---:|---:|---:|")
-        for r in synth["rows"]:
-            if r["knob"] == "reference":
-                w(f"| {r['label']} | {r['modes_run']} | (reference) | (reference) | "
-                  f"{_f(r['ns_per_mode_sample'], '{:.3f}')} | {_f(r['wall_s'], '{:.3f}')} |")
-                continue
-            w(f"| {r['label']} | {r['modes_run']} | {_f(r['err_db'])} | {_f(r['peak_err_db'])} | "
+    return L
+
+
+def _synth_section(synth, plots) -> list:
+    """Section 2: each synthesis variant's error against the float64 render, and its cost."""
+    L = []
+    w = L.append
+    w("## 2. Synthesis: error against the float64 exact reference, against cost")
+    w("")
+    w(f"Model: {synth['model']} (analysis {synth['analysis_s']:.1f} s, cached after the first run). "
+      f"{synth['events']} impacts at random surface points over the first second, "
+      f"{synth['duration_s']:.0f} s rendered at 48 kHz in 1024-sample blocks, one microphone at 0.54 m. "
+      "Reference: float64 state, no culling. Error = RMS(y - y_ref) / RMS(y_ref); peak error = "
+      "max|y - y_ref| / max|y_ref|. Cost = render wall time / (modes of the model x samples), best of "
+      "3 (so culled or dropped modes show up as a lower cost per mode of the model).")
+    w("")
+    w("| variant | modes run | error [dB] | peak error [dB] | ns / mode-sample | render wall [s] |")
+    w("|---|---:|---:|---:|---:|---:|")
+    for r in synth["rows"]:
+        if r["knob"] == "reference":
+            w(f"| {r['label']} | {r['modes_run']} | (reference) | (reference) | "
               f"{_f(r['ns_per_mode_sample'], '{:.3f}')} | {_f(r['wall_s'], '{:.3f}')} |")
-        w("")
-        if "accuracy_synth.png" in plots:
-            w("![synthesis error vs cost](accuracy_synth.png)")
-            w("")
-    # ---------------- e2e
-    if e2e:
-        w("## 3. End to end: the impact spectrum against physics timestep and analysis quality")
-        w("")
-        w(f"Scene (MJCF inline in `mjsound/report/accuracy.py`): a steel ball (r = 1 cm) dropped from 25 cm onto "
-          f"a fixed aluminium plate 20 x 15 x 0.8 cm; one microphone 0.5 m away; 48 kHz; "
-          f"{e2e['duration_s']:.1f} s simulated (the ball bounces). The difference is taken between the "
-          "1/3-octave band energies (50 Hz - 20 kHz) of each run and the reference run (the smallest "
-          "timestep; the highest quality). The timestep runs share one default-quality model; the quality "
-          "runs analyse the plate afresh (no cache) at dt = 1 ms. RTF = simulated time / wall time of `AudioSimulator.run` "
-          "(MuJoCo physics + contacts + synthesis; analysis not included, listed separately).")
-        w("")
-        w("| run | impacts | modes | analysis [s] | RTF | band RMS diff [dB] | band max diff [dB] | total level diff [dB] |")
-        w("|---|---:|---:|---:|---:|---:|---:|---:|")
-        for r in e2e["rows"]:
-            w(f"| {r['label']} | {r['impacts']} | {r['n_modes']} | {_f(r['analysis_s'], '{:.1f}')} | "
-              f"{_f(r['rtf'], '{:.0f}')} | {_f(r['band_rms_db'], '{:.2f}')} | {_f(r['band_max_db'], '{:.2f}')} | "
-              f"{_f(r['total_db'], '{:+.2f}')} |")
-        w("")
-        if "accuracy_e2e.png" in plots:
-            w("![impact spectra](accuracy_e2e.png)")
-            w("")
-    # ---------------- knobs
-    w("## 4. Recommended defaults and what each knob costs and buys (measured above)")
+            continue
+        w(f"| {r['label']} | {r['modes_run']} | {_f(r['err_db'])} | {_f(r['peak_err_db'])} | "
+          f"{_f(r['ns_per_mode_sample'], '{:.3f}')} | {_f(r['wall_s'], '{:.3f}')} |")
     w("")
-    for line in _knobs(modal, fmax, synth, e2e):
-        w(line)
+    if "accuracy_synth.png" in plots:
+        w("![synthesis error vs cost](accuracy_synth.png)")
+        w("")
+    return L
+
+
+def _e2e_section(e2e, plots) -> list:
+    """Section 3: the impact spectrum against timestep and quality."""
+    L = []
+    w = L.append
+    w("## 3. End to end: the impact spectrum against physics timestep and analysis quality")
     w("")
-    with atomic_open(path) as fh:
-        fh.write("\n".join(L))
+    w(f"Scene (MJCF inline in `mjsound/report/accuracy_e2e.py`): a steel ball (r = 1 cm) dropped from 25 cm onto "
+      f"a fixed aluminium plate 20 x 15 x 0.8 cm; one microphone 0.5 m away; 48 kHz; "
+      f"{e2e['duration_s']:.1f} s simulated (the ball bounces). The difference is taken between the "
+      "1/3-octave band energies (50 Hz - 20 kHz) of each run and the reference run (the smallest "
+      "timestep; the highest quality). The timestep runs share one default-quality model; the quality "
+      "runs analyse the plate afresh (no cache) at dt = 1 ms. RTF = simulated time / wall time of `AudioSimulator.run` "
+      "(MuJoCo physics + contacts + synthesis; analysis not included, listed separately).")
+    w("")
+    w("| run | impacts | modes | analysis [s] | RTF | band RMS diff [dB] | band max diff [dB] | total level diff [dB] |")
+    w("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for r in e2e["rows"]:
+        w(f"| {r['label']} | {r['impacts']} | {r['n_modes']} | {_f(r['analysis_s'], '{:.1f}')} | "
+          f"{_f(r['rtf'], '{:.0f}')} | {_f(r['band_rms_db'], '{:.2f}')} | {_f(r['band_max_db'], '{:.2f}')} | "
+          f"{_f(r['total_db'], '{:+.2f}')} |")
+    w("")
+    if "accuracy_e2e.png" in plots:
+        w("![impact spectra](accuracy_e2e.png)")
+        w("")
+    return L
 
 
 def _best(modal, shape, label):
