@@ -44,125 +44,18 @@ scene and OUTDIR at the same paths (a shared file system). ``ray`` is imported o
 from __future__ import annotations
 
 import contextlib
-import hashlib
-import json
 import os
 import sys
 import time as _time
 import traceback
 
-__all__ = ["sonify_batch", "find_rollouts", "output_is_complete", "SIDECAR_FORMAT"]
+from .batch_files import (SIDECAR_FORMAT, _canonical, _json_default, _outputs, _scene_hash,  # noqa: F401
+                          _sha256_file, _write_json_atomic, find_rollouts, output_is_complete)
 
-#: ``format`` field of the sidecar JSON; a sidecar of another format is never trusted.
-SIDECAR_FORMAT = "mjsound-batch/1"
+__all__ = ["sonify_batch", "find_rollouts", "output_is_complete", "SIDECAR_FORMAT"]
 
 #: Test hook: a path; the first task to create it (O_EXCL) kills its worker with os._exit(3).
 _CRASH_ENV = "MJSOUND_BATCH_TEST_CRASH_ONCE"
-
-_CHUNK = 1 << 20
-
-
-# ---------------------------------------------------------------------- hashing / files
-def _sha256_file(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while True:
-            b = fh.read(_CHUNK)
-            if not b:
-                break
-            h.update(b)
-    return h.hexdigest()
-
-
-def _scene_hash(scene_xml, model) -> str:
-    """SHA-256 of the MJCF text and of the compiled model (catches included files and meshes)."""
-    import mujoco
-    import numpy as np
-
-    h = hashlib.sha256()
-    with open(scene_xml, "rb") as fh:
-        h.update(fh.read())
-    buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
-    mujoco.mj_saveModel(model, None, buf)
-    h.update(buf.tobytes())
-    return h.hexdigest()
-
-
-def _write_json_atomic(path, obj) -> None:
-    from .io import atomic_open
-
-    with atomic_open(path) as fh:
-        json.dump(obj, fh, indent=1, sort_keys=True, default=_json_default)
-        fh.write("\n")
-
-
-def _json_default(o):
-    try:
-        import numpy as np
-
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-    except ImportError:  # pragma: no cover
-        pass
-    return str(o)
-
-
-def find_rollouts(paths) -> list:
-    """Rollout files from files and directories (a directory gives its ``*.npz``, sorted).
-
-    Missing paths are kept (they are reported as failed rollouts, not raised).
-    """
-    if isinstance(paths, (str, os.PathLike)):
-        paths = [paths]
-    out = []
-    for p in paths:
-        p = os.fspath(p)
-        if os.path.isdir(p):
-            out.extend(sorted(os.path.join(p, f) for f in os.listdir(p) if f.endswith(".npz")))
-        else:
-            out.append(p)
-    return out
-
-
-def _outputs(outdir, rollout) -> tuple:
-    stem = os.path.splitext(os.path.basename(rollout))[0]
-    base = os.path.join(os.fspath(outdir), stem)
-    return stem, base + ".wav", base + ".json", base + ".rrd"
-
-
-def output_is_complete(wav, sidecar, rollout_sha256, scene_sha256, params, rrd=None) -> bool:
-    """Whether ``wav`` + ``sidecar`` are a finished output of this rollout, scene and parameters.
-
-    Checks the sidecar (format, hashes, parameters), that the WAV's SHA-256 matches and that it
-    opens with the recorded sample rate, channels and frame count; with ``rrd`` also that the
-    recording exists with its recorded hash.
-    """
-    try:
-        with open(sidecar) as fh:
-            meta = json.load(fh)
-        if (meta.get("format") != SIDECAR_FORMAT or meta.get("rollout_sha256") != rollout_sha256
-                or meta.get("scene_sha256") != scene_sha256 or meta.get("params") != _canonical(params)):
-            return False
-        if _sha256_file(wav) != meta.get("wav_sha256"):
-            return False
-        import soundfile as sf
-
-        info = sf.info(wav)
-        if (info.frames != meta.get("frames") or info.samplerate != meta.get("sample_rate")
-                or info.channels != meta.get("channels")):
-            return False
-        if rrd is not None and (not meta.get("rrd_sha256") or _sha256_file(rrd) != meta["rrd_sha256"]):
-            return False
-        return True
-    except Exception:
-        return False
-
-
-def _canonical(obj):
-    """JSON round trip: what a sidecar holds, to compare parameters with it."""
-    return json.loads(json.dumps(obj, sort_keys=True, default=_json_default))
 
 
 # ---------------------------------------------------------------------- worker side
@@ -396,6 +289,42 @@ def _run_ray(jobs, models, workers, max_retries, on_result, cpus) -> dict:
 
 
 # ---------------------------------------------------------------------- API
+def _unique_rollouts(rollouts, outdir) -> list:
+    """The rollout files of ``rollouts`` (:func:`find_rollouts`), absolute and each once;
+    ValueError when two would write the same ``<stem>.wav`` in ``outdir``."""
+    paths = [os.path.abspath(p) for p in find_rollouts(rollouts)]
+    seen = {}
+    for p in paths:
+        stem = _outputs(outdir, p)[0]
+        if stem in seen and seen[stem] != p:
+            raise ValueError(f"two rollouts would write {stem}.wav: {seen[stem]} and {p} (rename one)")
+        seen[stem] = p
+    return list(dict.fromkeys(paths))
+
+
+def _pending_jobs(paths, outdir, scene_xml, scene_sha, params, sonify_kwargs, resume, rrd, crash_marker):
+    """What is left to do: ``(jobs, skipped stems, failed)``. A rollout whose outputs are
+    complete and valid for these inputs (:func:`output_is_complete`) is skipped when
+    ``resume``; one that cannot be read is failed with its error; the rest become jobs."""
+    jobs, skipped, failed = [], [], []
+    for p in paths:
+        stem, wav, side, rrd_path = _outputs(outdir, p)
+        try:
+            rsha = _sha256_file(p)
+        except OSError as exc:
+            failed.append({"rollout": p, "stem": stem, "error": f"{type(exc).__name__}: {exc}"})
+            continue
+        if resume and output_is_complete(wav, side, rsha, scene_sha, params, rrd_path if rrd else None):
+            skipped.append(stem)
+            continue
+        jobs.append({
+            "rollout": p, "stem": stem, "wav": wav, "sidecar": side, "rrd": rrd_path if rrd else None,
+            "scene_xml": scene_xml, "rollout_sha256": rsha, "scene_sha256": scene_sha, "params": params,
+            "sonify": sonify_kwargs, "crash_marker": crash_marker,
+        })
+    return jobs, skipped, failed
+
+
 def sonify_batch(
     rollouts,
     scene_xml,
@@ -478,14 +407,7 @@ def sonify_batch(
         timestep = check_timestep(timestep)
     if duration is not None:
         duration = check_duration(duration)
-    paths = [os.path.abspath(p) for p in find_rollouts(rollouts)]
-    seen = {}
-    for p in paths:
-        stem = _outputs(outdir, p)[0]
-        if stem in seen and seen[stem] != p:
-            raise ValueError(f"two rollouts would write {stem}.wav: {seen[stem]} and {p} (rename one)")
-        seen[stem] = p
-    paths = list(dict.fromkeys(paths))
+    paths = _unique_rollouts(rollouts, outdir)
     os.makedirs(outdir, exist_ok=True)
 
     model = mujoco.MjModel.from_xml_path(scene_xml)
@@ -499,23 +421,8 @@ def sonify_batch(
     params = _canonical(dict(sonify_kwargs, mjsound=__version__, mujoco=mujoco.__version__))
     crash_marker = os.environ.get(_CRASH_ENV) or None
 
-    # ------------------------------------------------------------ what is left to do
-    jobs, skipped, failed = [], [], []
-    for p in paths:
-        stem, wav, side, rrd_path = _outputs(outdir, p)
-        try:
-            rsha = _sha256_file(p)
-        except OSError as exc:
-            failed.append({"rollout": p, "stem": stem, "error": f"{type(exc).__name__}: {exc}"})
-            continue
-        if resume and output_is_complete(wav, side, rsha, scene_sha, params, rrd_path if rrd else None):
-            skipped.append(stem)
-            continue
-        jobs.append({
-            "rollout": p, "stem": stem, "wav": wav, "sidecar": side, "rrd": rrd_path if rrd else None,
-            "scene_xml": scene_xml, "rollout_sha256": rsha, "scene_sha256": scene_sha, "params": params,
-            "sonify": sonify_kwargs, "crash_marker": crash_marker,
-        })
+    jobs, skipped, failed = _pending_jobs(paths, outdir, scene_xml, scene_sha, params, sonify_kwargs, resume, rrd,
+                                          crash_marker)
 
     backend = "local" if address is None else "ray"
     n_workers = int(workers) if workers else (os.cpu_count() or 1)
