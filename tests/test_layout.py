@@ -185,3 +185,20 @@ def test_every_cited_design_section_exists():
             cited.setdefault(m.group(1), os.path.relpath(f, ROOT))
     assert "State records" in cited  # (the pattern finds the citations)
     assert {s: f for s, f in cited.items() if s not in headings} == {}
+
+
+def test_commit_message_rule():
+    """``scripts/check_commit_msg.py``: a subject over 72 characters or a second line that is
+    not blank is named; a subject with a body after a blank line passes (git's comments
+    ignored)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("check_commit_msg", os.path.join(ROOT, "scripts", "check_commit_msg.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.problems("Split wrappers.py by concept\n\nWhy and figures.\n# a git comment " + "x" * 80) == []
+    long = mod.problems("x" * 73)
+    assert len(long) == 1 and "73 characters" in long[0]
+    assert mod.problems("x" * 72) == []
+    assert mod.problems("Subject\nno blank line") == ["the second line must be blank (subject, blank line, body)"]
+    assert mod.problems("# only comments\n\n") == ["the message is empty"]
