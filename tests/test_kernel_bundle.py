@@ -177,7 +177,7 @@ class Count(event.Listener):
 event.register("numba:compile", Count())
 import numba, mjsound
 from mjsound.jit import SHIPPED
-if SHIPPED.used:
+if SHIPPED.used and not SHIPPED.stale:  # (a stale group would compile for minutes)
     from mjsound.sim.warmup import warmup
     warmup(verbose=False)
 print(json.dumps({"used": SHIPPED.used, "reason": SHIPPED.reason, "added": SHIPPED.added,

@@ -80,6 +80,42 @@ def _match_cost(dlog, g, tau2):
     return np.minimum(np.min(r**2, axis=2), tau2).sum(axis=1)
 
 
+def _match_scale(ff, fa, energies, lo, hi, tolerance_cents):
+    """The log frequency scale ``g`` that maps the analysed frequencies ``fa`` onto the
+    fitted ``ff`` [Hz], and the matched pairs ``[(fitted index, analysed index)]``: a grid
+    search over ``[log lo, log hi]`` of a truncated-quadratic distance (:func:`_match_cost`),
+    polished, then a one-to-one assignment (Hungarian) within ``tolerance_cents`` and a
+    least-squares ``g`` over the pairs weighted by each fitted mode's amplitude
+    (``sqrt(energies)``), iterated up to four times. No pair: ``pairs`` is empty."""
+    from scipy.optimize import linear_sum_assignment
+
+    dlog = np.log(ff)[:, None] - np.log(fa)[None, :]
+    tau = tolerance_cents / 1200.0 * math.log(2.0)
+    step = tau / 8
+    grid = np.arange(math.log(lo), math.log(hi) + step, step)
+    cost = np.concatenate([_match_cost(dlog, grid[i: i + 256], tau**2) for i in range(0, len(grid), 256)])
+    g = float(grid[int(np.argmin(cost))])
+    fine = g + np.linspace(-step, step, 41)
+    g = float(fine[int(np.argmin(_match_cost(dlog, fine, tau**2)))])
+    pairs = []
+    for _ in range(4):
+        r = np.abs(dlog - g)
+        big = 1e6
+        cm = np.where(r <= tau, r, big)
+        rows, cols = linear_sum_assignment(cm)
+        pairs = [(i, j) for i, j in zip(rows, cols) if cm[i, j] < big]
+        if not pairs:
+            break
+        ii = np.array([p[0] for p in pairs])
+        jj = np.array([p[1] for p in pairs])
+        w = np.sqrt(energies[ii])  # louder modes are measured better
+        g_new = float(np.sum(w * dlog[ii, jj]) / np.sum(w))
+        if abs(g_new - g) < 1e-12:
+            break
+        g = g_new
+    return g, pairs
+
+
 def fit_material(mesh, recording, base_material=None, *, sample_rate: int | None = None,
                  model: ModalModel | None = None, scale_range=(0.5, 2.0), tolerance_cents: float = 35.0,
                  n_modes: int | None = None, method: str = "hex", quality: str = "default",
@@ -119,8 +155,6 @@ def fit_material(mesh, recording, base_material=None, *, sample_rate: int | None
     -------
     MaterialFit
     """
-    from scipy.optimize import linear_sum_assignment
-
     fit = recording if isinstance(recording, FitResult) else fit_recording(
         recording, sample_rate, n_modes, **fit_kwargs)
     if fit.n_modes == 0:
@@ -144,30 +178,7 @@ def fit_material(mesh, recording, base_material=None, *, sample_rate: int | None
     if len(fa) == 0:
         raise ValueError("the analysed model has no modes; raise f_max or check the mesh")
     ff = fit.frequencies_hz
-    dlog = np.log(ff)[:, None] - np.log(fa)[None, :]
-    tau = tolerance_cents / 1200.0 * math.log(2.0)
-    step = tau / 8
-    grid = np.arange(math.log(lo), math.log(hi) + step, step)
-    cost = np.concatenate([_match_cost(dlog, grid[i: i + 256], tau**2) for i in range(0, len(grid), 256)])
-    g = float(grid[int(np.argmin(cost))])
-    fine = g + np.linspace(-step, step, 41)
-    g = float(fine[int(np.argmin(_match_cost(dlog, fine, tau**2)))])
-    pairs = []
-    for _ in range(4):
-        r = np.abs(dlog - g)
-        big = 1e6
-        cm = np.where(r <= tau, r, big)
-        rows, cols = linear_sum_assignment(cm)
-        pairs = [(i, j) for i, j in zip(rows, cols) if cm[i, j] < big]
-        if not pairs:
-            break
-        ii = np.array([p[0] for p in pairs])
-        jj = np.array([p[1] for p in pairs])
-        w = np.sqrt(fit.energies()[ii])  # louder modes are measured better
-        g_new = float(np.sum(w * dlog[ii, jj]) / np.sum(w))
-        if abs(g_new - g) < 1e-12:
-            break
-        g = g_new
+    g, pairs = _match_scale(ff, fa, fit.energies(), lo, hi, tolerance_cents)
     if not pairs:
         raise ValueError(
             f"no analysed mode matches the recording within {tolerance_cents} cents for a frequency scale in "
