@@ -58,10 +58,11 @@ def launch_viewer(model, data):
 
 
 def close_viewer(handle) -> None:
-    """Close the viewer and wait for its thread to end (its name ends in ``_launch_internal``)."""
+    """Close the viewer and wait for its thread to end (Python names it after its target,
+    ``Thread-N (_launch_internal)``)."""
     handle.close()
     for t in threading.enumerate():
-        if t is not threading.current_thread() and t.name.endswith("_launch_internal"):
+        if t is not threading.current_thread() and "(_launch_internal)" in t.name:
             t.join(10.0)
 
 
