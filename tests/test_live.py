@@ -129,7 +129,7 @@ def test_view_opens_the_viewer_and_plays_the_scene_live(tap, tmp_path):
 
 def test_closing_the_viewer_waits_for_its_thread(tmp_path):
     """The viewer's thread is joined before the process goes on to exit (exiting while it
-    tears down crashed 2 runs in 3 here): it is named ``Thread-N (_launch_internal)``."""
+    tore down crashed 2 runs in 3 here): it is named ``Thread-N (_launch_internal)``."""
     code = ("import threading, mujoco\n"
             "from mjsound.live_view import launch_viewer, close_viewer\n"
             f"m = mujoco.MjModel.from_xml_path({DEMO!r}); d = mujoco.MjData(m)\n"
@@ -139,11 +139,10 @@ def test_closing_the_viewer_waits_for_its_thread(tmp_path):
             "close_viewer(h)\n"
             "print('alive', [t.name for t in threading.enumerate() if t.is_alive() and t is not threading.main_thread()])\n")
     env = dict(os.environ, PYTHONPATH=ROOT, MUJOCO_GL="glfw")
-    for _ in range(2):
-        r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-c", code], env=env,
-                           capture_output=True, text=True, timeout=300, cwd=str(tmp_path))
-        assert r.returncode == 0, r.stderr[-3000:]
-        assert "alive []" in r.stdout
+    r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-c", code], env=env,
+                       capture_output=True, text=True, timeout=300, cwd=str(tmp_path))
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "alive []" in r.stdout  # (right after close(), an unjoined thread is still tearing down)
 
 
 def test_the_gymnasium_and_dm_control_wrappers_play_their_observations_live(tap, tmp_path):
