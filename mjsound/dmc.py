@@ -61,7 +61,8 @@ class AudioEnvironment(dm_env.Environment):
         ``window_s`` (default one control step), ``mode``, ``mics``, ``materials``,
         ``default_material`` ("aluminium"), ``full_scale_pa``, ``n_fft``, ``hop``,
         ``follow``, ``quality`` ("draft"), ``budget_modes``, ``models``, ``progress``,
-        ``sim_kwargs``, ``objects``, ``sound_meshes``, ``play`` (live audio, docs/live.md).
+        ``sim_kwargs``, ``objects``, ``sound_meshes``, ``play`` (live audio, docs/live.md),
+        ``reflections`` (default True: the floor reflects; docs/rooms.md), ``room``.
 
     Attributes
     ----------

@@ -88,6 +88,12 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         Acceleration mapped to 1.0 on the contact channels [m/s^2] (default 1000).
     clicks : bool
         Acceleration noise of every impact at the air microphones (default True).
+    reflections : bool | dict
+        The scene's planes (the floor) reflect as image sources (default True; False: free
+        field); ``{plane name: surface or None}`` sets their surfaces. See
+        :class:`mjsound.sim.AudioSimulator` and ``docs/rooms.md``.
+    room : mjsound.sim.rooms.Room, optional
+        A room around the scene whose walls reflect instead.
     materials : dict, optional
         ``{key: material}``, key a geom name, ``geom<ID>`` / id of an unnamed geom, a body name
         or ``"*"`` (the default for all others); see :class:`mjsound.sim.SoundScene`. An
@@ -172,6 +178,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         contact_mics=None,
         contact_full_scale: float = DEFAULT_CONTACT_FULL_SCALE,
         clicks: bool = True,
+        reflections=True,
+        room=None,
         n_fft: int = 256,
         hop: int | None = None,
         follow="auto",
@@ -190,6 +198,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             default_material=default_material, full_scale_pa=full_scale_pa, n_fft=n_fft, hop=hop,
             follow=follow, quality=quality, budget_modes=budget_modes, objects=objects, substeps=substeps,
             contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks, play=play,
+            reflections=reflections, room=room,
         )
         gym.Wrapper.__init__(self, env)
         uw = env.unwrapped
@@ -222,7 +231,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                              models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
                              sound_meshes=sound_meshes, contact_mics=contact_mics,
                              contact_full_scale=contact_full_scale, clicks=clicks, dt_source=dt_source,
-                             play=play)
+                             play=play, reflections=reflections, room=room)
         self.audio = self.core.audio
         self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
         self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa

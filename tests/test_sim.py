@@ -472,8 +472,10 @@ def test_follow_moves_the_microphones_with_the_body_at_each_event():
             break
     assert sim.events["impact"] == 1
     # moved for the impact: where the ball is (plus the offset), not where the site was
-    np.testing.assert_allclose(sim.synth.microphones, data.xpos[1] + offset)
+    np.testing.assert_allclose(sim.synth.microphones[:1], data.xpos[1] + offset)
     assert np.abs(sim.synth.microphones - fixed).max() > 0.05
+    # and its image in the floor (z = 0) with it (mjsound.sim.images)
+    np.testing.assert_allclose(sim.synth.microphones[1:], (data.xpos[1] + offset) * [1, 1, -1])
 
 
 def test_microphone_site_on_a_moving_body_moves_with_it():
@@ -489,7 +491,8 @@ def test_microphone_site_on_a_moving_body_moves_with_it():
         if sim.n_impacts > n:
             break
     assert sim.n_impacts == 1
-    np.testing.assert_allclose(sim.synth.microphones, data.site_xpos[[0]])  # where the site is at the impact
+    np.testing.assert_allclose(sim.synth.microphones[:1], data.site_xpos[[0]])  # where the site is at the impact
+    np.testing.assert_allclose(sim.synth.microphones[1:], data.site_xpos[[0]] * [1, 1, -1])  # its image in the floor
     assert start[0, 2] - sim.synth.microphones[0, 2] > 0.25
 
 

@@ -64,6 +64,8 @@ def register(subparsers) -> None:
     p.add_argument("--rollout", default=None, help="rollout .npz to sonify")
     add_sonify_options(p)
     p.add_argument("--no-clicks", action="store_true", help="no acceleration noise (clicks) from impacts")
+    p.add_argument("--no-reflections", action="store_true",
+                   help="free field: the scene's planes (the floor) do not reflect (docs/rooms.md)")
     p.add_argument("--contact-mics", default=None,
                    help="comma-separated contact microphone sites (default: sites named contact_mic*; '' for none)")
     p.add_argument("--contact-full-scale", type=float, default=None,
@@ -181,7 +183,7 @@ def _run_sonify(args) -> int:
         mode="replay" if args.replay else "auto", quality=args.quality, budget_modes=args.budget_modes,
         progress=not args.json and sys.stderr.isatty(), full_scale_pa=args.full_scale_pa, normalize=args.normalize,
         keep_audio=False,
-        clicks=not args.no_clicks, contact_full_scale=args.contact_full_scale,
+        clicks=not args.no_clicks, reflections=not args.no_reflections, contact_full_scale=args.contact_full_scale,
         contact_mics=None if args.contact_mics is None else [n.strip() for n in args.contact_mics.split(",") if n.strip()],
     )
     return _report(summary, args)

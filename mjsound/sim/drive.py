@@ -50,10 +50,12 @@ def pose_rows(gxpos, gxmat, geoms, idx, pos_out, R_out):
 
 
 @njit(cache=True)
-def follow_rows(pos, rows, offsets, out):
-    """``out[m] = pos[rows[m]] + offsets[m]`` (microphones at a body or at their sites; a
-    single row repeated for a following listener), unless a position is not finite (then
-    ``out`` keeps the last good ones). Returns whether ``out`` was updated."""
+def follow_rows(pos, rows, offsets, affine, out):
+    """``out[m] = A_m (pos[rows[m]] + offsets[m]) + b_m`` with ``affine[m] = [A_m | b_m]``
+    (microphones at a body or at their sites, a single row repeated for a following listener;
+    an image microphone's mirrors, :mod:`.images`, the identity for the others: ``1 x + 0 y +
+    0 z + 0`` is ``x`` exactly), unless a position is not finite (then ``out`` keeps the last
+    good ones). Returns whether ``out`` was updated."""
     M = out.shape[0]
     s = 0.0
     for m in range(M):
@@ -62,8 +64,11 @@ def follow_rows(pos, rows, offsets, out):
     if not np.isfinite(s):
         return False
     for m in range(M):
+        x0 = pos[rows[m], 0] + offsets[m, 0]
+        x1 = pos[rows[m], 1] + offsets[m, 1]
+        x2 = pos[rows[m], 2] + offsets[m, 2]
         for c in range(3):
-            out[m, c] = pos[rows[m], c] + offsets[m, c]
+            out[m, c] = affine[m, c, 0] * x0 + affine[m, c, 1] * x1 + affine[m, c, 2] * x2 + affine[m, c, 3]
     return True
 
 
@@ -74,7 +79,7 @@ def sync_poses(drive, views, synth):
     prm = drive.prm[0]
     if prm.mic_mode:
         src = views.site_xpos if prm.mic_source == 1 else views.xpos
-        follow_rows(src, drive.mic_rows, drive.mic_offsets, synth.mics)
+        follow_rows(src, drive.mic_rows, drive.mic_offsets, drive.mic_affine, synth.mics)
     if drive.dyn_obj.shape[0]:
         pose_rows(views.geom_xpos, views.geom_xmat, drive.dyn_geoms, drive.dyn_obj, synth.pos, synth.R)
 

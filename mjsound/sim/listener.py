@@ -32,20 +32,25 @@ class ListenerMethods:
         self._drive = None
 
     def _mic_config(self):
-        """``(mode, source, rows, offsets)``: ``mics[m] = source_positions[rows[m]] +
-        offsets[m]`` when mode is 1 (source 0: bodies' ``xpos``, 1: ``site_xpos``); mode 0: the
-        microphones stay."""
+        """``(mode, source, rows, offsets, affine)`` per synthesizer row (the air microphones,
+        their images, the contact microphones: :mod:`.images`): ``mics[m] = A_m
+        (source_positions[rows[m]] + offsets[m]) + b_m`` when mode is 1 (source 0: bodies'
+        ``xpos``, 1: ``site_xpos``; ``affine[m] = [A_m | b_m]``, an image's mirrors); mode 0:
+        the microphones stay."""
         M = self.n_channels
         if self._follow is not None:
-            return 1, 0, np.full(M, self._follow[0], np.int64), self._follow[1]
-        if self._sites_move and M == len(self._mic_sites):
-            return 1, 1, self._mic_sites, np.zeros((M, 3))
-        return 0, 0, np.zeros(M, np.int64), np.zeros((M, 3))
+            mode, source, rows, offsets = 1, 0, np.full(M, self._follow[0], np.int64), self._follow[1]
+        elif self._sites_move and M == len(self._mic_sites):
+            mode, source, rows, offsets = 1, 1, self._mic_sites, np.zeros((M, 3))
+        else:
+            mode, source, rows, offsets = 0, 0, np.zeros(M, np.int64), np.zeros((M, 3))
+        src = self._row_channel  # (synthesizer row -> the channel whose position it follows)
+        return mode, source, np.ascontiguousarray(rows[src]), np.ascontiguousarray(offsets[src]), self._row_affine
 
     def _update_mics(self) -> None:
-        """Microphones to where their sites / the followed body are now (nothing when they
-        cannot move)."""
-        mode, source, rows, offsets = self._mic_config()
+        """Microphones (and their images) to where their sites / the followed body are now
+        (nothing when they cannot move)."""
+        mode, source, rows, offsets, affine = self._mic_config()
         if mode:  # (mics updated in place; a non-finite position keeps the last)
-            follow_rows(self.data.site_xpos if source else self.data.xpos, rows, offsets,
+            follow_rows(self.data.site_xpos if source else self.data.xpos, rows, offsets, affine,
                         self.synth.kernel_state().mics)

@@ -311,6 +311,7 @@ class DriveState(NamedTuple):
     sidx: np.ndarray  # (slots, 2) int64: stream of (pair slot, side), -1: none yet
     mic_rows: np.ndarray  # (mics,) int64: rows of the microphones' source positions
     mic_offsets: np.ndarray  # (mics, 3) [m]
+    mic_affine: np.ndarray  # (mics, 3, 4): then x -> A x + b (an image microphone's mirrors; identity otherwise)
     dyn_geoms: np.ndarray  # (moving objects,) int64: geom of each moving sounding object
     dyn_obj: np.ndarray  # (moving objects,) int64: its synthesizer object index
     pulses: PulseState  # impacts' clicks and contact-microphone pulses (ImpactPulses)

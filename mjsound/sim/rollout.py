@@ -218,6 +218,8 @@ def sonify(
     clicks: bool = True,
     contact_mics=None,
     contact_full_scale: float | None = None,
+    reflections=True,
+    room=None,
 ) -> dict:
     """Simulate (or replay) a scene with sound and optionally write the audio.
 
@@ -261,6 +263,9 @@ def sonify(
         against the budget up front); ``False`` returns ``audio=None``.
     clicks : bool
         Acceleration noise of every impact (default True).
+    reflections, room
+        The scene's planes reflect (default True; False: free field), or a room's walls do
+        (:class:`AudioSimulator`, ``docs/rooms.md``).
     contact_mics : list[str] | None
         Contact microphone sites (default: sites named ``contact_mic*``; ``[]``: none). Their
         channels [m/s^2] follow the air microphones' (``channel_names``).
@@ -345,6 +350,7 @@ def sonify(
         mujoco.mj_forward(model, data)
     # the event log (up to 100 000 entries) only serves an observer such as a rerun recording
     sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate, clicks=clicks, contact_mics=contact_mics,
+                         reflections=reflections, room=room,
                          **({} if on_block is not None else {"keep_events": 0}))
     t_obs = [0.0]  # wall time spent in on_block (e.g. rerun logging): reported apart
     if on_block is not None:

@@ -29,7 +29,8 @@ def silent_drive(ngeom: int) -> DriveState:
     sound = np.zeros(ngeom, SOUND)
     sound["obj"] = -1
     return DriveState(np.zeros(1, DRIVE_PARAMS), sound, np.full((0, 2), -1, np.int64),
-                      np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                      np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3, 4)), np.zeros(0, np.int64),
+                      np.zeros(0, np.int64),
                       silent_pulse_state())
 
 

@@ -37,6 +37,8 @@ from .reports import SimulatorReports
 from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
 from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
+from .images import fold
+from .rooms import scene_images, set_image_responses
 from .step import PULSES, AMPLITUDE, CLOCK_JUMP, RING, STREAMS
 from .substeps import make_substeps
 from .warmup import notice_first_compile
@@ -76,6 +78,16 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         told otherwise.
     clicks, contact_mics : bool, list[str] | None
         Impacts click (:mod:`.clicks`); contact microphone sites (:mod:`.channels`, :attr:`channel_names`).
+    reflections : bool | dict
+        The scene's planes reflect (default True): each air microphone also hears every
+        object from its mirror image in each plane welded to the world, through the plane's
+        surface (:mod:`.images`, :mod:`.surfaces`; ``docs/rooms.md``). False: free field (the
+        sound before reflections, bit for bit). A dict ``{plane name: surface or None}`` sets
+        the named planes' surfaces (a name in :data:`.surfaces.SURFACES`, one absorption
+        coefficient or six per octave band; None: that plane does not reflect).
+    room : Room, optional
+        A room around the scene (:class:`.rooms.Room`): its walls reflect (images up to its
+        ``order``) instead of the scene's planes.
     fused : bool
         Let :meth:`substeps` call ``mj_step`` from numba (default; where this MuJoCo build's
         C functions and struct layout check out). False (or the environment variable
@@ -124,6 +136,8 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         clicks: bool = True,
         contact_mics=None,
         fused: bool = True,
+        reflections=True,
+        room=None,
     ):
         import mujoco
 
@@ -160,6 +174,15 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.synth = None
         if not np.any(np.asarray(self.data.geom_xmat)):
             mujoco.mj_kinematics(model, self.data)  # poses for add_object (state is unchanged)
+        air = np.asarray(scene.mic_positions, np.float64).reshape(-1, 3)
+        self.images = scene_images(model, self.data, scene, air, reflections, room)
+        n_img = len(self.images)
+        # synthesizer rows: air microphones, their images, contact microphones (.images); the
+        # channel whose position each follows, and the image's mirrors
+        self._row_channel = np.concatenate([np.arange(self.n_air), self.images.parent,
+                                            np.arange(self.n_air, self.n_channels)]).astype(np.int64)
+        self._row_affine = np.tile(np.hstack([np.eye(3), np.zeros((3, 1))]), (len(self._row_channel), 1, 1))
+        self._row_affine[self.n_air:self.n_air + n_img] = self.images.affine
         # how each geom sounds: synthesizer object index (-1: silent, or no modes to drive) and
         # what Hertz's contact time takes of it struck and striking; the moving objects with their geoms
         self._sound = np.zeros(model.ngeom, SOUND)
@@ -176,12 +199,13 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             p = prm[0]
             p["rough_slide"], p["rough_roll"] = SLIDE_ROUGHNESS, ROLL_ROUGHNESS
             p["len_slide"], p["len_roll"] = SLIDE_GRAIN_M, ROLL_PATCH_M
-            self.synth = Synthesizer(sample_rate=self.sample_rate, microphones=np.asarray(scene.mic_positions),
+            self.synth = Synthesizer(sample_rate=self.sample_rate, microphones=np.vstack([air, self.images.positions(air)]),
                                      **dict(synth_kwargs or {}))
             for s in scene.sounding:
                 self.synth.add_object(s.name, s.model, position=np.array(self.data.geom_xpos[s.geom_id]),
                                       rotation=np.array(self.data.geom_xmat[s.geom_id]).reshape(3, 3))
             attach_contact_mics(self.synth, scene, model, self.data, self._contact_sites)
+            set_image_responses(self.synth, self.n_air, self.images)
             self.synth.on_regain = self._sync_poses
             for g, s in self._sounding.items():
                 idx = self.synth.object_index(s.name)
@@ -198,7 +222,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self._drive_prm = prm
         prm[0]["regain"] = max(1, int(round(self.sustained_block_s * self.sample_rate)))
         prm[0]["sustained"] = int(self.sustained)
-        self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air, self._contact_sites,
+        self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air + n_img, self._contact_sites,
                                     self.sample_rate, clicks=clicks, active=makes_pulses)
         prm[0]["pulses"] = int(self.pulses.active)
         # (the kernel mixes the track into a float32 block; a float64 one is mixed after its conversion)
@@ -382,9 +406,9 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                 self._drive = None
             self._sidx_reader = rs
         if self._drive is None or self._drive.pulses is not self.pulses.state:
-            mode, source, rows, offsets = self._mic_config()
+            mode, source, rows, offsets, affine = self._mic_config()
             self._drive_prm[0]["mic_mode"], self._drive_prm[0]["mic_source"] = mode, source
-            self._drive = DriveState(self._drive_prm, self._sound, self._sidx, rows, offsets,
+            self._drive = DriveState(self._drive_prm, self._sound, self._sidx, rows, offsets, affine,
                                      self._dyn_geoms, self._dyn_obj, self.pulses.state)
         return self._drive
 
@@ -579,6 +603,8 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         else:
             tc = _time.perf_counter()
             block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
+            if len(self.images):
+                block = fold(block, self.n_air, self.images)  # (image rows into their microphones' channels)
             self.seconds_synth += _time.perf_counter() - tc
         return self._deliver(block, n0)
 

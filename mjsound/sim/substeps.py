@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..synth.kernels import RENDERED
+from .images import fold
 from .records import NOT_RENDERED
 
 __all__ = ["make_substeps"]
@@ -32,6 +33,7 @@ def make_substeps(sim):
     f32 = synth is not None and synth.dtype == np.float32  # (kernel_block returns such a block as is)
     drive_state, kernel_state, on_stop = sim._drive_state, sim._kernel_state, sim._on_stop
     mj_step, model, data, pulses = sim._mj.mj_step, sim.model, sim.data, sim.pulses
+    images, n_air = (sim.images if len(sim.images) else None), sim.n_air
 
     def substeps(nstep: int, render: bool = True) -> None:
         k0, n0, n1 = span(nstep)
@@ -70,6 +72,8 @@ def make_substeps(sim):
                     block = synth.kernel_block(block, code == RENDERED)
                 if not mixed_f[0]:  # (the kernel mixes the pulse track into a float32 block itself)
                     block = pulses.mix(block)
+                if images is not None:  # (image microphones' rows into their channels, .images)
+                    block = fold(block, n_air, images)
                 if sim.on_block is None and not sim._held:  # (as _deliver)
                     sim._ready = block
                 else:

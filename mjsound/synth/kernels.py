@@ -469,6 +469,8 @@ def impacts_to_queue(synth, obj, P, J, t, tau, budget):
             e.kind = 0
             for m in range(n):
                 w = ob.w[m0 + m] / r if ch.owner == AIR else synth.chan_w[ch.w_off + m]
+                if ch.owner == AIR and ch.w_off >= 0:  # an image microphone: the surface's reflection
+                    w = w * synth.chan_w[ch.w_off + m0 + m].real
                 v = cm[m] * w * np.exp(ob.lam[m0 + m] * dts - g * ob.leps[m0 + m])
                 qre[used + m] = v.real
                 qim[used + m] = v.imag

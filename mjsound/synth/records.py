@@ -49,7 +49,10 @@ SYNTH_CONSTS = np.dtype([("c", f8), ("fs", f8), ("rmin", f8), ("tol", f8), ("gri
 #: of a contact microphone's body (which alone it hears, with no delay), or :data:`DEAF` (-2)
 #: for a contact microphone on a body without modes; its complex weights per mode of the
 #: owner (``(phi_i(x) . n) lambda_i^2``, :func:`mjsound.synth.contact_mic.modal_weights`)
-#: start at ``w_off`` in ``SynthState.chan_w``.
+#: start at ``w_off`` in ``SynthState.chan_w``. An air microphone has ``w_off = -1``, or, when
+#: it is an image microphone (:meth:`mjsound.synth.synthesizer.Synthesizer.set_channel_response`),
+#: the start of its real gain per mode of every object: mode ``i`` of the object table
+#: (``ObjectTable.mode_off``) is multiplied by ``chan_w[w_off + i].real``.
 CHANNEL = np.dtype([("owner", i8), ("w_off", i8)])
 AIR, DEAF = -1, -2
 

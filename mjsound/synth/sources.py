@@ -126,6 +126,9 @@ class ForcingSources:
         w[owner == AIR] = ob.weights[None, :] / r[owner == AIR, None]
         if self._dirty:
             self._rebuild()
+        for m in np.flatnonzero((owner == AIR) & (self._channels["w_off"] >= 0)).tolist():  # image microphones
+            off = int(self._channels["w_off"][m]) + int(self._object_table.mode_off[ob.index])
+            w[m] *= self._chan_w[off:off + len(ob.keep)].real
         for m in np.flatnonzero(owner == ob.index).tolist():
             off = int(self._channels["w_off"][m])
             w[m] = self._chan_w[off:off + len(ob.keep)]

@@ -209,8 +209,11 @@ def stream_gains(synth, j, o):
         fresh = not (st.dts[j, m] == dts)
         st.dts[j, m] = dts
         fac = st.dfac[j, m]
+        refl = chans[m].w_off  # (>= 0: an image microphone, its reflection per mode at chan_w[refl + m0 + k])
         for k in range(n):
             a = gw[k] / r
+            if refl >= 0:
+                a *= synth.chan_w[refl + m0 + k].real
             if fresh:
                 lam = ob.lam[m0 + k]
                 ph = lam.imag * dts

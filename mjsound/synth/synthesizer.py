@@ -173,6 +173,8 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         # output channels: air microphones, then contact microphones (add_contact_microphone)
         self._channels = np.zeros(len(self._mics), CHANNEL)
         self._channels["owner"] = AIR
+        self._channels["w_off"] = -1
+        self._responses = {}  # air channel -> (frequencies [Hz], gains): an image microphone's reflection
         self._contacts = {}  # channel -> (object name or None, point, axis) in the object frame
         self._chan_w = np.zeros(0, np.complex128)
         self._consts = np.zeros(1, SYNTH_CONSTS)
@@ -252,6 +254,8 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
             ob.voices = ob.voices[: len(p)] + [VoiceState(n) for _ in range(max(0, len(p) - old))]
         self._channels = np.resize(self._channels, len(p))
         self._channels["owner"][old:] = AIR
+        self._channels["w_off"][old:] = -1
+        self._responses = {m: v for m, v in self._responses.items() if m < len(p)}
         if len(p) != old:
             nch = len(p)
             self._ev.drop_mics(nch)
@@ -280,6 +284,45 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         self._channels[old]["owner"] = DEAF if name is None else ob.index
         self._dirty = True
         return old
+
+    def set_channel_response(self, channel: int, frequencies, gains) -> None:
+        """Make air channel ``channel`` an image microphone: every mode it hears is multiplied
+        by a real gain read off its frequency (the reflection of the surface the image is
+        behind, :mod:`mjsound.sim.reflections`).
+
+        Parameters
+        ----------
+        channel : int
+            An air microphone's channel.
+        frequencies : (k,) array_like
+            Increasing frequencies [Hz] (> 0), e.g. octave band centres.
+        gains : (k,) array_like
+            The gain at each [-] (>= 0). Between two frequencies the gain is interpolated
+            linearly in log frequency; below the first and above the last it is constant.
+            ``frequencies=None`` makes the channel a plain microphone again.
+
+        Examples
+        --------
+        >>> synth.set_channel_response(1, [125, 4000], [0.99, 0.6])  # doctest: +SKIP
+        """
+        m = int(channel)
+        if not (0 <= m < self.n_channels) or self._channels["owner"][m] != AIR:
+            raise ValueError(f"set_channel_response: channel {channel!r} is not an air microphone of this synthesizer")
+        if frequencies is None:
+            self._responses.pop(m, None)
+        else:
+            f = finite_array(frequencies, "frequencies", "give increasing frequencies in Hz").reshape(-1)
+            g = finite_array(gains, "gains", "give one finite gain >= 0 per frequency").reshape(-1)
+            if len(f) == 0 or len(f) != len(g) or np.any(f <= 0) or np.any(np.diff(f) <= 0) or np.any(g < 0):
+                raise ValueError("set_channel_response: give k > 0 increasing frequencies [Hz] > 0 and k gains >= 0")
+            self._responses[m] = (f.copy(), g.copy())
+        self._dirty = True
+
+    @staticmethod
+    def response_at(frequencies, gains, f) -> np.ndarray:
+        """The gain of a channel response (:meth:`set_channel_response`) at frequencies ``f``
+        [Hz]: linear in log frequency between the points, constant outside."""
+        return np.interp(np.log(np.maximum(np.asarray(f, np.float64), 1e-30)), np.log(frequencies), gains)
 
     def object_pose(self, name) -> tuple[np.ndarray, np.ndarray]:
         """``(position (3,), rotation (3, 3))`` of object ``name`` (object to world), copies."""
@@ -453,6 +496,16 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
             g = ob.model.gains(p[None], a[None])[0][ob.keep]
             parts.append(np.ascontiguousarray(g * ob.lam**2, np.complex128))
             self._channels[m]["owner"] = ob.index
+            self._channels[m]["w_off"] = off
+            off += len(parts[-1])
+        # image microphones: a real gain per mode of every object, in object-table order
+        obs = [self._by_index[i] for i in sorted(self._by_index)]
+        self._channels["w_off"][self._channels["owner"] == AIR] = -1
+        for m, (f, g) in sorted(self._responses.items()):
+            if self._channels[m]["owner"] != AIR:
+                continue
+            gm = [self.response_at(f, g, ob.wd / (2 * np.pi)) for ob in obs]
+            parts.append(np.concatenate(gm).astype(np.complex128) if gm else np.zeros(0, np.complex128))
             self._channels[m]["w_off"] = off
             off += len(parts[-1])
         self._chan_w = np.concatenate(parts) if parts else np.zeros(0, np.complex128)
