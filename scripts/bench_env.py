@@ -9,7 +9,8 @@ numba warm-up and modal analysis excluded). The three are measured in interleave
 (bare, waveform, spectrogram, bare, ...) so that drifting machine load hits all of them alike;
 ``step_ratio = median over rounds of wrapped / bare``; a fourth variant, waveform with clicks
 off (``clicks=False``, no contact microphones: these envs have no ``contact_mic`` site), in the
-same rounds gives ``step_ratio_clicks_off``. Then the throughput of an
+same rounds gives ``step_ratio_clicks_off``, and a fifth, waveform with the floor's reflection off
+(``reflections=False``: free field, docs/rooms.md), ``step_ratio_reflections_off``. Then the throughput of an
 ``AsyncVectorEnv`` of 2 wrapped Ant-v5 (waveform): env steps per wall second summed over both
 envs. Goal (issue 5): step_ratio <= 1.5 in waveform mode.
 
@@ -184,6 +185,8 @@ def main(argv=None) -> int:
             envs[mode] = AudioObservation(make_env(env_id), sample_rate=args.sample_rate, mode=mode, progress=False)
         envs["clicks_off"] = AudioObservation(make_env(env_id), sample_rate=args.sample_rate, mode="waveform",
                                               progress=False, clicks=False, contact_mics=[])
+        envs["reflections_off"] = AudioObservation(make_env(env_id), sample_rate=args.sample_rate, mode="waveform",
+                                                   progress=False, reflections=False)
         acts = actions(env_id, envs["bare"].action_space, args.steps)
         times = {k: [] for k in envs}
         for _ in range(args.rounds):
@@ -194,14 +197,17 @@ def main(argv=None) -> int:
             env = envs[mode]
             ratio = float(np.median(np.array(times[mode]) / np.array(times["bare"])))
             off = float(np.median(np.array(times["clicks_off"]) / np.array(times["bare"])))
+            free = float(np.median(np.array(times["reflections_off"]) / np.array(times["bare"])))
             rows.append({"id": env_id, "mode": mode, "step_ratio": ratio, "step_ratio_clicks_off": off,
+                         "step_ratio_reflections_off": free,
                          "bare_ms": 1e3 * t_bare,
                          "wrapped_ms": 1e3 * float(np.median(times[mode])),
                          "sounding_objects": len(env.scene.sounding), "modes": env.scene.n_modes})
             if not args.json:
                 r = rows[-1]
                 print(f"{env_id:<14s} {mode:<12s} bare {r['bare_ms']:.3f} ms  wrapped {r['wrapped_ms']:.3f} ms  "
-                      f"ratio {r['step_ratio']:.2f} (clicks off {r['step_ratio_clicks_off']:.2f})  "
+                      f"ratio {r['step_ratio']:.2f} (clicks off {r['step_ratio_clicks_off']:.2f}, reflections off "
+                      f"{r['step_ratio_reflections_off']:.2f})  "
                       f"({r['sounding_objects']} objects, {r['modes']} modes; "
                       f"CPU time, median of {args.rounds} interleaved rounds)", flush=True)
         if args.blocks:

@@ -19,7 +19,10 @@ clicks) of each round's own ratios and differences:
   sliding noise, clicks, rendering): with audio minus that third pass;
 * ``step_ratio_pulses_off`` and ``pulses_us_per_step``: the same audio run with clicks and
   contact microphones off (``clicks=False, contact_mics=[]``), interleaved in the same rounds,
-  and what turning them on costs per step [us] (the demo scene has a contact microphone).
+  and what turning them on costs per step [us] (the demo scene has a contact microphone);
+* ``step_ratio_reflections_off`` and ``reflections_us_per_step``: the same audio run in free
+  field (``reflections=False``: the floor does not reflect, docs/rooms.md), in the same rounds,
+  and what the floor's image microphones cost per step [us].
 
 Usage: python scripts/bench_scene.py [SCENE.xml] [--duration 3] [--rounds 3] [--json]
 """
@@ -72,6 +75,9 @@ def main(argv=None) -> int:
     reset()
     sim_off = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate, clicks=False, contact_mics=[])
     sim_off.run(0.05)
+    reset()
+    sim_free = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate, reflections=False)
+    sim_free.run(0.05)
     from mjsound.sim.clock import SampleClock
     from mjsound.sim.contacts import ContactReader
     from mjsound.sim.runner import StepKernel, silent_drive, silent_synth_state
@@ -85,7 +91,7 @@ def main(argv=None) -> int:
         raise SystemExit("bench_scene: the step kernel cannot call mj_step here (MuJoCo's C functions not found)")
     drive, silent = silent_drive(model.ngeom), silent_synth_state()
     every = sim.steps_per_render
-    t_phys_all, t_audio_all, t_read_all, t_off_all = [], [], [], []
+    t_phys_all, t_audio_all, t_read_all, t_off_all, t_free_all = [], [], [], [], []
     for _ in range(args.rounds):
         reset()
         t0 = time.process_time()
@@ -110,9 +116,15 @@ def main(argv=None) -> int:
         t0 = time.process_time()
         sim_off.run(args.duration)
         t_off_all.append(time.process_time() - t0)
+        reset()
+        sim_free.reset()
+        t0 = time.process_time()
+        sim_free.run(args.duration)
+        t_free_all.append(time.process_time() - t0)
     # per-round differences and ratios, then their medians: a round's passes run back to back,
     # so the machine's drifting load hits them alike (a median of each pass apart does not pair them)
-    t_phys_all, t_audio_all, t_read_all, t_off_all = map(np.array, (t_phys_all, t_audio_all, t_read_all, t_off_all))
+    t_phys_all, t_audio_all, t_read_all, t_off_all, t_free_all = map(
+        np.array, (t_phys_all, t_audio_all, t_read_all, t_off_all, t_free_all))
     t_phys = float(np.median(t_phys_all))
     t_audio = float(np.median(t_audio_all))
     ratio = float(np.median(t_audio_all / t_phys_all))
@@ -132,6 +144,9 @@ def main(argv=None) -> int:
         "step_ratio": ratio,
         "step_ratio_pulses_off": ratio_off,
         "pulses_us_per_step": per_step(t_audio_all - t_off_all),
+        "step_ratio_reflections_off": float(np.median(t_free_all / t_phys_all)),
+        "reflections_us_per_step": per_step(t_audio_all - t_free_all),
+        "images": len(sim.images),
         "channels": list(sim.channel_names),
         "us_per_step_physics": 1e6 * t_phys / nsteps,
         "us_per_step_audio": 1e6 * t_audio / nsteps,

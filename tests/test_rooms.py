@@ -176,7 +176,7 @@ def test_fold_adds_each_image_times_its_factor_into_its_microphone():
 
     block = np.arange(5 * 4, dtype=np.float32).reshape(5, 4)  # 2 air, 2 images, 1 contact
     im = ImageSet(np.array([1, 0]), np.zeros((2, 3, 4)), np.ones((2, 6)), np.array([0.5, 0.25]), ["a", "b"])
-    out = fold(block, 2, im)
+    out = fold(block.copy(), 2, im)
     assert out.shape == (3, 4) and out.dtype == np.float32
     assert np.array_equal(out[0], block[0] + 0.25 * block[3])
     assert np.array_equal(out[1], block[1] + 0.5 * block[2])

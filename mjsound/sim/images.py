@@ -77,6 +77,16 @@ class ImageSet(NamedTuple):
         mics = np.asarray(mics, np.float64).reshape(-1, 3)
         return apply_affine(self.affine, mics[self.parent])
 
+    def rows(self, n_air: int, n_channels: int) -> tuple[np.ndarray, np.ndarray]:
+        """The synthesizer's rows (air microphones, these images, contact microphones) for
+        ``n_air`` air and ``n_channels`` channels in all: ``(channel (rows,) int64, affine
+        (rows, 3, 4))``, the channel whose position each row follows and the map from it
+        (identity but for the images)."""
+        channel = np.concatenate([np.arange(n_air), self.parent, np.arange(n_air, n_channels)]).astype(np.int64)
+        affine = np.tile(np.hstack([np.eye(3), np.zeros((3, 1))]), (len(channel), 1, 1))
+        affine[n_air:n_air + len(self)] = self.affine
+        return channel, affine
+
     def mode_gains(self) -> np.ndarray:
         """``(I, 6)`` per band what the synthesizer multiplies a mode by (``R / R_click``; the
         rest, ``R_click``, is :func:`fold`'s)."""
@@ -198,19 +208,30 @@ def fold(block: np.ndarray, n_air: int, images: ImageSet, gains: np.ndarray | No
     Parameters
     ----------
     block : (A + I + C, n) array
+        Overwritten: the air rows receive their images.
     n_air : int
         ``A``.
     images : ImageSet
 
     Returns
     -------
-    (A + C, n) array of the block's dtype (a new array; ``block`` itself when ``I = 0``).
+    (A + C, n) array of the block's dtype (a view of ``block`` when ``C = 0``; ``block``
+    itself when ``I = 0``).
+
+    Examples
+    --------
+    >>> im = ImageSet(np.array([0]), np.zeros((1, 3, 4)), np.ones((1, 6)), np.array([0.5]), ["floor"])
+    >>> fold(np.array([[1.0, 2.0], [4.0, 4.0]]), 1, im)
+    array([[3., 4.]])
     """
     k = len(images)
     if k == 0:
         return block
     g = images.click if gains is None else gains
-    out = np.delete(block, np.s_[n_air:n_air + k], axis=0)
+    one = block.dtype.type(1)
     for i, (p, gi) in enumerate(zip(images.parent.tolist(), g.tolist())):
-        out[p] += block[n_air + i] * block.dtype.type(gi)
-    return out
+        gi = block.dtype.type(gi)
+        block[p] += block[n_air + i] if gi == one else block[n_air + i] * gi
+    if n_air + k == block.shape[0]:
+        return block[:n_air]
+    return np.concatenate([block[:n_air], block[n_air + k:]])

@@ -177,12 +177,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         air = np.asarray(scene.mic_positions, np.float64).reshape(-1, 3)
         self.images = scene_images(model, self.data, scene, air, reflections, room)
         n_img = len(self.images)
-        # synthesizer rows: air microphones, their images, contact microphones (.images); the
-        # channel whose position each follows, and the image's mirrors
-        self._row_channel = np.concatenate([np.arange(self.n_air), self.images.parent,
-                                            np.arange(self.n_air, self.n_channels)]).astype(np.int64)
-        self._row_affine = np.tile(np.hstack([np.eye(3), np.zeros((3, 1))]), (len(self._row_channel), 1, 1))
-        self._row_affine[self.n_air:self.n_air + n_img] = self.images.affine
+        self._row_channel, self._row_affine = self.images.rows(self.n_air, self.n_channels)
         # how each geom sounds: synthesizer object index (-1: silent, or no modes to drive) and
         # what Hertz's contact time takes of it struck and striking; the moving objects with their geoms
         self._sound = np.zeros(model.ngeom, SOUND)
