@@ -365,7 +365,8 @@ def test_the_gymnasium_wrapper_takes_the_option():
     for refl in (True, False):
         inner = _HandSteppedEnv()
         env = AudioObservation(inner, materials={"box": "steel"}, substeps="manual", sample_rate=16000,
-                               reflections=refl, models={"box": stub_model("box:0.3,0.3,0.01", "steel", 8, 400.0)})
+                               window_s=0.01, reflections=refl,
+                               models={"box": stub_model("box:0.3,0.3,0.01", "steel", 8, 400.0)})
         inner.on_substep = env.on_substep
         env.reset(seed=0)
         out[refl] = np.concatenate([env.step(np.zeros(1))[0]["audio"] for _ in range(30)], axis=-1)
