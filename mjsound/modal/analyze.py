@@ -215,39 +215,7 @@ def analyze(
     array([209., 209.])
     """
     material = parse_material(material)
-    if method not in METHODS:
-        raise ValueError(f"method {method!r} unknown; choose one of {', '.join(METHODS)}")
-    quality_preset(quality)
-    if sample_rate is not None:
-        sample_rate = float(sample_rate)
-        if not np.isfinite(sample_rate) or sample_rate < 1000 or sample_rate > 768000:
-            raise ValueError(f"sample_rate={sample_rate} Hz is not a plausible audio rate (1 kHz .. 768 kHz)")
-    if f_max is None:
-        f_max = default_f_max(sample_rate)
-    f_max = float(f_max)
-    if not np.isfinite(f_max) or f_max <= F_MIN_HZ:
-        raise ValueError(f"f_max={f_max} Hz must be finite and above {F_MIN_HZ} Hz")
-    if sample_rate is not None and f_max >= 0.5 * sample_rate:
-        raise ValueError(
-            f"f_max={f_max:g} Hz is at or above the Nyquist frequency of sample_rate={sample_rate:g} Hz; "
-            f"use f_max <= {0.45 * sample_rate:g} Hz or leave it unset"
-        )
-    if order not in (1, 2):
-        raise ValueError(f"order must be 1 or 2, got {order}")
-    if thickness is not None and not (np.isfinite(thickness) and thickness > 0):
-        raise ValueError(f"thickness={thickness} must be a positive length in metres")
-    if max_modes is not None and (isinstance(max_modes, bool) or int(max_modes) != max_modes or max_modes < 1):
-        raise ValueError(f"max_modes={max_modes!r} must be a positive whole number of modes")
-    if wall is None:
-        wall = material.wall
-    elif not isinstance(wall, (int, float, np.floating)) or isinstance(wall, bool):
-        try:
-            wall = parse_length(wall)
-        except ValueError as exc:
-            raise ValueError(f"wall: {exc}") from None
-    if wall is not None and not (np.isfinite(wall) and wall > 0):
-        raise ValueError(f"wall={wall!r} must be a positive length in metres")
-
+    f_max, wall = _checked_options(material, method, quality, f_max, sample_rate, order, thickness, max_modes, wall)
     tm = load_mesh(mesh)
     if wall is not None:
         from .surface import hollow
@@ -305,6 +273,45 @@ def analyze(
         except OSError as exc:
             warnings.warn(f"could not write cache entry {path}: {exc}", stacklevel=user_stacklevel())
     return model
+
+
+def _checked_options(material, method, quality, f_max, sample_rate, order, thickness, max_modes, wall):
+    """:func:`analyze`'s options checked before anything is built: ``(f_max [Hz], wall [m] or
+    None)``, ``f_max`` defaulted from ``sample_rate`` and ``wall`` from the material. Raises
+    ValueError naming the option and what it must be."""
+    if method not in METHODS:
+        raise ValueError(f"method {method!r} unknown; choose one of {', '.join(METHODS)}")
+    quality_preset(quality)
+    if sample_rate is not None:
+        sample_rate = float(sample_rate)
+        if not np.isfinite(sample_rate) or sample_rate < 1000 or sample_rate > 768000:
+            raise ValueError(f"sample_rate={sample_rate} Hz is not a plausible audio rate (1 kHz .. 768 kHz)")
+    if f_max is None:
+        f_max = default_f_max(sample_rate)
+    f_max = float(f_max)
+    if not np.isfinite(f_max) or f_max <= F_MIN_HZ:
+        raise ValueError(f"f_max={f_max} Hz must be finite and above {F_MIN_HZ} Hz")
+    if sample_rate is not None and f_max >= 0.5 * sample_rate:
+        raise ValueError(
+            f"f_max={f_max:g} Hz is at or above the Nyquist frequency of sample_rate={sample_rate:g} Hz; "
+            f"use f_max <= {0.45 * sample_rate:g} Hz or leave it unset"
+        )
+    if order not in (1, 2):
+        raise ValueError(f"order must be 1 or 2, got {order}")
+    if thickness is not None and not (np.isfinite(thickness) and thickness > 0):
+        raise ValueError(f"thickness={thickness} must be a positive length in metres")
+    if max_modes is not None and (isinstance(max_modes, bool) or int(max_modes) != max_modes or max_modes < 1):
+        raise ValueError(f"max_modes={max_modes!r} must be a positive whole number of modes")
+    if wall is None:
+        wall = material.wall
+    elif not isinstance(wall, (int, float, np.floating)) or isinstance(wall, bool):
+        try:
+            wall = parse_length(wall)
+        except ValueError as exc:
+            raise ValueError(f"wall: {exc}") from None
+    if wall is not None and not (np.isfinite(wall) and wall > 0):
+        raise ValueError(f"wall={wall!r} must be a positive length in metres")
+    return f_max, wall
 
 
 def _open_surface_as_shell(tm, thickness: float):
