@@ -12,7 +12,12 @@ Three passes per round, interleaved (physics only, audio as is, audio with patte
 Both audio runs render the same scene in the same process, so their difference is what the
 direction factors cost (evaluations, ramps, event and forcing scaling).
 
+``--env Ant-v5``: a gymnasium env instead, bare / wrapped as is / wrapped with patterns
+(``AudioObservation``, waveform mode), the same seeded random actions, interleaved in rounds
+of ``--steps`` env steps; ratios against the bare env.
+
 Usage: python scripts/bench_directivity.py [SCENE.xml] [--duration 3] [--rounds 5] [--order 8]
+       python scripts/bench_directivity.py --env Ant-v5 [--steps 1000] [--rounds 7] [--order 8]
 """
 
 from __future__ import annotations
@@ -42,11 +47,57 @@ def synthetic_pattern(order: int, seed: int = 0):
     return radiation_pattern
 
 
+def with_patterns(order, make):
+    """``make()`` with every ModalModel given :func:`synthetic_pattern` (the fit happens when
+    the synthesizer adds the objects, inside ``make``)."""
+    from mjsound.modal.model import ModalModel
+
+    had = ModalModel.__dict__.get("radiation_pattern")
+    ModalModel.radiation_pattern = synthetic_pattern(order)
+    try:
+        return make()
+    finally:
+        if had is None:
+            del ModalModel.radiation_pattern
+        else:
+            ModalModel.radiation_pattern = had
+
+
+def bench_env(args) -> dict:
+    """The ``--env`` protocol (module docstring)."""
+    import gymnasium as gym
+    import numpy as np
+
+    from mjsound import AudioObservation
+
+    envs = {"bare": gym.make(args.env),
+            "as_is": AudioObservation(gym.make(args.env), sample_rate=16000, progress=False),
+            "directional": with_patterns(args.order, lambda: AudioObservation(gym.make(args.env), sample_rate=16000,
+                                                                              progress=False))}
+    acts = np.random.default_rng(0).uniform(-1, 1, (args.steps,) + envs["bare"].action_space.shape)
+    t = {k: [] for k in envs}
+    for r in range(args.rounds + 1):
+        for k, e in envs.items():
+            e.reset(seed=r)
+            t0 = time.process_time()
+            for a in acts:
+                _, _, te, tr, _ = e.step(a)
+                if te or tr:
+                    e.reset()
+            if r:  # (round 0: warm-up)
+                t[k].append(time.process_time() - t0)
+    t = {k: np.array(v) for k, v in t.items()}
+    return {"env": args.env, "steps": args.steps, "rounds": args.rounds, "order": args.order,
+            "step_ratio_as_is": float(np.median(t["as_is"] / t["bare"])),
+            "step_ratio_directional": float(np.median(t["directional"] / t["bare"])),
+            "directional_us_per_step": 1e6 * float(np.median(t["directional"] - t["as_is"])) / args.steps,
+            "us_per_step_bare": 1e6 * float(np.median(t["bare"])) / args.steps}
+
+
 def main(argv=None) -> int:
     import mujoco
     import numpy as np
 
-    from mjsound.modal.model import ModalModel
     from mjsound.sim import AudioSimulator, SoundScene
     from mjsound.sim.demo import find_demo_scene
 
@@ -56,7 +107,12 @@ def main(argv=None) -> int:
     p.add_argument("--rounds", type=int, default=5)
     p.add_argument("--order", type=int, default=8, help="spherical-harmonic order of the patterns (default 8)")
     p.add_argument("--sample-rate", type=int, default=48000)
+    p.add_argument("--env", default=None, help="a gymnasium env id (e.g. Ant-v5) instead of a scene")
+    p.add_argument("--steps", type=int, default=1000, help="env steps per round (--env)")
     args = p.parse_args(argv)
+    if args.env:
+        print(json.dumps(bench_env(args), indent=1))
+        return 0
     path = args.scene or find_demo_scene()
     model = mujoco.MjModel.from_xml_path(path)
     data = mujoco.MjData(model)
@@ -69,18 +125,10 @@ def main(argv=None) -> int:
 
     scene = SoundScene.from_model(model, sample_rate=args.sample_rate, progress=False)
     nsteps = int(round(args.duration / model.opt.timestep))
-    had = getattr(ModalModel, "radiation_pattern", None)
     reset()
     sim_as_is = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate)
-    ModalModel.radiation_pattern = synthetic_pattern(args.order)
-    try:
-        reset()
-        sim_dir = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate)
-    finally:
-        if had is None:
-            del ModalModel.radiation_pattern
-        else:
-            ModalModel.radiation_pattern = had
+    reset()
+    sim_dir = with_patterns(args.order, lambda: AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate))
     orders = sorted({sim_dir.synth.object_modes(n).directions.order for n in sim_dir.synth.objects})
     for sim in (sim_as_is, sim_dir):  # warm-up (numba)
         reset()

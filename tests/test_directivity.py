@@ -230,6 +230,45 @@ def test_an_object_at_rest_is_not_evaluated_again_and_silent_voices_take_the_tar
     np.testing.assert_allclose(syn.direction_factors("bell"), [[SQ3 * np.cos(np.radians(70))]], rtol=1e-12)
 
 
+def test_a_mode_silent_while_the_object_turned_is_heard_in_the_new_direction():
+    """Only the ringing modes are evaluated as an object turns; a silent mode's factor is made
+    when something excites it. Mode 0 (a dipole along z) rings while the object turns 60
+    degrees about y; mode 1 (a dipole along x) is struck only afterwards: each is heard with
+    its pattern in the final direction ``u = (-sin 60, 0, cos 60)``."""
+    def rot_y(a):
+        c, s = np.cos(a), np.sin(a)
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+    shapes = np.zeros((1, 3, 2))
+    shapes[0, 2, 0] = shapes[0, 0, 1] = 1.0  # a z impulse excites mode 0 only, an x impulse mode 1
+    pattern = lambda u: SQ3 * u[:, [2, 0]]
+
+    def run(directivity, hits):
+        m = PatternModel([440.0, 1210.0], [3.0, 3.0], [[0, 0, 0]], [[0, 0, 1]], shapes, [1.0, 1.0],
+                         get_material("steel"), mass_kg=0.1, pattern=pattern)
+        syn = Synthesizer(FS, microphones=[[0, 0, 1.0]], dtype="float64", cull_db=None, directivity=directivity)
+        syn.add_object("bell", m)
+        ys = []
+        for b in range(30):
+            syn.set_pose("bell", [0, 0, 0], rot_y(np.radians(6.0 * min(b, 10))))
+            for hb, J in hits:
+                if hb == b:
+                    syn.impact("bell", [0, 0, 0], J, syn.time, pulse_s=0.0)
+            ys.append(syn.render(480))
+        return np.concatenate(ys, axis=1)[0].astype(np.float64), syn
+
+    a = np.radians(60)
+    x_obj = rot_y(a) @ [0.01, 0, 0]  # (impulses are given in the world frame)
+    y, syn = run(True, [(0, [0, 0, 0.01]), (15, x_obj)])
+    iso0, _ = run(False, [(0, [0, 0, 0.01])])
+    iso1, _ = run(False, [(15, x_obj)])
+    D = syn.direction_factors("bell")[0]
+    np.testing.assert_allclose(D.real, [SQ3 * np.cos(a), -SQ3 * np.sin(a)], rtol=1e-9)
+    after = slice(11 * 480, None)  # (the turn's last ramp ends with block 10)
+    ref = SQ3 * np.cos(a) * iso0 - SQ3 * np.sin(a) * iso1
+    np.testing.assert_allclose(y[after], ref[after], rtol=0, atol=2e-6 * np.abs(ref).max())
+
+
 # ---------------------------------------------------------------- unchanged
 def test_contact_microphones_and_isotropic_patterns_sound_as_before():
     """A contact microphone hears a directional object exactly as without directions; an object

@@ -268,22 +268,19 @@ def evaluate_fit(fit: DirectionFit, directions) -> np.ndarray:
     return _basis(fit.order, d / np.linalg.norm(d, axis=1, keepdims=True)) @ fit.coef.T
 
 
-@njit(cache=True)
-def _voice_sounds(bank, layout, ev, src, m, c0, nm, s0):
-    """Whether the voice at columns ``c0 .. c0 + nm`` of bank ``m`` (flat modes from ``s0``) has
-    a ringing mode, and whether it has an event or a forcing row in this block."""
-    for i in range(s0, s0 + nm):
-        if bank.active[i]:
-            return True, True
+@njit_inner(cache=True)
+def _voice_rows(ev, src, m, c0, nm):
+    """Whether the voice at columns ``c0 .. c0 + nm`` of bank ``m`` has an event or a forcing
+    row in this block."""
     for e in range(ev.ptr[m], ev.ptr[m + 1]):
         for j in range(c0, c0 + nm):
             if ev.re[e, j] != 0.0 or ev.im[e, j] != 0.0:
-                return False, True
+                return True
     for q in range(src.ptr[m], src.ptr[m + 1]):
         for j in range(c0, c0 + nm):
             if src.gr[q, j] != 0.0 or src.gi[q, j] != 0.0:
-                return False, True
-    return False, False
+                return True
+    return False
 
 
 @njit_inner(cache=True, fastmath=FAST)
@@ -297,15 +294,30 @@ def _factor(Y, cr, ci, base, nsh):
     return complex(re, im)
 
 
+@njit_inner(cache=True)
+def _target(dr, Y, g, floor):
+    """Mode ``g``'s factor at the harmonics ``Y``, floored at ``|D| = floor`` (a null, or a
+    NaN pattern: the floor, with the phase if any)."""
+    k0 = dr.msh_off[g]
+    t = _factor(Y, dr.coef_r, dr.coef_i, k0, dr.msh_off[g + 1] - k0)
+    a = abs(t)
+    if not a >= floor:
+        t = t / a * floor if a > 0.0 else complex(floor, 0.0)
+    return t
+
+
 @njit(cache=True)
 def hear_directions(synth, bank, layout, ev, src, n):
     """Make each sounding (object, air microphone) voice's direction factors follow the
     direction from the object's pose (``synth.pos``, ``synth.R``) to the microphone
     (``synth.mics``) for the block of ``n`` samples about to be rendered with the events
     ``ev`` and forcing rows ``src`` (:class:`.records.EventRows`, :class:`.records.SourceRows`);
-    module docstring. Sets ``bank.direction``'s targets ``tr, ti``, per-sample log ratios
-    ``lr, li`` and ``ramp`` (its ringing voices), which :func:`.kernels.render_all` applies
-    and commits; a voice with nothing ringing takes its target at once."""
+    module docstring. When the direction turned, each ringing mode gets its target ``tr, ti``,
+    per-sample log ratio ``lr, li`` and factor ``rho`` (and its bank ``ramp``: applied and
+    committed by :func:`.kernels.render_all`); a silent mode of a voice with rows in the block
+    takes its target at once; the other silent modes are left unmade (``ar`` NaN), made at the
+    voice's direction in the first block that has rows for the voice. Only modes that sound
+    are evaluated."""
     dr = bank.direction
     if dr.n_objects[0] == 0 or n <= 0:
         return
@@ -314,6 +326,7 @@ def hear_directions(synth, bank, layout, ev, src, n):
     chans = synth.channels
     M = chans.shape[0]
     Y = dr.sh
+    act = bank.active
     for o in range(dr.order.shape[0]):
         L = dr.order[o]
         if L < 0 or o >= layout.vbase.shape[0] or layout.vbase[o] < 0:
@@ -328,37 +341,53 @@ def hear_directions(synth, bank, layout, ev, src, n):
             c0 = layout.v_rel[v]
             nm = layout.v_len[v]
             s0 = bank.start[m] + c0
-            if nm == 0:
+            ringing = False
+            for i in range(s0, s0 + nm):
+                if act[i]:
+                    ringing = True
+                    break
+            rows = _voice_rows(ev, src, m, c0, nm)
+            if not (ringing or rows):
                 continue
-            ringing, sounds = _voice_sounds(bank, layout, ev, src, m, c0, nm, s0)
-            if not sounds:
-                continue
+            u = dr.u[v]
             dx = synth.mics[m, 0] - pos[0]
             dy = synth.mics[m, 1] - pos[1]
             dz = synth.mics[m, 2] - pos[2]
             r = np.sqrt(dx * dx + dy * dy + dz * dz)
-            if not r > 0.0:  # (a microphone at the object's origin: no direction to follow)
+            turned = False
+            if r > 0.0:  # (a microphone at the object's origin: no direction to follow)
+                ux = (R[0, 0] * dx + R[1, 0] * dy + R[2, 0] * dz) / r  # u = R^T (mic - pos) / r
+                uy = (R[0, 1] * dx + R[1, 1] * dy + R[2, 1] * dz) / r
+                uz = (R[0, 2] * dx + R[1, 2] * dy + R[2, 2] * dz) / r
+                if not ux * u[0] + uy * u[1] + uz * u[2] >= cos_step:  # (NaN: never made)
+                    u[0] = ux
+                    u[1] = uy
+                    u[2] = uz
+                    turned = True
+            if not np.isfinite(u[0]):
                 continue
-            ux = (R[0, 0] * dx + R[1, 0] * dy + R[2, 0] * dz) / r  # u = R^T (mic - pos) / r
-            uy = (R[0, 1] * dx + R[1, 1] * dy + R[2, 1] * dz) / r
-            uz = (R[0, 2] * dx + R[1, 2] * dy + R[2, 2] * dz) / r
-            u = dr.u[v]
-            if ux * u[0] + uy * u[1] + uz * u[2] >= cos_step:  # (NaN: never made: not taken)
-                continue
-            u[0] = ux
-            u[1] = uy
-            u[2] = uz
-            real_sh(L, ux, uy, uz, Y, dr.sh_tab)
+            made = False  # (Y at u)
+            ramps = False
             for j in range(nm):
-                k0 = dr.msh_off[g0 + j]
-                t = _factor(Y, dr.coef_r, dr.coef_i, k0, dr.msh_off[g0 + j + 1] - k0)
-                a = abs(t)
-                if not a >= floor:  # (a null, or a NaN pattern: the floor, with the phase if any)
-                    t = t / a * floor if a > 0.0 else complex(floor, 0.0)
                 i = s0 + j
-                if ringing:
-                    A = complex(dr.ar[i], dr.ai[i])
-                    ratio = t / A
+                stale = not np.isfinite(dr.ar[i])
+                ring = act[i] and not stale
+                if ring and not turned:
+                    continue
+                if not ring and not rows:  # (silent, nothing for it in this block: made when it has)
+                    if turned:
+                        dr.ar[i] = np.nan
+                    continue
+                if not ring and not (turned or stale):
+                    continue
+                if not made:
+                    real_sh(L, u[0], u[1], u[2], Y, dr.sh_tab)
+                    made = True
+                t = _target(dr, Y, g0 + j, floor)
+                dr.tr[i] = t.real
+                dr.ti[i] = t.imag
+                if ring:  # ramped across the block
+                    ratio = t / complex(dr.ar[i], dr.ai[i])
                     lg = np.log(ratio) / n
                     rho = np.exp(lg)
                     dr.lr[i] = lg.real
@@ -366,12 +395,11 @@ def hear_directions(synth, bank, layout, ev, src, n):
                     dr.rho_r[i] = rho.real
                     dr.rho_i[i] = rho.imag
                     bank.peak2[i] *= ratio.real * ratio.real + ratio.imag * ratio.imag
-                else:
+                    ramps = True
+                else:  # silent: at once
                     dr.ar[i] = t.real
                     dr.ai[i] = t.imag
-                dr.tr[i] = t.real
-                dr.ti[i] = t.imag
-            if ringing:
+            if ramps:
                 dr.ramp[m] = True
 
 
@@ -417,11 +445,16 @@ def ramp_poles(wpr, wpi, idx, na, gains):
 
 @njit_inner(cache=True)
 def scale_sources(gr, gi, gains, s):
-    """Forcing rows' gains ``gr + j gi`` (q, m) of the directional modes times ``D(s)``."""
+    """Forcing rows' gains ``gr + j gi`` (q, m) of the directional modes times ``D(s)`` (only
+    the non-zero ones: a silent mode's factor may be unmade, NaN)."""
     for i in range(gr.shape[1]):
         if gains.dmode[i]:
-            d = gain_at(gains, i, s)
+            d = complex(np.nan, np.nan)
             for q in range(gr.shape[0]):
+                if gr[q, i] == 0.0 and gi[q, i] == 0.0:
+                    continue
+                if d != d:
+                    d = gain_at(gains, i, s)
                 g = complex(np.float64(gr[q, i]), np.float64(gi[q, i])) * d
                 gr[q, i] = g.real
                 gi[q, i] = g.imag

@@ -341,7 +341,8 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
     def direction_factors(self, name) -> np.ndarray:
         """(channels, n_modes) complex: the direction factor ``D`` (:mod:`.directivity`) each
         channel hears ``name``'s kept modes with now (after the last rendered block; 1 for
-        contact microphones and objects heard the same in every direction)."""
+        contact microphones and objects heard the same in every direction; NaN for a silent
+        mode whose factor is made only when something excites it)."""
         ob = self._get(name)
         return np.array([v.dr + 1j * v.di for v in ob.voices])
 
