@@ -90,7 +90,12 @@ class EnvAudio:
             sim={"keep_events": 0, "contact_mics": contact_mics, "clicks": clicks, "reflections": reflections,
                  "room": room, **(sim_kwargs or {})},
             follow=follow if mics is None else None)
-        self._build(model, data)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self._build(model, data)
+        self._said = {str(w.message) for w in caught}  # the scene's warnings, given once per env
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         self._signature = model_signature(model)
         self.n_channels = self.sim.n_channels
         # contact channels [m/s^2] enter the window in the air channels' full-scale units
@@ -167,7 +172,13 @@ class EnvAudio:
         else:
             on_block = getattr(self.sim, "on_block", None)
             old_channels = self.sim.channel_names
-            self._build(model, data)
+            with warnings.catch_warnings(record=True) as caught:  # (said once: not again at every reset)
+                warnings.simplefilter("always")
+                self._build(model, data)
+            for w in caught:
+                if str(w.message) not in self._said:
+                    self._said.add(str(w.message))
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             if self.sim.n_channels != self.n_channels:
                 raise RuntimeError(
                     f"mjsound: the env rebuilt its model with {self.sim.n_channels} audio channel(s) "

@@ -10,6 +10,7 @@ route                       env                                                 
 ==========================  ==================================================  =====================================
 :class:`GymMujocoStepping`  gymnasium ``MujocoEnv`` (Ant-v5, Meta-World, ...)    ``_step_mujoco_simulation(ctrl, n)``
 :class:`RoboticsStepping`   gymnasium-robotics ``MujocoRobotEnv`` (Fetch, ...)   ``_mujoco_step(action)``
+:class:`MyoStepping`        MyoSuite 3 ``MyoGymnasiumEnv``                       ``_step_physics(nstep)``
 :class:`DmPhysicsStepping`  a dm_control env's ``physics`` (suite, composer,    ``physics.step(nstep)``
                             gym-aloha's ``AlohaEnv._env``)
 :class:`MjSimStepping`      robosuite's ``MjSim`` (robosuite 1.5, LIBERO)        ``sim.step()``, ``sim.step2()``
@@ -32,7 +33,7 @@ import weakref
 
 import numpy as np
 
-__all__ = ["Stepping", "GymMujocoStepping", "RoboticsStepping", "DmPhysicsStepping", "MjSimStepping",
+__all__ = ["Stepping", "GymMujocoStepping", "RoboticsStepping", "MyoStepping", "DmPhysicsStepping", "MjSimStepping",
            "find_stepping", "steps_of"]
 
 
@@ -128,6 +129,30 @@ class RoboticsStepping(GymMujocoStepping):
         self._set(env, "_mujoco_step", _mujoco_step)
 
 
+class MyoStepping(GymMujocoStepping):
+    """MyoSuite 3's ``MyoGymnasiumEnv``: ``_step_physics(nstep=None)`` (``mj_step(model, data,
+    nstep or frame_skip)``, then ``mj_forward``) becomes that many fused steps, then
+    ``mj_forward`` as MyoSuite does. One env step simulates ``frame_skip`` timesteps."""
+
+    route = "MyoSuite MyoGymnasiumEnv._step_physics"
+
+    def step_dt(self):
+        return self.owner.frame_skip * float(self.owner.model.opt.timestep)
+
+    def _install(self, sim):
+        import mujoco
+
+        env = self.owner
+        model, data = env.model, env.data
+        step, forward = sim.stepper(), mujoco.mj_forward
+
+        def _step_physics(nstep=None):
+            step(env.frame_skip if nstep is None else nstep)
+            forward(model, data)
+
+        self._set(env, "_step_physics", _step_physics)
+
+
 class DmPhysicsStepping(Stepping):
     """A dm_control environment (``rl.control.Environment``, ``composer.Environment``) or an
     object holding one: its ``physics.step(nstep)`` becomes the same MuJoCo calls with every
@@ -204,6 +229,85 @@ class MjSimStepping(Stepping):
         self._set(mjsim, "step2", step2)
 
 
+class _HeardMujoco:
+    """A stand-in for the ``mujoco`` module in one env module: every name is MuJoCo's but
+    ``mj_step``, which after each step on a hooked ``MjData`` tells that data's simulator
+    (``sim.step(render=False)``)."""
+
+    def __init__(self, mujoco):
+        self._mujoco = mujoco
+        self._sims = {}  # id(MjData) -> (MjData, AudioSimulator)
+
+    def __getattr__(self, name):
+        return getattr(self._mujoco, name)
+
+    def mj_step(self, m, d, nstep=1):
+        hooked = self._sims.get(id(d))
+        if hooked is None or hooked[0] is not d:
+            return self._mujoco.mj_step(m, d, nstep)
+        step, heard = self._mujoco.mj_step, hooked[1].step
+        for _ in range(int(nstep)):
+            step(m, d)
+            heard(render=False)
+
+
+class ModuleStepping(Stepping):
+    """An env that steps in its own loop with ``mujoco.mj_step(model, data)`` calls written in
+    its class's module (lerobot-env-so101's ``MujocoGymEnv.apply_action``): that module's
+    global ``mujoco`` becomes a stand-in whose ``mj_step`` on this env's ``data`` is followed by
+    ``sim.step(render=False)`` (the own-loop route; other data pass through untouched). The
+    env step's length comes from its own attributes (:func:`steps_of`)."""
+
+    def __init__(self, owner, module):
+        super().__init__(owner)
+        self.module = module
+        self.route = f"mujoco.mj_step calls in {module.__name__}"
+
+    def current(self):
+        return self.owner.model, self.owner.data
+
+    def step_dt(self):
+        return None
+
+    def _install(self, sim):
+        view = vars(self.module)["mujoco"]
+        if not isinstance(view, _HeardMujoco):
+            view = _HeardMujoco(view)
+            self.module.mujoco = view
+        data = self.owner.data
+        view._sims[id(data)] = (data, sim)
+        self._view_key = id(data)
+
+    def remove(self):
+        view = vars(self.module).get("mujoco")
+        if isinstance(view, _HeardMujoco):
+            view._sims.pop(getattr(self, "_view_key", None), None)
+            if not view._sims:
+                self.module.mujoco = view._mujoco
+
+
+def _stepping_module(env):
+    """The module of ``env``'s class (or a base class) whose global ``mujoco`` is MuJoCo's and
+    whose source calls ``mujoco.mj_step``, or None."""
+    import inspect
+    import sys
+
+    import mujoco
+
+    for cls in type(env).__mro__:
+        module = sys.modules.get(cls.__module__)
+        if module is None or module.__name__.split(".")[0] in ("gymnasium", "mjsound", "builtins", "typing"):
+            continue
+        glob = vars(module).get("mujoco")
+        if glob is mujoco or isinstance(glob, _HeardMujoco):
+            try:
+                if "mujoco.mj_step(" in inspect.getsource(module):
+                    return module
+            except (OSError, TypeError):
+                continue
+    return None
+
+
 def _is_mjsim(obj) -> bool:
     """A robosuite ``MjSim`` (its ``model._model`` / ``data._data`` are MuJoCo's)."""
     import mujoco
@@ -233,6 +337,9 @@ def _route_of(env) -> Stepping | None:
     if callable(getattr(env, "_mujoco_step", None)) and isinstance(getattr(env, "n_substeps", None), (int, np.integer)) \
             and isinstance(getattr(env, "model", None), mujoco.MjModel) and isinstance(getattr(env, "data", None), mujoco.MjData):
         return RoboticsStepping(env)
+    if callable(getattr(env, "_step_physics", None)) and isinstance(getattr(env, "frame_skip", None), (int, np.integer)) \
+            and isinstance(getattr(env, "model", None), mujoco.MjModel) and isinstance(getattr(env, "data", None), mujoco.MjData):
+        return MyoStepping(env)
     if _is_dm_env(env):
         return DmPhysicsStepping(env)
     if _is_mjsim(getattr(env, "sim", None)) and getattr(env, "control_timestep", None) is not None:
@@ -245,11 +352,27 @@ def find_stepping(uw) -> Stepping | None:
 
     Looks at ``uw`` itself, then at its attributes: an inner gymnasium env that shares its
     ``model`` and ``data`` (gymnasium-robotics' ``AntMazeEnv.ant_env``), a dm_control
-    environment (gym-aloha's ``AlohaEnv._env``), a robosuite env (``GymWrapper.env``).
+    environment (gym-aloha's ``AlohaEnv._env``), a robosuite env (``GymWrapper.env``); last,
+    an env with ``model`` / ``data`` whose class's module calls ``mujoco.mj_step`` itself
+    (:class:`ModuleStepping`).
     """
     route = _route_of(uw)
     if route is not None:
         return route
+    route = _route_of_inner(uw)
+    if route is not None:
+        return route
+    import mujoco
+
+    if isinstance(getattr(uw, "model", None), mujoco.MjModel) and isinstance(getattr(uw, "data", None), mujoco.MjData):
+        module = _stepping_module(uw)
+        if module is not None:
+            return ModuleStepping(uw, module)
+    return None
+
+
+def _route_of_inner(uw) -> Stepping | None:
+    """The route of an object ``uw`` holds (:func:`find_stepping`), or None."""
     model, data = getattr(uw, "model", None), getattr(uw, "data", None)
     inner = dict(vars(uw))
     if "env" not in inner and getattr(type(uw), "__getattr__", None) is not None:

@@ -33,8 +33,19 @@ figure) in a fresh process with an empty ``MJSOUND_CACHE_DIR`` (no model cache, 
 on-disk cache of compiled kernels is used as a user's second run would: compile time is not
 analysis time), at each ``--cold-rates``. Goal (issue 15): under 10 s.
 
+Other env families (``--families metaworld aloha robosuite composer``, or ``all``): one task of each,
+bare against wrapped (waveform, default options), CPU time per env step in interleaved rounds as
+above on seeded random actions: Meta-World ``pick-place-v3`` (``AudioObservation``, through
+``mjsound.compat.patch_metaworld``), gym-aloha ``AlohaInsertion-v0`` (``AudioObservation`` on its
+dm_control physics; its steps render three 640x480 camera images, most of their time), robosuite
+``Lift`` / Panda (``GymWrapper`` + ``AudioObservation``, ``patch_robosuite``) and dm_control
+composer ``stack_2_bricks_features`` (``mjsound.dmc.AudioEnvironment``; a ``LAST`` step's
+automatic reset is timed as dm_env makes it part of ``step``). ``--family-steps`` steps per round
+(gym-aloha: a tenth of it).
+
 Usage: python scripts/bench_env.py [--steps 300] [--rounds 5] [--sample-rate 16000] [--envs ...]
-       [--robotics ...] [--cold] [--cold-rates 16000 48000] [--blocks 0] [--block-steps 25] [--json]
+       [--robotics ...] [--cold] [--cold-rates 16000 48000] [--blocks 0] [--block-steps 25]
+       [--families ...] [--family-steps 100] [--json]
 With --json one object: {"envs": [{"id", "mode", "step_ratio", "bare_ms", "wrapped_ms", ("block_ratio", ...) ...}],
 "async2_steps_per_s", "cold": [{"id", "sample_rate", "seconds", "modes", ...}], ...}.
 """
@@ -130,6 +141,88 @@ def actions(env_id, space, n):
     return acts
 
 
+def make_family(name, wrapped, fs):
+    """``(env, reset, action_space)`` of one task of a family (``--families``), bare or wrapped
+    (waveform, default options)."""
+    if name == "composer":
+        from dm_control import manipulation
+
+        from mjsound.dmc import AudioEnvironment
+
+        env = manipulation.load("stack_2_bricks_features", seed=0)
+        if wrapped:
+            env = AudioEnvironment(env, seed=0, sample_rate=fs, progress=False)
+        spec = env.action_spec()
+        space = gym.spaces.Box(spec.minimum.astype(np.float32), spec.maximum.astype(np.float32), dtype=np.float32)
+        return env, (lambda: env.reset()), space
+    if name == "metaworld":
+        import metaworld  # noqa: F401
+
+        from mjsound.compat import patch_metaworld
+
+        patch_metaworld()
+        env = gym.make("Meta-World/MT1", env_name="pick-place-v3")
+    elif name == "aloha":
+        os.environ.setdefault("MUJOCO_GL", "egl")
+        import gym_aloha  # noqa: F401
+
+        env = gym.make("gym_aloha/AlohaInsertion-v0")
+    elif name == "robosuite":
+        from mjsound.compat import patch_robosuite
+
+        patch_robosuite()
+        import robosuite
+        from robosuite.wrappers import GymWrapper
+
+        env = GymWrapper(robosuite.make("Lift", robots="Panda", has_renderer=False, has_offscreen_renderer=False,
+                                        use_camera_obs=False))
+    else:
+        raise ValueError(f"--families: unknown family {name!r} (metaworld, aloha, robosuite, composer)")
+    if wrapped:
+        env = AudioObservation(env, sample_rate=fs, progress=False)
+    return env, (lambda: env.reset(seed=0)), env.action_space
+
+
+def time_family(made, acts) -> float:
+    """Mean CPU seconds per env step of a ``make_family`` env over ``acts`` (resets not timed
+    but composer's automatic one)."""
+    env, reset, _ = made
+    reset()
+    total = 0.0
+    for a in acts:
+        t0 = time.process_time()
+        out = env.step(a)
+        total += time.process_time() - t0
+        if isinstance(out, tuple) and (out[2] or out[3]):
+            reset()
+    return total / len(acts)
+
+
+def family_rows(families, fs, steps, rounds) -> list:
+    """The ``--families`` measurements (module docstring)."""
+    rows = []
+    for name in families:
+        made = {"bare": make_family(name, False, fs), "waveform": make_family(name, True, fs)}
+        n = max(3, steps // 10) if name == "aloha" else steps
+        space = made["bare"][2]
+        space.seed(0)
+        acts = [space.sample() for _ in range(n)]
+        for m in made.values():  # warm-up: numba, caches, robosuite's own numba
+            time_family(m, acts[:5])
+        times = {k: [] for k in made}
+        for _ in range(rounds):
+            for k, m in made.items():
+                times[k].append(time_family(m, acts))
+        bare, wrapped = np.array(times["bare"]), np.array(times["waveform"])
+        env = made["waveform"][0]
+        rows.append({"id": name, "mode": "waveform", "step_ratio": float(np.median(wrapped / bare)),
+                     "bare_ms": 1e3 * float(np.median(bare)), "wrapped_ms": 1e3 * float(np.median(wrapped)),
+                     "steps": n, "sounding_objects": len(env.scene.sounding), "modes": env.scene.n_modes})
+        for m in made.values():
+            m[0].close()
+    return rows
+
+
 COLD = """
 import os, sys, time, json
 sys.path.insert(0, {root!r})
@@ -167,8 +260,12 @@ def main(argv=None) -> int:
     p.add_argument("--cold", action="store_true", help="also time cold construction of the first --robotics env")
     p.add_argument("--cold-rates", nargs="+", type=int, default=[16000, 48000])
     p.add_argument("--async-seconds", type=float, default=5.0)
+    p.add_argument("--families", nargs="*", default=[], help="metaworld aloha robosuite composer, or all")
+    p.add_argument("--family-steps", type=int, default=100)
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
+    if args.families == ["all"]:
+        args.families = ["metaworld", "aloha", "robosuite", "composer"]
     rows = []
     cold = []
     if args.cold and args.robotics:
@@ -219,6 +316,13 @@ def main(argv=None) -> int:
                       f"of {args.blocks} alternating blocks of {args.block_steps} steps)", flush=True)
         for env in envs.values():
             env.close()
+
+    for r in family_rows(args.families, args.sample_rate, args.family_steps, args.rounds):
+        rows.append(r)
+        if not args.json:
+            print(f"{r['id']:<14s} waveform     bare {r['bare_ms']:.3f} ms  wrapped {r['wrapped_ms']:.3f} ms  "
+                  f"ratio {r['step_ratio']:.2f}  ({r['sounding_objects']} objects, {r['modes']} modes; CPU time, "
+                  f"median of {args.rounds} interleaved rounds of {r['steps']} steps)", flush=True)
 
     fs = args.sample_rate
     venv = gym.vector.AsyncVectorEnv([lambda: AudioObservation(gym.make("Ant-v5"), sample_rate=fs, progress=False)

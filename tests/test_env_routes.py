@@ -76,3 +76,53 @@ def test_robosuite_lift_own_loop_and_hard_reset_are_followed():
     sim = rs.sim
     env.close()
     assert "step2" not in vars(sim) and "step" not in vars(sim)
+
+
+def own_loop_run(env, steps):
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    samples, impacts, simulated, heard = 0, 0, 0.0, 0
+    for _ in range(steps):
+        t, n = float(env.sim.data.time), env.sim.steps
+        _, _, term, trunc, info = env.step(env.action_space.sample())
+        simulated += float(env.sim.data.time) - t
+        heard += env.sim.steps - n
+        samples += info["audio_samples"]
+        impacts += info["audio_impacts"]
+        assert not (term or trunc)
+    return samples, impacts, simulated, heard
+
+
+def test_myosuite_is_heard_with_its_frame_skip_window():
+    import myosuite  # noqa: F401
+
+    from mjsound.env_stepping import MyoStepping
+
+    env = AudioObservation(gym.make("myoChallengeDieReorientP1-v0"), sample_rate=16000, default_material=None,
+                           progress=False)
+    u = env.unwrapped
+    assert isinstance(env._route, MyoStepping) and getattr(u, "dt", None) is None
+    assert env.window == round(u.frame_skip * u.model.opt.timestep * 16000) == 160  # (was 32: one physics step)
+    samples, impacts, simulated, heard = own_loop_run(env, 20)
+    assert samples == round(simulated * 16000) == 20 * 160 and heard == 20 * u.frame_skip
+    assert impacts > 0  # the die in the hand
+    env.close()
+
+
+def test_so101_own_mj_step_loop_is_heard():
+    import sys
+
+    import lerobot_env_so101
+
+    from mjsound.env_stepping import ModuleStepping
+
+    env = AudioObservation(gym.make(lerobot_env_so101.ENV_ID), sample_rate=16000, default_material=None,
+                           progress=False)
+    u = env.unwrapped
+    assert isinstance(env._route, ModuleStepping)
+    assert env.window == round(u.control_dt * 16000) == 1600  # (was 32: one physics step)
+    samples, impacts, simulated, heard = own_loop_run(env, 5)
+    assert samples == round(simulated * 16000) == 5 * 1600 and heard == 5 * 50
+    module = env._route.module
+    env.close()
+    assert module.mujoco is sys.modules["mujoco"]

@@ -35,7 +35,8 @@ class OwnLoopEnv(gym.Env):
     def step(self, action):
         for _ in range(5):
             mujoco.mj_step(self.model, self.data)
-            self.on_substep()
+            if self.on_substep is not None:
+                self.on_substep()
         return np.array([self.data.time]), 0.0, False, False, {}
 
 
@@ -83,3 +84,24 @@ def test_a_window_that_disagrees_with_the_first_step_is_refused():
     env = wrapped(OwnLoopEnv(frame_skip=1), window_s=0.05)
     _, samples = run(env, 3)
     assert env.window == 800 and samples == [160] * 3
+
+
+def test_an_own_loop_env_is_heard_through_its_modules_mj_step():
+    """No hook, no on_substep: the env's module calls mujoco.mj_step itself (as
+    lerobot-env-so101 does); the wrapper hears each of those steps on this env's data."""
+    import sys
+
+    from mjsound.env_stepping import ModuleStepping
+
+    here = sys.modules[OwnLoopEnv.__module__]
+    env = AudioObservation(OwnLoopEnv(frame_skip=5), materials={"box": "steel"}, sample_rate=16000, progress=False)
+    assert isinstance(env._route, ModuleStepping) and env._route.module is here
+    bare = OwnLoopEnv()
+    bare.reset()
+    _, samples = run(env, 40)
+    assert samples == [160] * 40 and env.sim.steps == 200  # every substep of the own loop heard
+    assert env.sim.reader.n_impacts > 0
+    bare.step(None)  # another env of the module: its steps pass through, unheard
+    assert env.sim.steps == 200 and bare.data.time > 0
+    env.close()
+    assert here.mujoco is mujoco  # the module's own mujoco back
