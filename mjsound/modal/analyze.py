@@ -21,17 +21,21 @@ a wall of exactly that thickness (:func:`.surface.hollow`) before the analysis.
 
 Radiation
 ---------
-Each mode's far-field pressure at 1 m per unit modal coordinate uses the compact
+Each mode's far-field pressure at 1 m per unit modal coordinate, by direction, comes from an
+exterior boundary-element solve on the object's outer surface (:mod:`.radiation`, :mod:`.bem`;
+``radiation=`` sets its accuracy) and is stored as spherical-harmonic coefficients
+(``ModalModel.radiation_sh``, read with ``ModalModel.radiation_pattern``); ``radiation`` is its
+RMS over directions. Where the outer surface is not closed (or ``radiation=False``), the compact
 monopole ``Q_i = sum_p a_p (phi_i(x_p) . n_p)`` and dipole ``D_i = sum_p a_p (x_p - c)
-(phi_i(x_p) . n_p)`` of the surface displacement:
+(phi_i(x_p) . n_p)`` of the surface displacement stand in:
 
 .. math:: R_i = \frac{\rho_0 \omega_i^2}{4\pi}\sqrt{Q_i^2 + (k_i |D_i|)^2 / 3},
           \quad k_i = \omega_i / c_0
 
 (the dipole term averaged over directions), with air at ``rho_0 = 1.2 kg/m^3``,
 ``c_0 = 343 m/s``, capped at full radiation efficiency
-``rho_0 c_0 omega sqrt(A_eff / 4 pi)``, ``A_eff = sum_p a_p (phi_i . n_p)^2``, for modes
-whose wavelength is shorter than the object (where the compact estimate overshoots).
+``rho_0 c_0 omega sqrt(A_eff / 4 pi)``, ``A_eff = sum_p a_p (phi_i . n_p)^2``: measured
+-26 .. +48 dB off the boundary elements (docs/radiation.md).
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ from .error_estimate import (FACET_DRAFT_ERROR_ORDER, FACET_ERROR_ORDER, HEX_STA
                              coarse_ratio, convergence_order, facet_error_order, hex_coarsening, hex_error_order,
                              richardson_error)
 from .model import ModalModel
+from .radiation import radiation_damping  # noqa: F401 (re-exported)
 from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cells, hex_moments, hex_refine,
                    plan_analysis, quality_preset, thin_wall)
 from ..user_frame import user_stacklevel
@@ -63,7 +68,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 19  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 20  # bump when discretization or model contents change (invalidates cache)
 METHODS = ("auto", "hex", "tet", "facet", "shell")
 
 
@@ -140,6 +145,7 @@ def analyze(
     max_memory_gb: float | None = None,
     over_budget: str = "coarsen",
     error_estimate: bool = True,
+    radiation=None,
     cache: bool = True,
     progress: bool = False,
 ) -> ModalModel:
@@ -197,6 +203,11 @@ def analyze(
         ``info["budget_notes"]``; ``refuse`` raises at once. Either raises
         :class:`AnalysisBudgetError` (a ValueError) with the estimate and the options
         when even draft does not fit.
+    radiation : {None, 'draft', 'default', 'high'} | dict | False
+        Accuracy of each mode's acoustic transfer (:mod:`.radiation`): None follows
+        ``quality``; a dict overrides :data:`.radiation.RADIATION_QUALITY`'s settings
+        (``epw``, ``n_max``, ``dka``, ``max_solves``, ``degree``); False keeps the compact
+        monopole + dipole estimate (no boundary elements: fast, -26 .. +48 dB off).
     error_estimate : bool
         Also solve a coarser discretization and report the estimated error in cents.
     cache : bool
@@ -216,18 +227,24 @@ def analyze(
     """
     material = parse_material(material)
     f_max, wall = _checked_options(material, method, quality, f_max, sample_rate, order, thickness, max_modes, wall)
+    if radiation is not None and radiation is not False:
+        from .radiation import radiation_settings
+
+        radiation_settings(radiation)  # an unknown name or setting is refused here, before any work
     tm = load_mesh(mesh)
+    outer = tm  # what the air sees: a hollow object radiates from its outside only
     if wall is not None:
         from .surface import hollow
 
         tm = hollow(tm, float(wall))
     elif method == "auto" and thickness is not None and not tm.is_watertight:
-        tm = _open_surface_as_shell(tm, float(thickness))
+        tm = outer = _open_surface_as_shell(tm, float(thickness))
     from .frame import into_frame, model_out_of_frame, principal_frame
 
     frame = principal_frame(tm)  # a mesh at an angle to the axes: analysed along its own
     if frame is not None:
         tm = into_frame(tm, frame)
+        outer = into_frame(outer, frame)
     # Modes above the frequency where Rayleigh damping leaves them less than a cycle of
     # ringing (Q < MIN_Q; overdamped a little higher) make a thud, not a tone: neither the
     # mesh nor the solve is sized for them (rubber: 0.7 kHz instead of 20 kHz shear waves,
@@ -242,7 +259,8 @@ def analyze(
     f_max, h = plan.f_max, plan.h
     params = dict(method=plan.method, through_wall=plan.through_wall, h=h, f_max=f_max, thickness=thickness,
                   wall=wall, order=order, refine=refine, n_points=n_points, max_modes=max_modes,
-                  quality=plan.quality, error_estimate=error_estimate, version=MODEL_VERSION)
+                  quality=plan.quality, error_estimate=error_estimate, version=MODEL_VERSION,
+                  radiation=repr(sorted(radiation.items())) if isinstance(radiation, dict) else radiation)
     key = hashlib.sha256((mesh_digest(tm) + material.key() + repr(sorted(params.items()))).encode()).hexdigest()[:40]
     path = os.path.join(cache_dir(), f"{key}.npz")
     if cache and os.path.exists(path):
@@ -254,7 +272,7 @@ def analyze(
     t0 = time.perf_counter()
     try:
         model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
-                     resolution, wall, t0)
+                     resolution, wall, t0, outer, radiation)
     except ValueError as exc:
         if method != "auto" or plan.method == "hex":
             raise
@@ -264,7 +282,7 @@ def analyze(
         plan = plan_for(plan.f_max, method="hex")
         plan.reason = reason
         model = _run(tm, material, plan, n_points, thickness, refine, error_estimate, progress, f_ring,
-                     resolution, wall, t0)
+                     resolution, wall, t0, outer, radiation)
     if frame is not None:
         model = model_out_of_frame(model, frame)
     if cache:
@@ -330,12 +348,21 @@ def _open_surface_as_shell(tm, thickness: float):
 
 
 def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, progress, f_ring, resolution,
-         wall, t0) -> ModalModel:
+         wall, t0, outer, rad_quality=None) -> ModalModel:
     """The analysis itself, as planned: discretize, solve, sample, radiate, estimate."""
     method, order, h, f_max, quality = plan.method, plan.order, plan.h, plan.f_max, plan.quality
     points, normals = surface_samples(tm, n_points)
+    rplan = None
+    # an open outer surface (a sheet given with thickness=) has no exterior problem here: compact estimate
+    if rad_quality is not False and outer.is_watertight and outer.is_winding_consistent:
+        from .radiation import plan_radiation
+
+        if rad_quality is None:
+            rad_quality = quality if quality in ("draft", "high") else "default"
+        rplan = plan_radiation(outer, f_max, rad_quality)
+    sampled = points if rplan is None else np.vstack([points, rplan.points()[0]])
     moments = hex_moments(tm, h, thickness, quality, order) if method == "hex" else None
-    build = partial(_discretize, method, tm, material, points=points, quality=quality, thickness=thickness,
+    build = partial(_discretize, method, tm, material, points=sampled, quality=quality, thickness=thickness,
                     order=order, refine=refine, through_wall=plan.through_wall, mid=plan.mid_surface, moments=moments)
     disc = build(h=h)
     # The error estimate's coarser discretization does not depend on the solve: it is built
@@ -355,8 +382,18 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
         raise
     lam = np.maximum(sol.eigenvalues, 0.0)
     omega = np.sqrt(lam)
-    shapes = (disc.interp @ sol.vectors).reshape(len(points), 3, -1)
-    radiation, radiation_sh, centre = _radiation(points, normals, shapes, omega, float(tm.area))
+    shapes = (disc.interp @ sol.vectors).reshape(len(sampled), 3, -1)
+    if rplan is None:
+        radiation, radiation_sh, centre = _radiation(points, normals, shapes, omega, float(tm.area))
+        why = "radiation=False" if rad_quality is False else "the outer surface is not closed"
+        rad_info = dict(method=f"compact monopole + dipole ({why})")
+    else:
+        from .radiation import solve_radiation
+
+        u_n = np.einsum("pcn,pc->pn", shapes[len(points):], rplan.points()[1])
+        radiation, radiation_sh, rad_info = solve_radiation(rplan, u_n, omega)
+        centre = rplan.centre
+    shapes = shapes[: len(points)]
     # Rayleigh damping d = (alpha + beta omega^2) / 2 plus what radiation takes away;
     # overdamped modes (d >= omega) make no tone and are dropped
     decay = 0.5 * (material.alpha + material.beta * omega**2) + radiation_damping(radiation, omega)
@@ -370,7 +407,7 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
         h_target=h, f_max=f_max, quality=plan.quality if resolution is None else f"resolution={resolution}",
         solver=sol.backend, slices=sol.n_slices, n_rigid=int(sol.n_below), n_overdamped=int((~under).sum()),
         solve_seconds=sol.seconds, size_m=float(np.max(tm.extents)), area_m2=float(tm.area),
-        ringing_limit_hz=f_ring, watertight=bool(tm.is_watertight), wall=wall,
+        ringing_limit_hz=f_ring, watertight=bool(tm.is_watertight), wall=wall, radiation=rad_info,
     )
     info.update(plan.info())
     err = float("nan")
@@ -448,16 +485,3 @@ def _radiation(points, normals, shapes, omega, area):
     F = -AIR_DENSITY * omega**2 / (4 * np.pi) * (Q[None, :] - 1j * k[None, :] * (dirs @ D))
     scale = np.divide(rms, compact, out=np.zeros_like(rms), where=compact > 0)
     return rms, fit_coefficients(1, F * scale[None, :]), centre
-
-
-def radiation_damping(radiation, omega):
-    """Decay rate [1/s] a mode gets from the sound it radiates.
-
-    A mode of amplitude q holds ``E = omega^2 q^2 / 2`` and radiates
-    ``W = 4 pi (R q)^2 / (2 rho0 c)`` (pressure amplitude ``R q`` at 1 m over a sphere),
-    so its energy decays at ``W / E = 2 d_rad`` with ``d_rad = 2 pi R^2 / (rho0 c omega^2)``.
-    Adding it to the Rayleigh decay keeps every mode from radiating more energy than it
-    loses (lightly damped thin plates above coincidence get tens of 1/s from this alone),
-    and a material without structural damping still rings down.
-    """
-    return 2 * np.pi * np.asarray(radiation) ** 2 / (AIR_DENSITY * SPEED_OF_SOUND * np.asarray(omega) ** 2)
