@@ -49,7 +49,7 @@ class EnvAudio:
 
     Parameters are those of :class:`AudioObservation` (there documented), plus the physics
     ``model``, ``data`` and the env step ``dt`` [s]. The wrapper steps the physics through
-    :attr:`sim` (``sim.substeps(n)`` or ``sim.step(render=False)`` after every ``mj_step``),
+    :attr:`sim` (``sim.advance(n, render=False)`` or ``sim.step(render=False)`` after every ``mj_step``),
     calls :meth:`reset` after the env's reset and :meth:`end_step` after each env step.
     """
 

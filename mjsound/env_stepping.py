@@ -100,14 +100,15 @@ class GymMujocoStepping(Stepping):
         env = self.owner
         model, data = env.model, env.data
         # mj_step + contact read, n times, and the env step's audio rendered, in one numba call
-        # (EnvAudio.end_step's flush returns that block)
-        step = sim.stepper()
+        # (kept: EnvAudio.end_step's flush returns that block); the driver's method, entered
+        # directly (an env step's Python: each frame costs)
+        substeps = sim.driver.substeps
         # (data.ctrl read once: each read of it makes a new view; its memory lives as the MjData)
         ctrl_now, rne_post_constraint = data.ctrl, mujoco.mj_rnePostConstraint
 
         def _step_mujoco_simulation(ctrl, n_frames):
             ctrl_now[:] = ctrl
-            step(n_frames)
+            substeps(n_frames, False, True)  # (nstep, render, keep)
             rne_post_constraint(model, data)
 
         self._set(env, "_step_mujoco_simulation", _step_mujoco_simulation)
@@ -121,10 +122,10 @@ class RoboticsStepping(GymMujocoStepping):
 
     def _install(self, sim):
         env = self.owner
-        step = sim.stepper()
+        substeps = sim.driver.substeps
 
         def _mujoco_step(action):
-            step(env.n_substeps)
+            substeps(env.n_substeps, False, True)  # (nstep, render, keep: as above)
 
         self._set(env, "_mujoco_step", _mujoco_step)
 
@@ -176,6 +177,7 @@ class DmPhysicsStepping(Stepping):
         physics = self.owner.physics
         model, data = physics.model.ptr, physics.data.ptr
         rk4 = mujoco.mjtIntegrator.mjINT_RK4.value
+        substeps = sim.driver.substeps  # (nstep, render, keep: the block rendered and kept for flush)
 
         def step(nstep: int = 1) -> None:
             nstep = int(nstep)
@@ -185,12 +187,12 @@ class DmPhysicsStepping(Stepping):
                         mujoco.mj_step2(model, data)  # completes the step mj_step1 began
                         sim.step(render=False)
                         if nstep > 1:
-                            sim.substeps(nstep - 1, render=True)
+                            substeps(nstep - 1, False, True)
                     else:
-                        sim.substeps(nstep, render=True)
+                        substeps(nstep, False, True)
                     mujoco.mj_step1(model, data)
                 else:
-                    sim.substeps(nstep, render=True)  # (rendered in the same numba call; end_step flushes)
+                    substeps(nstep, False, True)  # (rendered in the same numba call; end_step flushes)
 
         self._set(physics, "step", step)
 

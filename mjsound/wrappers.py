@@ -4,13 +4,13 @@ Any gymnasium environment built on MuJoCo gets an ``"audio"`` entry in its obser
 sound the simulation made, computed from the contacts of *every* physics substep of an env
 step. The wrapper finds how the env steps MuJoCo (:mod:`mjsound.env_stepping`) and hooks it on
 the instance: gymnasium's ``MujocoEnv._step_mujoco_simulation`` and gymnasium-robotics'
-``MujocoRobotEnv._mujoco_step`` become :meth:`mjsound.sim.AudioSimulator.substeps` (single
-``mj_step`` calls, each followed by reading its contacts, in one numba call); a dm_control
+``MujocoRobotEnv._mujoco_step`` become the simulator's ``advance`` (single ``mj_step`` calls,
+each followed by reading its contacts, in one numba call: :meth:`mjsound.sim.driver.StepDriver.substeps`); a dm_control
 physics inside the env (gym-aloha) has its ``physics.step`` hooked; robosuite's ``MjSim``
 (through ``robosuite.wrappers.GymWrapper``) its ``step`` / ``step2``. An env that rebuilds its
 physics at reset (robosuite's hard reset, composer) is followed after each reset. An env whose
-stepping it cannot find is refused at construction (``substeps="manual"`` lets you call
-:meth:`AudioObservation.on_substep` yourself). :class:`mjsound.env_audio.EnvAudio` is the part
+stepping it cannot find is refused at construction (``substeps="manual"``: call
+``env.sim.step(render=False)`` after each of its ``mj_step`` calls yourself). :class:`mjsound.env_audio.EnvAudio` is the part
 shared with the dm_control wrapper (:mod:`mjsound.dmc`).
 
 Works unmodified on gymnasium's own Ant-v5, Humanoid-v5, HalfCheetah-v5, Pusher-v5, ..., on
@@ -29,6 +29,8 @@ Example
 """
 
 from __future__ import annotations
+
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -54,7 +56,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         ``MujocoRobotEnv._mujoco_step(action)`` (``n_substeps`` steps), dm_control's
         ``physics.step(n)`` or robosuite's ``MjSim.step`` / ``step2``. An env that steps another
         way is refused at construction (``TypeError``) unless ``substeps="manual"``: then call
-        :meth:`on_substep` after every ``mj_step`` yourself.
+        ``env.sim.step(render=False)`` after every ``mj_step`` yourself.
     sample_rate : int
         Audio sample rate [Hz] (default 16 kHz, as SoundSpaces; modes above 0.45 fs are not
         computed).
@@ -137,7 +139,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         visual mesh); see :class:`mjsound.sim.SoundScene`.
     substeps : {"auto", "manual"}
         ``"auto"``: hook the env's stepping (above) or refuse the env; ``"manual"``: no hook,
-        call :meth:`on_substep` after every ``mj_step``.
+        call ``env.sim.step(render=False)`` after every ``mj_step``.
     play : bool | str | int, optional
         Also play the audio live (True: the default output device; a name or number: that
         device; docs/live.md): each step waits until its sound is due, so the env runs in
@@ -221,8 +223,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 f"AudioObservation cannot find how {type(uw).__name__} steps MuJoCo (gymnasium's "
                 "MujocoEnv._step_mujoco_simulation, gymnasium-robotics' MujocoRobotEnv._mujoco_step, a dm_control "
                 "physics.step or a robosuite MjSim, on the env or on an object it holds), so it cannot hear its "
-                "substeps. Pass substeps='manual' and call env.on_substep() after every mj_step of the env, or "
-                "step the physics through env.sim.substeps(n).")
+                "substeps. Pass substeps='manual' and call env.sim.step(render=False) after every mj_step of the "
+                "env, or step the physics through env.sim.advance(n, render=False).")
         model, data = self._current()
         dt, dt_source = steps_of(uw, route)
         self.core = EnvAudio(model, data, dt, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics,
@@ -273,9 +275,10 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 self._route.install(self.core.sim)
 
     def on_substep(self) -> None:
-        """Read the contacts of the ``mj_step`` just taken and queue its sound (rendered once
-        per env step, in :meth:`step`). A following listener is moved to its body whenever an
-        event needs the microphone positions (:meth:`AudioSimulator.follow`)."""
+        """Deprecated: ``env.sim.step(render=False)`` after each ``mj_step`` (the wrapper
+        flushes once per env step)."""
+        warnings.warn("AudioObservation.on_substep() is deprecated: call env.sim.step(render=False) after each "
+                      "mj_step", DeprecationWarning, stacklevel=2)
         self.sim.step(render=False)
 
     # ------------------------------------------------------------------ gym API

@@ -5,14 +5,14 @@ Wraps the stages in ``time.perf_counter`` timers (each timer adds well under a m
 per call, to its own stage and to every stage around it) and prints microseconds per physics
 step (demo scene) or per env step (gymnasium):
 
-* ``step_kernel``: the numba step kernel calls (``mj_step`` included when it steps itself);
-* ``substeps`` / ``step_calls``: the simulator's calls around it (Python: hand-backs, records);
-  within them: ``kernel_call`` (:meth:`~mjsound.sim.runner.StepKernel.call`, the single-step
-  and replay paths' call with its hand-backs; the fused substeps call the kernel through
-  ``StepKernel.substeps_call``'s function, timed in ``step_kernel``), ``getters`` (the owners'
-  current state records, asked before every call: the simulator's drive, the synthesizer's
-  state and render target, the reader's state) and ``collect`` (the call's impact records and
-  counts, taken when the kernel's ``run.collect`` says there are any);
+* ``substeps``: :meth:`~mjsound.sim.driver.StepDriver.substeps`, the one way into the step
+  kernel (``mj_step`` included when the kernel steps itself; the kernel's own time is not
+  timed apart: the driver enters its compiled entry point directly); within it: ``state``
+  (:meth:`~mjsound.sim.driver.StepDriver.state`, the kernel's state record from the owners'
+  current records, asked before every call: the simulator's drive, the synthesizer's state and
+  render target, the reader's state), ``hand_back`` (what the kernel hands back) and
+  ``collect`` (the call's log entries and counts, taken when the kernel's ``run.collect`` says
+  there are any);
 * ``render``: ``Synthesizer.render`` (``render_streams``: its one-call render kernel: due gains, due events, streams, banks);
 * ``flush``, ``end_step``, ``wrapper_step``: the layers above (gymnasium wrapper); within
   ``end_step``: ``push`` (the block into the observation window) and ``audible_impacts`` (the
@@ -21,9 +21,10 @@ step (demo scene) or per env step (gymnasium):
   env: ``frame_skip`` steps per env step);
 * ``nrt_allocs`` (env): numba's heap allocations per env step (arrays made inside kernels;
   resets included), counted by numba (``NUMBA_NRT_STATS``);
-* ``call_in_step`` / ``call_back_to_back`` (env): one step-kernel call that steps and renders
-  nothing, made after every env step of a run / in a tight loop: the fixed cost of a call
-  (unboxing its packed state, the pose sync), which a run pays with cold caches;
+* ``call_in_step`` / ``call_back_to_back`` (env): ``StepDriver.substeps(0)``, a step-kernel
+  call that steps and renders nothing, made after every env step of a run / in a tight loop:
+  the fixed cost of a call (the driver's Python, unboxing its packed state, the pose sync),
+  which a run pays with cold caches;
 * ``repack`` (env): packing the step kernel's state again with its numba type
   (:func:`mjsound.synth.packing.pack`, what a call pays after an owner replaced a record),
   and ``numba_typeof``: ``numba.typeof`` of that state alone (what packing spent typing it
@@ -51,9 +52,9 @@ from numba.core.runtime import rtsys  # noqa: E402
 import numpy as np  # noqa: E402
 
 from mjsound import wrappers  # noqa: E402
-from mjsound.sim import contacts, runner, simulator  # noqa: E402
+from mjsound.sim import driver, simulator  # noqa: E402
 from mjsound.sim.demo import find_demo_scene  # noqa: E402
-from mjsound.synth import dispatch, stream_table, synthesizer  # noqa: E402
+from mjsound.synth import stream_table, synthesizer  # noqa: E402
 
 TIMES: dict[str, float] = {}
 
@@ -72,32 +73,9 @@ def timed(cls, name: str, key: str) -> None:
     setattr(cls, name, wrapper)
 
 
-def timed_stepper() -> None:
-    """Time the function ``AudioSimulator.stepper`` hands out (the gymnasium wrapper's
-    substeps) as ``substeps``."""
-    make = simulator.AudioSimulator.stepper
-
-    def stepper(self):
-        fn = make(self)
-
-        def step(nstep):
-            t0 = time.perf_counter()
-            try:
-                return fn(nstep)
-            finally:
-                TIMES["substeps"] = TIMES.get("substeps", 0.0) + time.perf_counter() - t0
-
-        return step
-
-    simulator.AudioSimulator.stepper = stepper
-
-
-timed_stepper()
-for _cls, _name, _key in ((dispatch.PackedEntry, "__call__", "step_kernel"), (simulator.AudioSimulator, "substeps", "substeps"),
-                          (runner.StepKernel, "call", "kernel_call"), (simulator.AudioSimulator, "_collect", "collect"),
-                          (simulator.AudioSimulator, "_drive_state", "getters"), (synthesizer.Synthesizer, "kernel_state", "getters"),
-                          (synthesizer.Synthesizer, "render_target", "getters"), (contacts.ContactReader, "state", "getters"),
-                          (simulator.AudioSimulator, "flush", "flush"), (synthesizer.Synthesizer, "render", "render"),
+for _cls, _name, _key in ((driver.StepDriver, "substeps", "substeps"), (driver.StepDriver, "state", "state"),
+                          (driver.StepDriver, "_hand_back", "hand_back"), (driver.StepDriver, "_collect", "collect"),
+                          (driver.StepDriver, "flush", "flush"), (synthesizer.Synthesizer, "render", "render"),
                           (stream_table.StreamMethods, "_render_streams", "render_streams"),
                           (wrappers.EnvAudio, "end_step", "end_step"), (wrappers.AudioWindow, "push", "push"),
                           (wrappers.EnvAudio, "_audible_impacts", "audible_impacts"), (wrappers.AudioWindow, "observe", "observe"),
@@ -164,20 +142,11 @@ def env_parts(env_id: str, steps: int) -> dict:
     return out
 
 
-def kernel_state(sim) -> tuple:
-    """The step kernel's current state, as :meth:`mjsound.sim.runner.StepKernel.call` makes it."""
-    k = sim._kernel
-    return (k.mj, k.views, k.reader.state(), k.reader.buffers, k.clock, sim._drive_state(), sim.synth.kernel_state(),
-            k.run, sim.synth.render_target())
-
-
 def empty_call_cost(env, acts) -> tuple[float, float]:
     """Microseconds of one step-kernel call that runs no substep and renders nothing (its
     packed state's unboxing and unpacking and the end-of-call pose sync): between env steps, as in a run (the
     caches hold the physics' and gymnasium's data then), and back to back."""
-    sim = env.core.sim
-    k = sim._kernel
-    run, ep = k.run[0], k._advance_call
+    drv = env.core.sim.driver
 
     env.reset(seed=0)
     tot = 0.0
@@ -185,15 +154,12 @@ def empty_call_cost(env, acts) -> tuple[float, float]:
         _, _, te, tr, _ = env.step(a)
         if te or tr:
             env.reset()
-        state = kernel_state(sim)
-        run["nstep"], run["done"], run["render"] = 0, 0, 0
         t0 = time.perf_counter()
-        ep(state, state[-1].empty)
+        drv.substeps(0, False)
         tot += time.perf_counter() - t0
     t0 = time.perf_counter()
     for _ in acts:
-        run["nstep"], run["done"], run["render"] = 0, 0, 0
-        ep(state, state[-1].empty)
+        drv.substeps(0, False)
     return 1e6 * tot / len(acts), 1e6 * (time.perf_counter() - t0) / len(acts)
 
 
@@ -205,7 +171,7 @@ def repack_cost(env, reps: int = 5) -> tuple[float, float]:
 
     from mjsound.synth import packing
 
-    state = kernel_state(env.core.sim)
+    state = env.core.sim.driver.state()
     packs, typings = [], []
     for _ in range(reps):
         t0 = time.perf_counter()

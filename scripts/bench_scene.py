@@ -78,18 +78,14 @@ def main(argv=None) -> int:
     reset()
     sim_free = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate, reflections=False)
     sim_free.run(0.05)
-    from mjsound.sim.clock import SampleClock
     from mjsound.sim.contacts import ContactReader
-    from mjsound.sim.runner import StepKernel, silent_drive, silent_synth_state
+    from mjsound.sim.driver import StepDriver
 
     # reading alone: the step kernel with nothing sounding (no synthesizer, no pulses)
     reader = ContactReader(model)
-    dt = float(model.opt.timestep)
-    clock = SampleClock(args.sample_rate, dt, float(data.time))
-    kernel = StepKernel(model, data, reader, clock=clock.rec)
-    if not kernel.can_step:
+    reading = StepDriver(model, data, reader, args.sample_rate)
+    if not reading.fused:
         raise SystemExit("bench_scene: the step kernel cannot call mj_step here (MuJoCo's C functions not found)")
-    drive, silent = silent_drive(model.ngeom), silent_synth_state()
     every = sim.steps_per_render
     t_phys_all, t_audio_all, t_read_all, t_off_all, t_free_all = [], [], [], [], []
     for _ in range(args.rounds):
@@ -100,11 +96,10 @@ def main(argv=None) -> int:
         t_phys_all.append(time.process_time() - t0)
         # contact reading alone: the step kernel with nothing sounding (impulses of impacts included)
         reset()
-        reader.reset()
-        clock.anchor(dt, float(data.time))
+        reading.reset()
         t0 = time.process_time()
         for k in range(0, nsteps, every):
-            kernel.call(drive, lambda: silent, min(every, nsteps - k), call_step=True)
+            reading.substeps(min(every, nsteps - k), False)
         t_read_all.append(time.process_time() - t0)
         reset()
         sim.reset()

@@ -42,14 +42,14 @@ def make(fused_on, keep_events=0, **kw):
 
 
 def play(model, data, sim, n_env=150, frame_skip=5, jump_at=None, render=False):
-    """``substeps(frame_skip, render)`` + ``flush()`` per env step; the box is pushed for a
+    """``driver.substeps(frame_skip, keep=render)`` + ``flush()`` per env step; the box is pushed for a
     while."""
     blocks = []
     for i in range(n_env):
         data.xfrc_applied[2, 0] = 3.0 if 30 <= i < 90 else 0.0
         if i == jump_at:
             data.time += 0.37  # a state jump: the simulator refuses (the skipped steps' contacts were not read)
-        sim.substeps(frame_skip, render)
+        sim.driver.substeps(frame_skip, False, render)
         blocks.append(sim.flush())
     return np.concatenate(blocks, axis=1)
 
@@ -85,30 +85,27 @@ def test_fused_substeps_equal_the_python_loop_bit_for_bit(variant, monkeypatch):
     from mjsound.sim import step as S
     from mjsound.sim.records import RECORD
     from mjsound.synth.bandlimited import PULSE_DTYPE
-    from mjsound.sim.runner import StepKernel
+    from mjsound.sim.driver import StepDriver
 
     keep_events = {"event_log": 100_000, "short_log": 40}.get(variant, 0)
     reasons = {}
-    orig_init = StepKernel.__init__
+    orig_hand_back, orig_substeps = StepDriver._hand_back, StepDriver.substeps
 
-    def counting_init(self, *args, **kwargs):  # (every call of the step kernel counted by its reason)
-        orig_init(self, *args, **kwargs)
-        call = self._advance_call
+    def counting_hand_back(self, reason):  # (every hand-back of the step kernel counted by its reason)
+        reasons[self.fused, reason] = reasons.get((self.fused, reason), 0) + 1
+        return orig_hand_back(self, reason)
 
-        def counting(state, block):
-            call(state, block)
-            key = (self.can_step, int(self.run[0]["reason"]))
-            reasons[key] = reasons.get(key, 0) + 1
-            if self.run[0]["call_step"]:  # (the kernel called mj_step itself)
-                reasons["stepped", self.can_step] = True
+    def counting_substeps(self, nstep, render=True, keep=False, stepped=False, times=None):
+        if not stepped and self.fused:  # (the kernel calls mj_step itself)
+            reasons["stepped", self.fused] = True
+        return orig_substeps(self, nstep, render, keep, stepped, times)
 
-        self._advance_call = counting
-
-    monkeypatch.setattr(StepKernel, "__init__", counting_init)
+    monkeypatch.setattr(StepDriver, "_hand_back", counting_hand_back)
+    monkeypatch.setattr(StepDriver, "substeps", counting_substeps)
     runs = []
     for on in (False, True):
         model, data, sim = make(on, keep_events)
-        assert sim._fused == on
+        assert sim.driver.fused == on
         if variant == "follow":
             sim.follow(2, [[0.0, -0.4, 0.2]])
         if variant == "tiny_buffers":
@@ -159,7 +156,7 @@ def test_fused_substeps_refuse_a_time_jump_like_the_python_loop():
 
 @pytest.mark.parametrize("jump", [None, "backward"])
 def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
-    """``substeps(n, render=True)`` renders the pending samples in the step kernel's call
+    """``driver.substeps(n, keep=True)`` renders the pending samples in the step kernel's call
     (``flush`` returns that block) and mixes the impacts' clicks into it: the same blocks, bit
     for bit, as rendering and mixing in ``flush``, the same ones handed to an observer, also
     around a clock jump backwards (an automatic reset) and with steps taken one by one before it."""
@@ -179,9 +176,9 @@ def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
             if i % 7 == 3:  # a step taken by hand first: its samples are pending too
                 mujoco.mj_step(model, data)
                 sim.step(render=False)
-            sim.substeps(5, render)
-            codes.append(int(sim._kernel.f["render_code"][0]))
-            mixed.append(int(sim._kernel.f["pulses_mixed"][0]))
+            sim.driver.substeps(5, False, render)
+            codes.append(int(sim.driver.f["render_code"][0]))
+            mixed.append(int(sim.driver.f["pulses_mixed"][0]))
             blocks.append(sim.flush())
         out.append((blocks, seen, sim.samples, sim.clock.n))
         if render:  # (every call rendered, but the one that met the jump)
@@ -200,7 +197,7 @@ def test_render_in_the_step_call_sounds_as_rendering_in_flush(jump):
 
 def test_fused_path_can_be_switched_off(monkeypatch):
     monkeypatch.setenv("MJSOUND_FUSED", "0")
-    assert make(True)[2]._fused is False
+    assert make(True)[2].driver.fused is False
 
 
 def test_struct_layout_follows_c_alignment():
@@ -234,7 +231,7 @@ def test_a_mujoco_build_without_the_c_functions_falls_back_to_python(monkeypatch
     monkeypatch.setattr(fused, "mj_function_address", missing)
     with pytest.warns(RuntimeWarning, match="substeps run through Python"):
         model, data, sim = make(True)
-    assert sim._fused is False
+    assert sim.driver.fused is False
     ref_model, ref_data, ref = make(False)
     np.testing.assert_array_equal(play(model, data, sim, n_env=40), play(ref_model, ref_data, ref, n_env=40))
 
@@ -244,12 +241,12 @@ def test_a_mujoco_build_without_the_c_functions_falls_back_to_python(monkeypatch
 def test_render_zeroes_non_finite_samples(fused_streams, render, bad):
     """A modal state gone non-finite (what an exploding simulation could leave) never reaches
     the output: those samples are 0, the others are rendered as usual (also when the step
-    kernel renders: ``substeps(render=True)``)."""
+    kernel renders: ``driver.substeps(keep=True)``)."""
     model, data, sim = make(True, clicks=False)  # (the modes' state only: no clicks of the bounces)
     sim.synth.fused_streams = fused_streams
     play(model, data, sim, n_env=40)  # something rolls: streams exist
     assert sim.synth.n_streams > 0
     sim.synth._bank.zr[:] = bad  # (the modal state, as an exploding simulation could leave it)
-    sim.substeps(5, render)
+    sim.driver.substeps(5, False, render)
     block = sim.flush()
     assert block.size and np.isfinite(block).all() and not block.any()

@@ -77,13 +77,13 @@ def test_packed_entry_packs_again_only_when_the_state_is_replaced():
     entry = PackedEntry(_touch)
     state = _state()
     entry(state, 1.0)
-    table = entry._packed[0]
+    table = entry.packed[0]
     entry(state, 1.0)
-    assert entry._packed[0] is table
+    assert entry.packed[0] is table
     grown = (state[0]._replace(flags=np.ones(5, bool)), state[1])
     want = (grown[0]._replace(inner=Inner(grown[0].inner.rec.copy(), grown[0].inner.grid.copy())), grown[1].copy())
     assert entry(grown, 0.0) == _touch_plain(want, 0.0)  # (the new flags are read)
-    assert entry._packed[0] is not table and entry._keep is grown
+    assert entry.packed[0] is not table and entry.state is grown
 
 
 def test_pack_refuses_what_it_cannot_describe():

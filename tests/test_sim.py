@@ -725,7 +725,7 @@ def test_impact_records_wait_in_the_kernel_rows_until_read():
     with pytest.raises(ValueError, match="set_audible"):
         reader.set_audible(np.ones(model.ngeom + 1, bool))
     for _ in range(12):
-        sim.substeps(100)
+        sim.advance(100, render=False)
     waiting = int(reader.counts[0]["n_records"])
     assert waiting == reader.n_impacts >= 3  # (none taken yet: nobody read them)
     recs = reader.impacts
@@ -754,7 +754,7 @@ def test_an_external_reset_clears_the_ringing(path):
 
     def play(m, d, s, n):
         if path == "substeps":
-            s.substeps(n)
+            s.advance(n, render=False)
         else:
             for _ in range(n):
                 mujoco.mj_step(m, d)
@@ -766,7 +766,7 @@ def test_an_external_reset_clears_the_ringing(path):
     held = play(model, data, sim, 10)[:, :0]  # (nothing held yet)
     pending = sim.clock.n
     if path == "substeps":
-        sim.substeps(7)
+        sim.advance(7, render=False)
     else:
         for _ in range(7):
             mujoco.mj_step(model, data)
@@ -803,7 +803,7 @@ def test_newest_records_are_the_last_impacts_newest_first():
 
 def test_steps_per_render_and_replay_step_match_stepping():
     """``steps_per_render`` is ``round(render_block_s / timestep)`` (at least 1); replaying the
-    steps of a run with ``replay_step`` (times and samples given, the clock unused) gives the
+    steps of a run with ``driver.replay`` (times and samples given, the clock unused) gives the
     run's audio sample for sample."""
     models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
     _, _, sim = make_sim(drop_xml(dt=0.002, h=0.1), models)
@@ -824,7 +824,7 @@ def test_steps_per_render_and_replay_step_match_stepping():
         data2.qpos[:], data2.qvel[:], data2.time = qpos, qvel, t
         mujoco.mj_step(model2, data2)  # the step's contacts and forces, at the end of the step
         n0, n1 = (int(np.ceil(x * fs - 1e-6)) for x in (t, t + model.opt.timestep))
-        out.append(replay.replay_step(n0, n1, t, t + model.opt.timestep, origin=0))
+        out.append(replay.driver.replay(n0, n1, t, t + model.opt.timestep, origin=0))
     assert np.array_equal(np.concatenate(out, axis=1), ref)
 
 

@@ -45,7 +45,7 @@ with warnings.catch_warnings():
 sim = AudioSimulator(model, data, scene=scene, sample_rate=48000)
 audio = [sim.run(0.3)]
 for _ in range(30):
-    sim.substeps(5)
+    sim.advance(5, render=False)
     audio.append(sim.flush())
 impacts = sim.n_impacts
 sim.follow(2, np.zeros((sim.n_air, 3)))

@@ -159,7 +159,7 @@ class ContactReader:
                      ("pyramidal", int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL))):
             self.params[0][k] = v
         self._warned = set()
-        self._own = None  # (step kernel, silent drive) of events() / events_fast(), made on first use
+        self._own = None  # (the step driver of events() / events_fast(), nothing sounding: made on first use)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -241,11 +241,6 @@ class ContactReader:
     def any_open(self) -> bool:
         """Whether an impact record may be open (quiet steps must then be read)."""
         return bool(self._any_open[0])
-
-    def count_quiet_step(self) -> None:
-        """Count a step in which nothing touches and no impact is open (the kernel would only
-        count it)."""
-        self.counts[0]["step"] += 1
 
     def state(self) -> ReaderState:
         """The reader's arrays for the step kernel (:class:`.records.ReaderState`; a new one
@@ -430,7 +425,7 @@ class ContactReader:
         n, _ = self.copy_contacts(data)
         b = self.buffers
         con = data.contact
-        views = self._kernel(data)[0].views
+        views = self._driver(data).views
         q = contact_quantities_of(n)  # (the frame's own arrays)
         nbad, nhuge = contact_quantities(b, n, np.ascontiguousarray(data.efc_force), self.state(), views, q)
         fn, normal, vel_rel, vapp, v_slip, v_roll = q.fn, q.nrm, q.vrel, q.vapp, q.vslip, q.vroll
@@ -466,12 +461,12 @@ class ContactReader:
         d = cf.pos[:, None, :] - xpos
         return np.einsum("nkji,nkj->nki", xmat, d)
 
-    def _kernel(self, data):
-        """The reader's own step kernel on ``data`` and a silent drive (nothing sounds)."""
-        if self._own is None or self._own[0].data is not data:
-            from .runner import StepKernel, silent_drive, silent_synth_state
+    def _driver(self, data):
+        """The reader's own step driver on ``data`` (:class:`.driver.StepDriver`, nothing sounds)."""
+        if self._own is None or self._own.data is not data:
+            from .driver import StepDriver
 
-            self._own = (StepKernel(self.model, data, self), silent_drive(self.model.ngeom), silent_synth_state())
+            self._own = StepDriver(self.model, data, self, 1)
         return self._own
 
     def events_fast(self, data, t0: float | None = None, t1: float | None = None):
@@ -488,13 +483,10 @@ class ContactReader:
         dt = float(self.model.opt.timestep)
         t1 = float(data.time) if t1 is None else float(t1)
         t0 = t1 - dt if t0 is None else float(t0)
-        if data.ncon == 0 and not self.any_open:
-            self.count_quiet_step()
-            return None, None
-        kern, drive, synth = self._kernel(data)
-        kern.call(drive, lambda: synth, explicit=(t0, t1, 0, 0))
+        driver = self._driver(data)
+        driver.substeps(1, False, False, True, (t0, t1, 0, 0))
         self.take_records()
-        r = kern.run[0]
+        r = driver.run[0]
         b = self.buffers
         n_imp, ns = int(r["n_imp"]), int(r["n_sust"])
         return (b.impacts[:n_imp].copy() if n_imp else None), (b.sustained[:ns].copy() if ns else None)

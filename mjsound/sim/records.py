@@ -17,11 +17,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..synth.records import TrackState
+from ..synth.records import RenderTarget, SynthState, TrackState
 
 __all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
            "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "NOT_RENDERED", "CLICK_PARAMS",
-           "CLICK_BODY", "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState",
+           "CLICK_BODY", "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState", "KernelState",
            "ClickModel", "PulseState", "record", "ContactQuantities", "PairGroups", "PairSteps", "contact_quantities_of",
            "pair_scratch"]
 
@@ -315,6 +315,21 @@ class DriveState(NamedTuple):
     dyn_geoms: np.ndarray  # (moving objects,) int64: geom of each moving sounding object
     dyn_obj: np.ndarray  # (moving objects,) int64: its synthesizer object index
     pulses: PulseState  # impacts' clicks and contact-microphone pulses (ImpactPulses)
+
+
+class KernelState(NamedTuple):
+    """The step kernel's state (:func:`mjsound.sim.step.advance`), built in one place:
+    :meth:`mjsound.sim.driver.StepDriver.state`."""
+
+    mj: np.ndarray  # (1,) MJ: MuJoCo's C functions and the mjData struct's layout
+    views: "DataViews"  # the mjData's arrays the kernel reads
+    reader: ReaderState  # the contact reader's state
+    buf: "StepBuffers"  # the reader's per-substep buffers
+    clock: np.ndarray  # (1,) CLOCK
+    drive: "DriveState"  # how the substep's events feed the synthesizer
+    synth: SynthState  # the synthesizer's arrays (mjsound.synth.records)
+    run: np.ndarray  # (1,) RUN: the call's inputs and outputs
+    target: RenderTarget  # what the kernel renders a block with
 
 
 class ClickModel(NamedTuple):

@@ -1,12 +1,10 @@
 """What an :class:`~mjsound.sim.simulator.AudioSimulator` reports: the event log, event counts
-and per-step timings since its last reset (a mixin of the simulator: it reads the simulator's
-log, counters and contact reader)."""
+and per-step timings since its last reset (a mixin of the simulator: it reads its step
+driver's log and counters and its contact reader)."""
 
 from __future__ import annotations
 
 __all__ = ["SimulatorReports"]
-
-_LOG_KINDS = ("impact", "slide", "roll")
 
 
 class SimulatorReports:
@@ -17,24 +15,18 @@ class SimulatorReports:
         """The first ``keep_events`` events since the last reset, in order:
         ``(time [s], kind, geom1, geom2, value)``, kind ``"impact"`` (value: impulse [N s]) or
         ``"slide"`` / ``"roll"`` (one per pair and physics step; value: speed [m/s])."""
-        if self._log_pending:
-            log = self._log
-            for entries in self._log_pending:
-                log.extend((t, _LOG_KINDS[k], g1, g2, v) for t, k, g1, g2, v in entries.tolist())
-            del log[self.keep_events:]
-            self._log_pending = []
-        return self._log
+        return self.driver.event_log
 
     @property
     def n_impacts(self) -> int:
         """Impact events since the last reset (``events["impact"]``, without building the dict)."""
-        return self.reader.n_impacts_made - self._impacts_base
+        return self.reader.n_impacts_made - self.driver.impacts_base
 
     @property
     def events(self) -> dict:
         """Counts since the last reset: ``impact`` events, and ``slide`` / ``roll`` pair-steps
         (a pair sliding or rolling for one physics step counts once)."""
-        s = self.reader.sustained_steps - self._sustained_base
+        s = self.reader.sustained_steps - self.driver.sustained_base
         return {"impact": self.n_impacts, "slide": int(s[0]), "roll": int(s[1])}
 
     @property

@@ -416,7 +416,7 @@ def sonify(
                 data.time = float(times[i])
                 mujoco.mj_forward(model, data)
                 n1 = int(np.ceil(times[i + 1] * fs - 1e-6))
-                take.add(sim.replay_step(n_prev, n1, float(times[i]), float(times[i + 1]), origin=base))
+                take.add(sim.driver.replay(n_prev, n1, float(times[i]), float(times[i + 1]), origin=base))
                 first_block_done()
                 n_prev = n1
         wall = _time.perf_counter() - t_wall

@@ -19,29 +19,24 @@ from __future__ import annotations
 
 import math
 import os
-import time as _time
 import warnings
 
 import numpy as np
 
 from ..synth.constants import ROLL_PATCH_M, ROLL_ROUGHNESS, SLIDE_GRAIN_M, SLIDE_ROUGHNESS
 from ..synth.dispatch import EntryPoint
-from ..synth.kernels import RENDERED
 from ..synth.pulse import compliance
+from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
 from .clock import SampleClock
 from .contacts import ContactReader
 from .drive import sync_poses
-from .records import DRIVE_PARAMS, NOT_RENDERED, SOUND, DriveState
+from .driver import StepDriver
 from .listener import ListenerMethods
+from .records import DRIVE_PARAMS, SOUND, DriveState
 from .reports import SimulatorReports
-from .runner import StepKernel
 from .scene import SoundScene, geom_contact_radius
-from .channels import ImpactPulses, attach_contact_mics, channel_layout, needs_pulses
-from .images import fold
+from .first_compile import notice_first_compile
 from .rooms import scene_images, set_image_responses
-from .step import PULSES, AMPLITUDE, CLOCK_JUMP, RING, STREAMS
-from .substeps import make_substeps
-from .warmup import notice_first_compile
 from ..user_frame import user_stacklevel
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -225,32 +220,34 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self._follow = None
         self._mic_sites = np.asarray(list(scene.mic_site_ids) + self._contact_sites, np.int64)  # (contact: unused)
         self._sites_move = bool(scene.mic_site_ids) and scene.mics_move
-        self.clock = SampleClock(self.sample_rate, float(model.opt.timestep), float(self.data.time))
         notice_first_compile()
         use_c = fused and os.environ.get("MJSOUND_FUSED", "1") != "0"
-        self._use_c = use_c
-        self._kernel = StepKernel(model, self.data, self.reader, clock=self.clock.rec, use_c=use_c)
-        self._fused = use_c and self._kernel.can_step
-        if use_c and not self._fused:
-            warnings.warn("mjsound: substeps run through Python (MuJoCo's C functions or struct layout could not be "
-                          "checked)", RuntimeWarning, stacklevel=user_stacklevel())
         self._drive = None
         self._sidx = np.full((16, 2), -1, np.int64)
         self._sync_poses_call = EntryPoint(sync_poses)
         self._sidx_epoch = None
         self._sidx_reader = None  # (the reader state _sidx was sized for)
-        self._held = []  # blocks rendered before an automatic reset, returned by the next render
-        self._substeps = make_substeps(self)
+        #: the step driver (:class:`.driver.StepDriver`): the step kernel of :attr:`data` and the
+        #: per-step state (clock, samples pending, event log)
+        self.driver = StepDriver(model, self.data, self.reader, self.sample_rate, synth=self.synth,
+                                 pulses=self.pulses, drive_state=self._drive_state if self.synth is not None else None,
+                                 make_streams=self._make_streams, amplitude_error=self._amplitude_error,
+                                 reset_sound=self._reset_sound, n_channels=self.n_channels, images=self.images,
+                                 n_air=self.n_air, keep_events=self.keep_events, use_c=use_c, owner=self)
+        if use_c and not self.driver.fused:
+            warnings.warn("mjsound: substeps run through Python (MuJoCo's C functions or struct layout could not be "
+                          "checked)", RuntimeWarning, stacklevel=user_stacklevel())
         self.reset(clear_reader=True)
 
     # ------------------------------------------------------------------ state
     def reset(self, clear_reader: bool = True) -> None:
         """Silence all ringing, forget contact state and re-anchor the clock at ``data.time``
         (a following listener moves to its body's current position)."""
-        self._reset_at(float(self.data.time), clear_reader)
-        self._held = []
+        self.driver.reset(clear_reader)
 
-    def _reset_at(self, t_start: float, clear_reader: bool = True, keep_observer: bool = False) -> None:
+    def _reset_sound(self, clear_reader: bool) -> None:
+        """Silence the synthesizer and the pulses, microphones to where they are, forget the
+        contact state when asked (the driver's resets)."""
         self.pulses.reset(0)
         if self.synth is not None:
             self.synth.reset()
@@ -258,80 +255,6 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                 self._update_mics()
         if clear_reader:
             self.reader.reset()
-        self.clock.anchor(float(self.model.opt.timestep), t_start)
-        self._origin = self.clock.n  # synth sample 0 is absolute sample n = origin
-        self._impacts_base = self.reader.n_impacts_made
-        self._sustained_base = self.reader.sustained_steps
-        # event log: entries and LOG arrays, expanded when read (event_log)
-        self._log = []
-        self._log_pending = []
-        self._n_logged = 0
-        self.samples = 0
-        self.steps = 0
-        #: optional observer ``on_block(sim, block, n0)`` called with every step's audio block
-        #: and its first absolute sample index (e.g. :class:`mjsound.rerun_log.RerunLogger`)
-        self.on_block = getattr(self, "on_block", None) if keep_observer else None
-        self.seconds_contacts = 0.0
-        self.seconds_synth = 0.0
-        self._pending = 0  # samples stepped but not rendered yet (step(render=False))
-        self._pending_n0 = self.clock.n
-        self._ready = None  # a block substeps(render=True) rendered, returned by the next flush
-
-    @property
-    def _geom_obj(self) -> np.ndarray:
-        """Synthesizer object index each geom excites (-1: silent), (ngeom,) int64."""
-        return self._sound["obj"]
-
-    @property
-    def _origin(self) -> int:
-        """Absolute sample of the synthesizer's sample 0."""
-        return int(self.clock.rec[0]["origin"])
-
-    @_origin.setter
-    def _origin(self, n: int) -> None:
-        self.clock.rec[0]["origin"] = n
-
-    def _clock_jump(self) -> None:
-        """``data.time`` or the timestep no longer match the count. A new timestep: restart
-        counting at this step (the step just taken ends at ``data.time``). Backwards in time is
-        a reset the simulator was not told about (``mj_resetData`` between episodes): the
-        ringing is cleared and counting restarts (the samples counted so far are rendered first
-        and come out with the next block). Time that did not advance or advanced by more than
-        one step raises (:meth:`_time_error`): the contacts of skipped steps were never read,
-        and data that is not stepped any more gives no sound to read."""
-        c = self.clock
-        dt = float(self._opt.timestep)
-        t_new = float(self.data.time) - dt
-        if self.data.time < c.time_at(c.k) - 0.25 * c.timestep:  # backwards
-            if self._ready is not None:
-                self._held.append(self._ready)
-                self._ready = None
-            if self._pending:
-                self._held.append(self._render_pending())
-            self._reset_at(t_new, keep_observer=True)
-            return
-        if dt == c.timestep:
-            raise self._time_error()
-        n_prev = c.n
-        c.anchor(dt, t_new)
-        self._origin += c.n - n_prev
-
-    def _time_error(self) -> RuntimeError:
-        """The error for a step whose ``data.time`` is not one timestep after the last one read."""
-        c = self.clock
-        t, t_last, dt = float(self.data.time), c.time_at(c.k), c.timestep
-        if abs(t - t_last) <= 0.25 * dt:
-            return RuntimeError(
-                f"mjsound: data.time ({t:.9g} s) has not advanced since the last step read: this simulator's MjData "
-                "is not the one being stepped (an env that rebuilt its MjModel/MjData on reset, e.g. robosuite's hard "
-                "reset or a dm_control composer env: call sim.rebind(model, data) with the new ones), or step() "
-                "was called without an mj_step before it")
-        return RuntimeError(
-            f"mjsound: data.time advanced by {t - t_last:.6g} s ({(t - t_last) / dt:.4g} timesteps of {dt:g} s) since "
-            "the last step read: the contacts of the skipped steps were never read. Call sim.step() after every "
-            "mj_step (in an env's own substep loop: sim.step(render=False) after each mj_step, then sim.flush() "
-            "once per env step), or let sim.advance(n) step the physics; after setting data.time yourself, call "
-            "sim.reset()")
 
     def rebind(self, model, data=None) -> None:
         """Follow a new ``MjModel`` / ``MjData`` of the same scene (an env that rebuilds them
@@ -371,27 +294,62 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             if not np.array_equal(getattr(model, what), getattr(old, what)):
                 raise ValueError(f"rebind: the new model's {what} differs from the simulator's: not the same scene; "
                                  "build a new AudioSimulator for it")
-        self.model, self.data, self._opt = model, data, model.opt
+        self.model, self.data = model, data
         self.reader.model = model
         if not np.any(np.asarray(data.geom_xmat)):
             mujoco.mj_kinematics(model, data)  # (poses for the moving objects and microphones)
-        self._kernel = StepKernel(model, data, self.reader, clock=self.clock.rec, use_c=self._use_c)
-        self._fused = self._use_c and self._kernel.can_step
-        self._substeps = make_substeps(self)
-        c = self.clock
-        n_prev = c.n
-        c.anchor(float(model.opt.timestep), float(data.time))
-        self._origin += c.n - n_prev
+        self.driver.bind(model, data)
+
+    @property
+    def clock(self) -> SampleClock:
+        """The sample clock (:class:`.clock.SampleClock`)."""
+        return self.driver.clock
+
+    @property
+    def steps(self) -> int:
+        """Physics steps read since the last reset."""
+        return self.driver.steps
+
+    @property
+    def samples(self) -> int:
+        """Samples counted since the last reset."""
+        return self.driver.samples
+
+    @property
+    def seconds_contacts(self) -> float:
+        """Seconds spent reading steps the caller took (:meth:`step`) since the last reset."""
+        return self.driver.seconds_contacts
+
+    @property
+    def seconds_synth(self) -> float:
+        """Seconds spent rendering in Python calls since the last reset."""
+        return self.driver.seconds_synth
+
+    @property
+    def on_block(self):
+        """Optional observer ``on_block(sim, block, n0)`` called with every rendered audio
+        block and its first absolute sample index (e.g. :class:`mjsound.rerun_log.RerunLogger`);
+        :meth:`reset` clears it."""
+        return self.driver.on_block
+
+    @on_block.setter
+    def on_block(self, fn) -> None:
+        self.driver.on_block = fn
+
+    @property
+    def _geom_obj(self) -> np.ndarray:
+        """Synthesizer object index each geom excites (-1: silent), (ngeom,) int64."""
+        return self._sound["obj"]
 
     # ------------------------------------------------------------------ the kernel's inputs
-    def _drive_state(self, reader_state=None) -> DriveState:
-        """The drive's arrays (:class:`.records.DriveState`), rebuilt when one was replaced;
-        ``reader_state``: the reader's current :meth:`ContactReader.state` (asked when None)."""
+    def _drive_state(self, reader_state) -> DriveState:
+        """The drive's arrays (:class:`.records.DriveState`) for the reader's current state
+        ``reader_state``, rebuilt when one was replaced."""
         synth = self.synth
-        if synth is not None and self._sidx_epoch != synth.streams_epoch:  # the synthesizer forgot its streams
-            self._sidx[:] = -1  # (in place: the kernel's entry point stays valid)
+        if self._sidx_epoch != synth.streams_epoch:  # the synthesizer forgot its streams
+            self._sidx[:] = -1  # (in place: the packed kernel state stays valid)
             self._sidx_epoch = synth.streams_epoch
-        rs = self.reader.state() if reader_state is None else reader_state
+        rs = reader_state
         if rs is not self._sidx_reader:  # (a new reader state: its slot table may have grown)
             slots = len(rs.pairs)  # (a stream row for every slot the reader can hold)
             if slots > len(self._sidx):
@@ -411,151 +369,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         """Microphones and every moving sounding object to where they are now, before an
         event needs them (``Synthesizer.on_regain`` for the streams' gains). An exploding
         simulation's non-finite poses are skipped: those keep the last good one."""
-        self._sync_poses_call((self._drive_state(), self._kernel.views, self.synth.kernel_state()))
-
-    # ------------------------------------------------------------------ stepping
-    def step(self, render: bool = True) -> np.ndarray | None:
-        """Process the step just taken by ``mj_step``; return its audio block.
-
-        Parameters
-        ----------
-        render : bool
-            False: read the step's contacts and queue its sound, but render later (in
-            :meth:`flush`, one synthesizer call for many steps: e.g. once per env step of a
-            gymnasium env with ``frame_skip``). The step returns None then. The audio is the
-            same except that a sliding contact's gains follow its point once per render.
-
-        Returns
-        -------
-        (channels, n) float32 array | None
-            Sound pressure at each microphone [Pa] for the samples ``t_k <= n/fs < t_{k+1}``
-            (with ``render=True``: the samples of earlier unrendered steps come first).
-        """
-        c = self.clock
-        dt = c.timestep
-        if self._opt.timestep != dt or abs(self.data.time - (c.t_start + (c.k + 1) * dt)) > 0.25 * dt:
-            self._clock_jump()
-        if self.synth is None:
-            n0, n1 = c.advance()
-            self._count(n0, n1)
-        else:
-            n0 = c.n
-            tc = _time.perf_counter()
-            if self._read_step():
-                self.seconds_contacts += _time.perf_counter() - tc
-            else:
-                c.advance()
-            self._count(n0, c.n)
-        return self._render_pending() if render else None
-
-    def _read_step(self, explicit=None) -> bool:
-        """Read the contacts of the step just taken and queue its sound (one kernel call;
-        ``explicit``: see :meth:`.runner.StepKernel.call`); False when nothing touches and no
-        impact record is open (the step is only counted, the clock not advanced)."""
-        self.synth.poses_current = False  # (a physics step was taken)
-        if self.data.ncon == 0 and not self.reader.any_open:  # nothing to read
-            self.reader.count_quiet_step()
-            return False
-        self._call(1, call_step=False, explicit=explicit)
-        self.synth.poses_current = False
-        return True
-
-    def replay_step(self, n0: int, n1: int, t0: float, t1: float, origin: int | None = None, render: bool = True):
-        """Process a recorded step (``data`` set to its frame): samples ``[n0, n1)`` and times
-        ``[t0, t1)`` given by the caller, the clock unused; ``origin``: absolute sample of the
-        synthesizer's sample 0 (None: unchanged). Queues its sound; renders what is pending if
-        ``render``."""
-        if origin is not None:
-            self._origin = int(origin)
-        self._count(n0, n1)
-        if self.synth is not None:
-            self._read_step(explicit=(t0, t1, n0, n1))
-        return self._render_pending() if render else None
-
-    def substeps(self, nstep: int, render: bool = False) -> None:
-        """``mj_step`` then :meth:`step` ``(render=False)``, ``nstep`` times (a gymnasium env's
-        ``frame_skip``); the audio comes from :meth:`flush`.
-
-        The substeps run in one numba call (the step kernel calls ``mj_step`` itself) whenever
-        this simulator can (``fused=True``, MuJoCo's C functions and struct layout checked,
-        the clock fits 64-bit integers); the result is the same as the loop in Python, bit
-        for bit. ``render=True``: the same call also renders every pending sample (when the
-        synthesizer has no Python forcing sources), which :meth:`flush` then returns: the
-        same audio as rendering in :meth:`flush`, one numba call fewer."""
-        self._substeps(int(nstep), bool(render))
-
-    def stepper(self):
-        """``stepper()(nstep)``: :meth:`substeps` ``(nstep, render=True)`` as a plain function,
-        for a caller that calls it every env step (:class:`mjsound.wrappers.AudioObservation`'s
-        hook): the same call, one Python call fewer."""
-        return self._substeps  # (render defaults to True there)
-
-    def _count_segment(self) -> None:
-        """Count the substeps the kernel finished since ``_seg`` (clock step and sample)."""
-        k0, n0 = self._seg
-        c = self.clock
-        k = c.k
-        n = c.sample_at(k)
-        if k > k0:
-            self._count(n0, n, k - k0)
-        self._seg = (k, n)
-
-    def _call(self, nstep: int, call_step: bool, explicit=None, block=None) -> None:
-        """One call of the step kernel (and its hand-backs), then collect what it produced;
-        ``block``: render the pending samples into it (:meth:`.runner.StepKernel.call`)."""
-        synth = self.synth
-        self._kernel.call(self._drive_state, synth.kernel_state, nstep, call_step, explicit, self._log_room(),
-                          self._on_stop, synth, synth.render_target, block)
-        self._collect()
-
-    def _kernel_state(self) -> tuple:
-        """The step kernel's state now (:func:`.step.advance`'s tuple; asked again after every
-        hand-back: an owner may have replaced a record)."""
-        k, reader, synth = self._kernel, self.reader, self.synth
-        rs = reader.state()
-        return (k.mj, k.views, rs, reader.buffers, k.clock, self._drive_state(rs), synth.kernel_state(), k.run,
-                synth.render_target())
-
-    def _log_room(self) -> int:
-        """Event log entries the kernel may still write."""
-        return max(0, self.keep_events - self._n_logged)
-
-    def _collect(self) -> None:
-        """Take the kernel's event log entries and clamped-force counts (the reader warns); the
-        impact records wait in the reader's rows until read."""
-        f = self._kernel.f
-        self.reader.report_clamped()
-        n_log = int(f["n_log"][0])
-        if n_log:
-            self._log_pending.append(self.reader.buffers.log[:n_log].copy())
-            self._n_logged += n_log
-            f["n_log"][0] = 0
-            f["log_limit"][0] = self._log_room()
-
-    def _on_stop(self, reason: int) -> None:
-        """What the step kernel hands back: see :mod:`.step`."""
-        run = self._kernel.run[0]
-        buf = self.reader.buffers
-        if reason == STREAMS:
-            self._make_streams(buf.missing[: int(run["n_missing"])].tolist(), buf.sustained)
-        elif reason == RING:
-            self.synth.grow_stream_ring(int(run["need"]))
-        elif reason == CLOCK_JUMP:
-            run["render"] = 0  # (the pending samples change: flush renders them)
-            self._collect()
-            self.pulses.flush()  # (the substeps' pulses so far, before the clock moves)
-            self._count_segment()
-            self._clock_jump()
-            self._seg = (self.clock.k, self.clock.n)
-        elif reason == PULSES:  # the pulse rows are full: to the track, and room for this substep's
-            self.pulses.flush()
-            self.pulses.reserve(int(run["n_imp"]))
-        elif reason == AMPLITUDE:
-            self._collect()
-            self.pulses.flush()
-            imp = buf.impacts[: int(run["need"])]
-            objs = self._sound["obj"][np.concatenate([imp["g1"], imp["g2"]])]
-            raise self.synth.amplitude_error(objs[objs >= 0])
+        self._sync_poses_call((self._drive_state(self.reader.state()), self.driver.views, self.synth.kernel_state()))
 
     def _make_streams(self, missing, rows) -> None:
         """A stream for each (row, side) without one: key (geom1, geom2, struck geom)."""
@@ -566,61 +380,68 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             g = g2 if side == 0 else g1
             j = synth.stream((g1, g2, g), self._names[g])
             if slot >= len(self._sidx):
-                self._drive_state()  # (grows the table to the reader's slots)
+                self._drive_state(self.reader.state())  # (grows the table to the reader's slots)
             self._sidx[slot, side] = j
 
-    # ------------------------------------------------------------------ rendering
+    def _amplitude_error(self, impacts) -> ValueError:
+        """The synthesizer's error for ``impacts`` whose modal amplitude is out of range."""
+        objs = self._sound["obj"][np.concatenate([impacts["g1"], impacts["g2"]])]
+        return self.synth.amplitude_error(objs[objs >= 0])
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, render: bool = True) -> np.ndarray | None:
+        """Process the step just taken by ``mj_step``; return its audio block.
+
+        Call it after every ``mj_step``. ``data.time`` must be one timestep after the last
+        step read: more (steps taken without calling this: their contacts were never read) or
+        no advance at all (this ``MjData`` is no longer the one stepped: :meth:`rebind`)
+        raises ``RuntimeError``; backwards is a reset (``mj_resetData``): the simulator resets
+        itself, the samples counted before come out first.
+
+        Parameters
+        ----------
+        render : bool
+            False: read the step's contacts and queue its sound, but render later (in
+            :meth:`flush`, one synthesizer call for many steps: an env's own substep loop calls
+            ``step(render=False)`` after each ``mj_step`` and :meth:`flush` once per env step).
+            The step returns None then. The audio is the same except that a sliding contact's
+            gains follow its point once per render.
+
+        Returns
+        -------
+        (channels, n) float32 array | None
+            Sound pressure at each microphone [Pa] for the samples ``t_k <= n/fs < t_{k+1}``
+            (with ``render=True``: the samples of earlier unrendered steps come first).
+        """
+        return self.driver.substeps(1, render, False, True)
+
     def flush(self) -> np.ndarray:
-        """Render the samples of the steps taken with ``step(render=False)`` (possibly none):
-        ``(channels, n)`` float32 pressure [Pa]."""
-        ready = self._ready
-        if ready is None:
-            return self._render_pending()
-        self._ready = None  # (rendered by substeps(render=True))
-        if not self._pending and not self._held:
-            return ready
-        return np.concatenate([ready, self._render_pending()], axis=1)
+        """Render the samples of the steps taken with ``step(render=False)`` or
+        ``advance(n, render=False)`` (possibly none): ``(channels, n)`` float32 pressure [Pa]."""
+        return self.driver.flush()
 
-    def _count(self, n0: int, n1: int, steps: int = 1) -> None:
-        """Count ``steps`` physics steps of samples ``[n0, n1)``, not rendered yet."""
-        if self._pending == 0:
-            self._pending_n0 = n0
-        self._pending += n1 - n0
-        self.steps += steps
-        self.samples += n1 - n0
+    def advance(self, nstep: int = 1, render: bool = True) -> np.ndarray | None:
+        """``mj_step`` then read it, ``nstep`` times, in one numba call (the step kernel calls
+        ``mj_step`` itself where MuJoCo's C functions and struct layout check out: ``fused``).
 
-    def _render_pending(self) -> np.ndarray:
-        n = self._pending
-        n0 = self._pending_n0 if n else self.clock.n  # (_count sets _pending_n0 when samples start pending)
-        self._pending = 0
-        if self.synth is None:
-            block = np.zeros((self.n_channels, n), dtype=np.float32)
-        else:
-            tc = _time.perf_counter()
-            block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
-            if len(self.images):
-                block = fold(block, self.n_air, self.images)  # (image rows into their microphones' channels)
-            self.seconds_synth += _time.perf_counter() - tc
-        return self._deliver(block, n0)
+        Parameters
+        ----------
+        nstep : int
+            Physics steps (a gymnasium env's ``frame_skip``).
+        render : bool
+            Return the audio of these steps (and of earlier unrendered ones first), rendered in
+            the same numba call; False: return None, the audio comes from :meth:`flush`.
 
-    def _deliver(self, block: np.ndarray, n0: int) -> np.ndarray:
-        """A rendered block (first absolute sample ``n0``) to the observer, after the blocks
-        held back by an automatic reset."""
-        if self.on_block is not None:
-            self.on_block(self, block, n0)
-        if self._held:
-            block = np.concatenate([*self._held, block], axis=1)
-            self._held = []
-        return block
+        Returns
+        -------
+        (channels, n) float32 array [Pa] | None
+        """
+        return self.driver.substeps(int(nstep), render)
 
     @property
     def steps_per_render(self) -> int:
-        """Physics steps per rendered block in :meth:`run` / :meth:`advance` (``render_block_s``)."""
+        """Physics steps per rendered block in :meth:`run` (``render_block_s``)."""
         return max(1, int(round(self.render_block_s / float(self.model.opt.timestep))))
-
-    def advance(self, nstep: int = 1) -> np.ndarray:
-        """``mj_step`` then :meth:`step`, ``nstep`` times; the blocks concatenated."""
-        return self.run(int(nstep) * float(self.model.opt.timestep), nsteps=int(nstep))
 
     def run(self, duration: float, callback=None, nsteps: int | None = None) -> np.ndarray:
         """Simulate ``duration`` seconds (``round(duration / timestep)`` steps) with sound.
@@ -642,18 +463,37 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             nsteps = int(round(float(duration) / float(self.model.opt.timestep)))
         every = self.steps_per_render
         blocks = []
-        if self._pending:
+        if self.driver.pending:
             blocks.append(self.flush())
         for i in range(0, nsteps, every):  # render_block_s of steps at a time
             m = min(every, nsteps - i)
             if callback is None:
-                self.substeps(m, render=True)  # (one numba call, the render included)
+                blocks.append(self.driver.substeps(m))  # (one numba call, the render included)
             else:
                 for _ in range(m):
                     callback(self.model, self.data)
                     self._mj.mj_step(self.model, self.data)
-                    self.step(render=False)
-            blocks.append(self.flush())
+                    self.driver.substeps(1, False, False, True)
+                blocks.append(self.flush())
         if not blocks:
             return np.zeros((self.n_channels, 0), np.float32)
         return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+
+    # ------------------------------------------------------------------ deprecated
+    def substeps(self, nstep: int, render: bool = False) -> None:
+        """Deprecated: :meth:`advance` ``(nstep, render=False)`` (the audio from :meth:`flush`)."""
+        warnings.warn("AudioSimulator.substeps(n) is deprecated: use advance(n, render=False) and flush(), or "
+                      "advance(n) for the block", DeprecationWarning, stacklevel=2)
+        self.driver.substeps(int(nstep), False, bool(render))
+
+    def stepper(self):
+        """Deprecated: :meth:`advance`."""
+        warnings.warn("AudioSimulator.stepper() is deprecated: call advance(n, render=False) and flush()",
+                      DeprecationWarning, stacklevel=2)
+        return lambda nstep: self.driver.substeps(int(nstep), False, True)
+
+    def replay_step(self, n0: int, n1: int, t0: float, t1: float, origin: int | None = None, render: bool = True):
+        """Deprecated: :meth:`.driver.StepDriver.replay` (``sim.driver.replay``)."""
+        warnings.warn("AudioSimulator.replay_step is deprecated: use sim.driver.replay(n0, n1, t0, t1, origin, "
+                      "render) (mjsound.sonify replays rollouts)", DeprecationWarning, stacklevel=2)
+        return self.driver.replay(n0, n1, t0, t1, origin, render)

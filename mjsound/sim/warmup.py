@@ -2,21 +2,20 @@
 
 numba compiles each kernel the first time a process calls it and keeps the machine code in
 its on-disk cache (``cache=True``), so only the first run on a machine pays. :func:`warmup`
-runs a tiny scene through every path (fused substeps, single steps, replay-style explicit
-steps, rendering with events and streams) so that a caller can separate compile time from
-speed figures; :func:`notice_first_compile` prints one line on stderr when the cache is cold.
+runs a tiny scene through every path (advance, single steps, replay-style explicit steps,
+rendering with events and streams) so that a caller can separate compile time from
+speed figures (:mod:`.first_compile`: whether the cache is cold, and the line said then).
 """
 
 from __future__ import annotations
 
-import os
-import sys
 import time
 import warnings
 
+from .first_compile import kernel_cache_dir, kernels_cached, notice_first_compile  # noqa: F401 (re-exported)
+
 __all__ = ["warmup", "kernels_cached", "kernel_cache_dir", "notice_first_compile"]
 
-_NOTICED = [False]
 _WARMED = [False]
 
 _XML = """<mujoco><option timestep="0.002"/>
@@ -27,44 +26,9 @@ _XML = """<mujoco><option timestep="0.002"/>
   </worldbody></mujoco>"""
 
 
-def kernels_cached() -> bool:
-    """Whether numba's disk cache holds the step kernel of the current sources already (then
-    a process starts in about a second; after an edit or a ``git pull`` of a kernel module it
-    does not: the index is stamped with its group's sources, :mod:`mjsound.jit`)."""
-    from .step import advance
-
-    try:
-        return bool(advance._cache._cache_file._load_index())
-    except Exception:  # (numba internals moved, a torn or foreign index: assume cold)
-        return False
-
-
-def kernel_cache_dir() -> str:
-    """The folder of numba's on-disk cache that mjsound's kernels use (``$NUMBA_CACHE_DIR``
-    when set, else ``__pycache__`` next to the sources or the user-wide cache)."""
-    from ..jit import cache_folder
-    from .step import advance
-
-    return cache_folder(advance) or os.environ.get("NUMBA_CACHE_DIR", "numba's default cache")
-
-
-def notice_first_compile(stream=None) -> None:
-    """Say once per process, on stderr, that numba compiles its kernels (cold cache only)."""
-    if _NOTICED[0]:
-        return
-    _NOTICED[0] = True
-    if not kernels_cached():
-        from ..jit import SHIPPED
-
-        why = "they lack these kernels" if SHIPPED.used else SHIPPED.reason
-        print("mjsound: compiling numba kernels, about half a minute of CPU (once per machine and mjsound "
-              "version, cached afterwards; `mjsound warmup` does it ahead of time; the shipped kernels are not "
-              f"used: {why})", file=stream or sys.stderr, flush=True)
-
-
 def warmup(verbose: bool = True, once: bool = False) -> float:
     """Compile (or load from the cache) every kernel of the per-step and render paths by
-    running a tiny two-body scene for 0.1 s: fused substeps, single steps, a replayed step,
+    running a tiny two-body scene for 0.1 s: advance (the kernel stepping), single steps, a replayed step,
     impacts, a sliding and rolling stream (rendered in one call and in stages), clicks,
     forcing sources and listeners following a body. Returns the seconds it took; with ``once``, 0.0 when this process has
     warmed up already."""
@@ -78,10 +42,7 @@ def warmup(verbose: bool = True, once: bool = False) -> float:
     from .stub import stub_model
 
     t0 = time.perf_counter()
-    if verbose:
-        notice_first_compile()
-    else:
-        _NOTICED[0] = True
+    notice_first_compile(quiet=not verbose)
     model = mujoco.MjModel.from_xml_string(_XML)
     data = mujoco.MjData(model)
     data.qvel[0] = 0.5  # the ball rolls, the box slides: impacts, streams, rolling (the ball's
@@ -98,18 +59,18 @@ def warmup(verbose: bool = True, once: bool = False) -> float:
         mujoco.mj_step(model, data)
         sim.step()
     sim.synth.fused_streams = False
-    sim.substeps(5)
+    sim.advance(5, render=False)
     sim.flush()
     t = float(data.time)
     mujoco.mj_forward(model, data)
-    sim.replay_step(sim.clock.n, sim.clock.n + 32, t, t + 0.002)
+    sim.driver.replay(sim.clock.n, sim.clock.n + 32, t, t + 0.002)
     sim.synth.impact("ball", [0, 0, 0], [0, 0, 0.01], time=sim.synth.time)
     sim.synth.slide("box", [0.3, 0, 0], [0, 0, 1], 1.0, 0.1, sim.synth.time, sim.synth.time + 0.01)
     sim.synth.render(256)
     sim.reader.events(data)
     sim.follow(1, np.tile([0.0, 0.0, 0.5], (sim.n_air, 1)))  # listeners riding a body (gymnasium envs)
     sim.reset()  # (moves them there)
-    sim.substeps(5)
+    sim.advance(5, render=False)
     assert np.isfinite(sim.flush()).all()
     _WARMED[0] = True
     return time.perf_counter() - t0
