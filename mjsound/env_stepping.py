@@ -21,7 +21,7 @@ attributes (an inner env that shares its model: gymnasium-robotics' mazes; a dm_
 environment: gym-aloha; a robosuite env: ``robosuite.wrappers.GymWrapper``).
 
 The hooks run the env's own MuJoCo calls and tell the audio simulator after each completed
-step: the fused ``AudioSimulator.stepper()`` where the route is a plain run of ``mj_step``
+step: the fused ``StepDriver.substeps`` where the route is a plain run of ``mj_step``
 (gymnasium, gymnasium-robotics, dm_control without legacy stepping), else
 ``sim.step(render=False)`` after each of the env's own steps, the own-loop route, whose audio
 ``sim.flush()`` returns once per env step (:meth:`mjsound.env_audio.EnvAudio.end_step`).

@@ -249,7 +249,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self._dict_obs = False
             self.observation_space = gym.spaces.Dict({"observation": inner, "audio": audio_space})
 
-        # the hooks (none with substeps="manual": the caller calls on_substep)
+        # the hooks (none with substeps="manual": the caller calls sim.step(render=False))
         self._route = route if substeps == "auto" else None
         if self._route is not None:
             self._route.install(self.core.sim)

@@ -39,7 +39,7 @@ def restart():
 restart()
 for _ in range(60):  # every path of the loop below runs (and is compiled) before the interrupts:
     data.xfrc_applied[2, 0] = 3.0  # (the box slides: streams) an interrupt inside numba's compiler
-    sim.substeps(5)  # is beyond this test (and numba's control)
+    sim.advance(5, render=False)  # is beyond this test (and numba's control)
     sim.flush()
     mujoco.mj_step(model, data)
     sim.step()
@@ -53,7 +53,7 @@ while caught < int(sys.argv[1]):
                 restart()
             data.xfrc_applied[2, 0] = 3.0
             if i % 2:
-                sim.substeps(5)
+                sim.advance(5, render=False)
                 sim.flush()
             else:
                 mujoco.mj_step(model, data)

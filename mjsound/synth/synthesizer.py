@@ -435,7 +435,7 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
         st = self._streams.state
         if st is None:
             st = self._streams.empty
-        # the same tuple while its arrays are the same: the step kernel's runner calls the
+        # the same tuple while its arrays are the same: the step driver calls the
         # compiled entry point directly only while its arguments are the objects it was looked
         # up for (a new tuple each call typed every argument in Python: 4x the step time)
         ks = self._kernel_state
