@@ -1,6 +1,6 @@
 """Converged far-field references of the four level objects -> tests/data/radiation_<name>.npz.
 
-For each object (plate, bar, bowl, can: :data:`OBJECTS`) the modal analysis is run once per
+For each object (plate, bar, bowl, can: :data:`mjsound.modal.radiation_check.LEVEL_OBJECTS`) the modal analysis is run once per
 radiation setting on the same modes:
 
 * ``reference``: boundary elements on the finest level of at most 3000 elements, one
@@ -33,19 +33,14 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from mjsound import analyze  # noqa: E402
+from mjsound.modal.radiation_check import LEVEL_OBJECTS, REFERENCE_DEGREE  # noqa: E402
 from mjsound.modal.sph import sphere_quadrature  # noqa: E402
 
-#: name -> (mesh, material, analyze keywords)
-OBJECTS = {
-    "plate": ("box:0.2,0.2,0.002", "aluminium", dict(f_max=1000.0)),
-    "bar": ("box:0.3,0.02,0.02", "aluminium", dict(f_max=6000.0)),
-    "bowl": ("bowl:0.05,0.004", "ceramic", dict(f_max=9000.0)),
-    "can": ("cylinder:0.033,0.12", "steel", dict(f_max=4500.0, wall=0.002, method="facet")),
-}
+OBJECTS = LEVEL_OBJECTS
 #: every mode on the finest level of at most n_max elements (epw too large to be met sooner)
-REFERENCE = dict(epw=1e3, n_max=3000, dka=0.02, max_solves=100, degree=16, tol_db=1e3)
-CHECK = dict(epw=1e3, n_max=1500, dka=0.02, max_solves=100, degree=16, tol_db=1e3)
-DEGREE = 10  # directions stored: the degree-10 quadrature (242 directions)
+REFERENCE = dict(epw=1e3, n_max=3000, dka=0.02, max_solves=100, degree=16, tol_db=1e3, budget=1e12)
+CHECK = dict(epw=1e3, n_max=1500, dka=0.02, max_solves=100, degree=16, tol_db=1e3, budget=1e12)
+DEGREE = REFERENCE_DEGREE
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests", "data")
 
 

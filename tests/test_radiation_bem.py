@@ -105,10 +105,7 @@ OBJECT_CASES = ["plate", "bar", "bowl", "can"]
 
 @pytest.mark.parametrize("name", OBJECT_CASES)
 def test_objects_match_the_converged_reference(name):
-    import sys
-
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), "scripts"))
-    from reference_radiation import DEGREE, OBJECTS
+    from mjsound.modal.radiation_check import LEVEL_OBJECTS as OBJECTS, REFERENCE_DEGREE as DEGREE
 
     path = os.path.join(DATA, f"radiation_{name}.npz")
     z = np.load(path)

@@ -38,7 +38,8 @@ def register(subparsers) -> None:
     a.add_argument("--quick", action="store_true", help="a small subset that finishes in under a minute")
     a.add_argument("-o", "--output", default="reports", help="output directory (default: reports)")
     a.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
-    a.add_argument("--sections", default="modal,fmax,synth,e2e", help="comma list of sections to run")
+    a.add_argument("--sections", default="modal,fmax,synth,e2e,levels",
+                   help="comma list of sections to run (levels alone: rewrite only that section of DIR/accuracy.md)")
     a.add_argument("--json", default=None, help="also dump every measured number to this JSON file")
     a.add_argument("--from-json", default=None, help="rewrite the Markdown and plots from a --json dump (no runs)")
     a.set_defaults(func=_run_accuracy)

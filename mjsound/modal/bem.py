@@ -44,7 +44,7 @@ Far field (``p ~ F(d) e^{ikr} / r``), referred to a centre ``c``:
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["QUAD_BARY", "QUAD_WEIGHTS", "BemMesh", "assemble", "assemble_mesh", "solve_far_field", "far_field_matrix"]
 
@@ -220,7 +220,7 @@ def _far_pair(x, nx, nT, quad3, area, k):
     return S, K, Kp, W
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def assemble(tri, centroids, normals, quad, quad_w, k, alpha, quad3, areas, edge):
     """Burton-Miller matrices on a :class:`BemMesh`.
 
@@ -245,7 +245,7 @@ def assemble(tri, centroids, normals, quad, quad_w, k, alpha, quad3, areas, edge
     A = np.empty((N, N), np.complex128)
     Bq = np.empty((N, N), np.complex128)
     k2_8pi = k * k / 2.0  # (k^2 / 8 pi) in units of 1 / 4 pi
-    for i in range(N):
+    for i in prange(N):
         x = centroids[i]
         nx = normals[i]
         for j in range(N):

@@ -46,11 +46,13 @@ SPEED_OF_SOUND = 343.0
 
 #: per analysis quality: elements per wavelength, fewest and most elements of a level, the
 #: widest cluster in k a, the most clusters, the highest harmonic degree stored, and the
-#: change of a mode's power [dB] from one level to the next under which it counts as converged
+#: change of a mode's power [dB] from one level to the next under which it counts as converged,
+#: and the budget of the solves in element pairs (:func:`solve_cost`; 1e7 is about 7 s of one
+#: core): a cluster it cannot afford is solved on a coarser level, its error estimate reported
 RADIATION_QUALITY = {
-    "draft": dict(epw=4.0, n_min=100, n_max=500, dka=0.4, max_solves=6, degree=10, tol_db=1.0),
-    "default": dict(epw=5.0, n_min=200, n_max=1500, dka=0.3, max_solves=10, degree=16, tol_db=0.5),
-    "high": dict(epw=7.0, n_min=400, n_max=2500, dka=0.2, max_solves=40, degree=24, tol_db=0.25),
+    "draft": dict(epw=4.0, n_min=100, n_max=500, dka=0.4, max_solves=6, degree=10, tol_db=1.0, budget=3e6),
+    "default": dict(epw=5.0, n_min=200, n_max=1500, dka=0.3, max_solves=10, degree=16, tol_db=0.5, budget=25e6),
+    "high": dict(epw=7.0, n_min=400, n_max=2500, dka=0.2, max_solves=40, degree=24, tol_db=0.25, budget=2e8),
 }
 
 
@@ -188,8 +190,16 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     groups = _clusters(ka, level, s["dka"], s["max_solves"]) if n else []
     solves = []
 
+    spent = [0.0]
+    n_el = [len(m) for m in plan.levels]
+    j_min = min(int(np.searchsorted(n_el, s["n_min"])), n_levels - 1)
+
+    def affordable(j):
+        return spent[0] + solve_cost(n_el[j]) <= s["budget"]
+
     def solve(j, g, kc):
         out = _solve_group(plan.levels[j], kc, k[g], omega[g], un_levels[j][:, g], dirs, plan.centre)
+        spent[0] += solve_cost(n_el[j])
         solves.append(dict(level=j, elements=len(plan.levels[j]), ka=round(kc * plan.radius, 3), modes=len(g)))
         return out
 
@@ -198,18 +208,25 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
         pb = w @ (np.abs(Fb) ** 2)
         return np.abs(10 * np.log10(np.maximum(pb, 1e-300) / np.maximum(pa, 1e-300)))
 
+    limited = 0
     for gi, g in enumerate(groups):
         g = np.asarray(g)
         j = int(level[g[0]])
+        while j > j_min and not affordable(j):  # over the budget: coarser, with its error estimate
+            j -= 1
+        limited += int(j < level[g[0]])
         kc = float(np.sqrt(k[g].min() * k[g].max()))
         Fg = solve(j, g, kc)
         est = None
         # refine while the next level changes the power by more than tol_db (and it is affordable)
-        while j + 1 < n_levels and (est is None or est.max() > s["tol_db"]):
+        while j + 1 < n_levels and (est is None or est.max() > s["tol_db"]) and affordable(j + 1):
             Fn = solve(j + 1, g, kc)
             est, Fg, j = step_db(Fg, Fn), Fn, j + 1
-        if est is None and j > 0:  # already on the finest level: the step from the one below
+        if est is None and j > 0:  # not refined (finest level, or the budget): the step from below
             est = step_db(solve(j - 1, g, kc), Fg)
+        elif est is None and j + 1 < n_levels:  # on the coarsest level: one step up, kept
+            Fn = solve(j + 1, g, kc)
+            est, Fg, j = step_db(Fg, Fn), Fn, j + 1
         F[:, g] = Fg
         if est is not None:
             error_db[g] = est
@@ -220,7 +237,7 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     rms = np.sqrt((w[:, None] * np.abs(F) ** 2).sum(axis=0) / (4 * np.pi))
     info = dict(method="bem-burton-miller", degree=L, levels=[len(m) for m in plan.levels],
                 h_m=[round(h, 5) for h in plan.h], epw=s["epw"], solves=len(solves), clusters=solves,
-                under_resolved=int(under.sum()),
+                under_resolved=int(under.sum()), budget_limited_clusters=limited, cost=spent[0],
                 error_db=[None if not np.isfinite(e) else round(float(e), 3) for e in error_db],
                 radius_m=plan.radius, seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0)
     return rms, coef, info
@@ -248,6 +265,13 @@ def surface_wavelength(mesh: BemMesh, u_n, neighbours: int = 6):
     mean_sq = np.average(u_n**2, axis=0, weights=mesh.areas)
     ks = np.sqrt(2 * grad / np.maximum(mean_sq, 1e-300))
     return 2 * np.pi / np.maximum(ks, 1e-12)
+
+
+def solve_cost(n_elements: int) -> float:
+    """Cost of one solve in units of element pairs: assembly ``N^2`` plus the factorisation,
+    ``N^3 / 1500`` (as long as the assembly at 1500 elements, measured). A deterministic
+    measure, so that a model's content never depends on the machine's load."""
+    return float(n_elements) ** 2 * (1.0 + n_elements / 1500.0)
 
 
 def _solve_group(mesh: BemMesh, kc, k, omega, u_n, dirs, centre):

@@ -6,7 +6,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["degenerate_groups", "pattern_errors"]
+__all__ = ["LEVEL_OBJECTS", "REFERENCE_DEGREE", "degenerate_groups", "pattern_errors"]
+
+#: the four objects whose levels are checked against converged references (issue "levels"):
+#: name -> (mesh, material, analyze keywords). The references live in
+#: ``tests/data/radiation_<name>.npz`` (``scripts/reference_radiation.py``).
+LEVEL_OBJECTS = {
+    "plate": ("box:0.2,0.2,0.002", "aluminium", dict(f_max=1000.0)),
+    "bar": ("box:0.3,0.02,0.02", "aluminium", dict(f_max=6000.0)),
+    "bowl": ("bowl:0.05,0.004", "ceramic", dict(f_max=9000.0)),
+    "can": ("cylinder:0.033,0.12", "steel", dict(f_max=4500.0, wall=0.002, method="facet")),
+}
+#: the references' far fields are stored on this degree's quadrature (242 directions)
+REFERENCE_DEGREE = 10
 
 
 def degenerate_groups(frequencies_hz, rel: float = 0.01) -> np.ndarray:

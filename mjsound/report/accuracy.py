@@ -53,11 +53,13 @@ from .measure import cents, machine_info, measure  # noqa: F401
 __all__ = ["run_report", "lamb_sphere", "machine_info", "measure", "BOWL_REFERENCE", "cents"]
 
 
-def run_report(output="reports", quick: bool = False, plots: bool = True, sections="modal,fmax,synth,e2e",
+def run_report(output="reports", quick: bool = False, plots: bool = True, sections="modal,fmax,synth,e2e,levels",
                json_path=None, from_json=None) -> int:
-    """Run the measurements (``sections``: comma list of modal, fmax, synth, e2e) and write
+    """Run the measurements (``sections``: comma list of modal, fmax, synth, e2e, levels) and write
     ``output/accuracy.md`` with PNG plots; ``json_path`` also dumps every number,
-    ``from_json`` rewrites the Markdown and plots from such a dump without running anything."""
+    ``from_json`` rewrites the Markdown and plots from such a dump without running anything.
+    ``sections="levels"`` alone rewrites only the levels section of an existing page
+    (:mod:`.accuracy_levels`)."""
     t_start = time.perf_counter()
     os.makedirs(output, exist_ok=True)
     if from_json:
@@ -72,6 +74,14 @@ def run_report(output="reports", quick: bool = False, plots: bool = True, sectio
 
     def log(msg):
         print(msg, file=sys.stderr, flush=True)
+
+    if sections == {"levels"}:  # this section alone, spliced into the page as it is
+        from .accuracy_levels import levels_section, run_levels, splice_levels
+
+        path = os.path.join(output, "accuracy.md")
+        splice_levels(path, levels_section(run_levels(quick, log), command + " --sections levels"))
+        log(f"wrote the levels section of {path} ({time.perf_counter() - t_start:.0f} s)")
+        return 0
 
     info = machine_info()
     log(f"mjsound report accuracy{' --quick' if quick else ''}: {info['cpus']} CPUs, load {info['load_start']}")
@@ -90,15 +100,24 @@ def run_report(output="reports", quick: bool = False, plots: bool = True, sectio
     fmax = run_fmax(quick, log) if "fmax" in sections else []
     synth = run_synth(quick, log) if "synth" in sections else None
     e2e = run_e2e(quick, log) if "e2e" in sections else None
+    levels = None
+    if "levels" in sections:
+        from .accuracy_levels import run_levels
+
+        levels = run_levels(quick, log)
     info["load_end"] = [round(x, 2) for x in os.getloadavg()]
     plots = [] if not plots else accuracy_page.plots(output, modal, synth, e2e, fmax)
     seconds = time.perf_counter() - t_start
     path = os.path.join(output, "accuracy.md")
     accuracy_page.write_markdown(path, info, command, modal, fmax, synth, e2e, plots, quick, seconds)
+    if levels is not None:
+        from .accuracy_levels import levels_section, splice_levels
+
+        splice_levels(path, levels_section(levels, command))
     if json_path:
         with atomic_open(json_path) as fh:
             json.dump({"machine": info, "command": command, "seconds": seconds, "modal": modal, "f_max": fmax,
-                       "synth": synth, "e2e": e2e}, fh,
+                       "synth": synth, "e2e": e2e, "levels": levels}, fh,
                       default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o), indent=1)
     log(f"wrote {path} ({seconds:.0f} s)")
     return 0
