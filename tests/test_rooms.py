@@ -108,6 +108,40 @@ def test_source_above_a_rigid_plane_is_the_two_source_closed_form():
     assert levels[1] == pytest.approx(20 * math.log10(1 + R1 / R2), abs=0.05)  # (+5.8 dB at the peak)
 
 
+def test_the_image_hears_the_pattern_in_its_own_direction():
+    """A vertical dipole (each mode ``sqrt(3) cos(theta)``, the directivity of
+    ``ModalModel.radiation_pattern``) above a rigid floor: the direct path is heard with the
+    pattern toward the microphone, the reflection with the pattern toward the image microphone
+    (below the floor: the other sign of cos(theta)), each exactly."""
+    from tests.test_directivity import SQ3, dipole_z
+    from tests.test_directivity import model as pattern_model
+
+    freqs = (700.0, 2300.0)
+    te = 0.0102
+    out = {}
+    for pattern in (True, False):
+        model = mujoco.MjModel.from_xml_string(BAR_XML)
+        data = mujoco.MjData(model)
+        bar = pattern_model(dipole_z([1.0, 1.0]) if pattern else None, f=freqs, d=(8.0, 8.0), rad=(1.0, 1.0))
+        scene = SoundScene.from_model(model, materials={"bar": "steel"}, models={"bar": bar}, sample_rate=FS,
+                                      progress=False)
+        sim = AudioSimulator(model, data, scene=scene, sample_rate=FS, reflections={"floor": "rigid"}, clicks=False,
+                             synth_kwargs={"dtype": "float64", "cull_db": None})
+        sim.synth.impact("bar", [0, 0, H_SRC], [0, 0, 1e-3], te, pulse_s=0.0)
+        out[pattern] = (sim, sim.run(0.2)[0].astype(np.float64))
+    sim, p = out[True]
+    iso_sim = out[False][0]
+    t = np.arange(p.size) / FS
+    src = np.array([0, 0, H_SRC])
+    cos1 = (MIC - src)[2] / R1
+    cos2 = (MIC * [1, 1, -1] - src)[2] / R2
+    assert cos1 > 0 > cos2
+    direct = _two_source(iso_sim, t, te, np.zeros(2))  # (the isotropic closed form, direct path only)
+    both = _two_source(iso_sim, t, te, np.ones(2))
+    ref = SQ3 * cos1 * direct + SQ3 * cos2 * (both - direct)
+    assert np.abs(p - ref).max() < 1e-6 * np.abs(ref).max()
+
+
 def test_absorbing_plane_lowers_each_mode_by_its_reflection_factor():
     """Carpet: modes at band centres and between get sqrt(1 - alpha(f)) on the image, alpha
     interpolated in log frequency (at 4 kHz: -4.6 dB against a rigid floor)."""
