@@ -60,7 +60,16 @@ def amplitude_bound(syn, name, points, impulses) -> float:
     idx = ob.model.nearest_points(Pl)
     G = np.abs(np.einsum("kcn,kc->kn", ob.shapes[idx], Jl)).sum(axis=0)  # (n,)
     r = float(np.min(ob.mic_distances))
-    return float(np.sum(np.abs(ob.weights) * G / ob.damped_omega) / r)
+    # the loudest direction any channel hears each mode in (1 where it is heard the same everywhere)
+    gain = np.abs(ob.weights) * np.nanmax(np.abs(_direction_factors(syn, name)), axis=0, initial=1.0)
+    return float(np.sum(gain * G / ob.damped_omega) / r)
+
+
+def _direction_factors(syn, name):
+    """(channels, n_modes) complex factors ``D`` each channel hears ``name``'s modes with, as
+    the renderer last set them (NaN, for a mode nothing excited yet, becomes 1)."""
+    D = syn.direction_factors(name)
+    return np.where(np.isnan(D), 1.0, D)
 
 
 def closed_form(syn, name, points, impulses, times, n0, n1, mic=0):
@@ -75,6 +84,7 @@ def closed_form(syn, name, points, impulses, times, n0, n1, mic=0):
     idx = ob.model.nearest_points(Pl)
     G = np.einsum("kcn,kc->kn", ob.shapes[idx], Jl)
     r = float(ob.mic_distances[mic])
+    D = _direction_factors(syn, name)[mic]  # the pattern in the microphone's direction
     # events at the same time superpose exactly: sum their modal amplitudes first
     tu, inv = np.unique(T, return_inverse=True)
     Gu = np.zeros((len(tu), G.shape[1]))
@@ -84,7 +94,7 @@ def closed_form(syn, name, points, impulses, times, n0, n1, mic=0):
     n = np.arange(n0, n1)
     out = np.zeros(len(n))
     for k in range(len(tu)):
-        c = Gu[k] / ob.damped_omega * ob.weights / r  # (modes,)
+        c = Gu[k] / ob.damped_omega * ob.weights * D / r  # (modes,)
         live = n >= na[k]
         if not live.any():
             continue
