@@ -96,3 +96,28 @@ def test_a_model_without_a_pattern_radiates_evenly(bar):
     plain = replace(bar, radiation_sh=None, radiation_centre=None)
     F = plain.radiation_pattern([[1, 0, 0], [0, 0, 2]])
     np.testing.assert_allclose(F, np.tile(bar.radiation, (2, 1)))
+
+
+def test_radiation_setting_is_checked_and_false_keeps_the_compact_estimate():
+    with pytest.raises(ValueError, match="radiation='best' unknown"):
+        analyze("box:0.2,0.03,0.02", "brass", radiation="best", cache=False)
+    with pytest.raises(ValueError, match="unknown settings"):
+        analyze("box:0.2,0.03,0.02", "brass", radiation={"elements": 3}, cache=False)
+    m = analyze("box:0.2,0.03,0.02", "brass", f_max=6000, radiation=False, cache=False, error_estimate=False)
+    assert m.info["radiation"]["method"].startswith("compact") and m.radiation_sh.shape[1] == 4
+
+
+def test_levels_section_replaces_itself_in_the_page(tmp_path):
+    from mjsound.report.accuracy_levels import BEGIN, END, levels_section, splice_levels
+
+    row = dict(name="bar", mesh="box:0.3,0.02,0.02", material="aluminium", options={"f_max": 6000.0},
+               frequencies_hz=[1145.0, 3071.0], reference_db=[-10.0, 0.0], reference_step_db=[0.1, 2.0],
+               settings={"default": dict(power_db=[0.3, -0.4], direction_db=[1.0, 2.0], estimate_db=[0.1, 2.5],
+                                         seconds=3.0, radiation_cpu_s=2.0)})
+    page = tmp_path / "accuracy.md"
+    page.write_text("# page\n\nbody\n")
+    splice_levels(page, levels_section([row]))
+    splice_levels(page, levels_section([row]))
+    text = page.read_text()
+    assert text.startswith("# page") and text.count(BEGIN) == 1 and text.count(END) == 1
+    assert "| ~3071 |" in text and "+0.3 (1.0)" in text

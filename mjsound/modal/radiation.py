@@ -117,6 +117,10 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
     h_need = SPEED_OF_SOUND / (f_max * settings["epw"])
     levels, hs = [], []
     h = size / 6.0
+    for _ in range(6):  # a first level over n_max (a fine mesh the clustering could not coarsen): coarser
+        if len(level_mesh(outer, h)[1]) <= settings["n_max"]:
+            break
+        h *= np.sqrt(2.0)
     while True:
         vv, ff = level_mesh(outer, h)
         if levels and len(ff) > settings["n_max"]:
