@@ -114,3 +114,34 @@ def test_rebind_refuses_another_scene():
                                                          '<geom type="sphere" size=".01"/></body><body name="box"'))
     with pytest.raises(ValueError, match="rebind: the new model has ngeom=4.*build a new AudioSimulator"):
         sim.rebind(other)
+
+
+def test_the_deprecated_stepping_calls_warn_and_sound_as_their_replacements():
+    """substeps, stepper and replay_step warn (DeprecationWarning naming the replacement) and
+    give the same audio as advance(n, render=False) + flush() and driver.replay."""
+    out = []
+    for old in (True, False):
+        model, data, sim = make()
+        blocks = []
+        for i in range(40):
+            if old and i % 2:
+                with pytest.warns(DeprecationWarning, match=r"advance\(n, render=False\)"):
+                    sim.substeps(5)
+            elif old:
+                with pytest.warns(DeprecationWarning, match=r"advance\(n, render=False\)"):
+                    step = sim.stepper()
+                step(5)
+            else:
+                sim.advance(5, render=False)
+            blocks.append(sim.flush())
+        t = float(data.time)
+        mujoco.mj_forward(model, data)
+        n = sim.clock.n
+        if old:
+            with pytest.warns(DeprecationWarning, match=r"sim\.driver\.replay"):
+                blocks.append(sim.replay_step(n, n + 32, t, t + 0.002))
+        else:
+            blocks.append(sim.driver.replay(n, n + 32, t, t + 0.002))
+        out.append(np.concatenate(blocks, axis=1))
+    assert out[0].shape == (1, 40 * 5 * 32 + 32) and np.abs(out[0]).max() > 0
+    np.testing.assert_array_equal(out[0], out[1])

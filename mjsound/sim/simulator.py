@@ -1,18 +1,24 @@
-"""`AudioSimulator`: the per-step driver, MuJoCo contacts -> synthesizer -> audio blocks.
+"""`AudioSimulator`: sound for a running MuJoCo simulation, MuJoCo contacts -> synthesizer ->
+audio blocks.
+
+The simulator sets up what sounds (the scene's objects in a synthesizer, how each geom drives
+them, clicks and contact microphones, image microphones) and offers the stepping API:
+:meth:`AudioSimulator.step` after each of the caller's ``mj_step``, :meth:`AudioSimulator.flush`
+for the samples of ``step(render=False)``, :meth:`AudioSimulator.advance` (mjsound steps the
+physics itself) and :meth:`AudioSimulator.run`. Each goes through its step driver
+(:class:`.driver.StepDriver`: the one way into the step kernel, the clock and the per-step
+state); ``docs/design.md`` draws the data flow and lists the state records.
 
 Time alignment (:mod:`.clock`): the step from ``t_k`` to ``t_{k+1}`` returns exactly the
 samples ``ceil(t_k fs) <= n < ceil(t_{k+1} fs)``; events found in it are timed at ``t_k``
 (:mod:`mjsound.sim.contacts`), never earlier than what was already rendered, so the block is
-rendered right after they are queued and nothing is delayed. If ``data.time`` jumps forward
-(or the timestep changes) the clock re-anchors at the new time; if it goes backwards, the
-simulation was reset behind the simulator's back and it resets itself.
-
-Every path (:meth:`AudioSimulator.step`, :meth:`AudioSimulator.substeps`, rollout replay)
-runs the same step kernel (:mod:`.step`); ``docs/design.md`` draws the data flow and lists
-the state records. Rendering can wait: ``step(render=False)`` queues a step's impacts and
-sustained-contact noise (generated at once) and :meth:`AudioSimulator.flush` renders every
-pending sample in one synthesizer call. Impacts sound exactly the same; a sliding contact's
-gains follow its point once per render instead of every ``sustained_block_s``.
+rendered right after they are queued and nothing is delayed. A step more than one timestep
+after the last one read, or none, raises; time going backwards is a reset behind the
+simulator's back, and it resets itself. Rendering can wait: ``step(render=False)`` queues a
+step's impacts and sustained-contact noise (generated at once) and
+:meth:`AudioSimulator.flush` renders every pending sample in one synthesizer call. Impacts
+sound exactly the same; a sliding contact's gains follow its point once per render instead
+of every ``sustained_block_s``.
 """
 
 from __future__ import annotations
@@ -84,12 +90,15 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         A room around the scene (:class:`.rooms.Room`): its walls reflect (images up to its
         ``order``) instead of the scene's planes.
     fused : bool
-        Let :meth:`substeps` call ``mj_step`` from numba (default; where this MuJoCo build's
+        Let :meth:`advance` call ``mj_step`` from numba (default; where this MuJoCo build's
         C functions and struct layout check out). False (or the environment variable
         ``MJSOUND_FUSED=0``): every ``mj_step`` and contact read goes through the bindings.
 
     Attributes
     ----------
+    driver : StepDriver
+        The step driver (:class:`.driver.StepDriver`): the step kernel of :attr:`data`, the
+        clock, the samples pending, the event log.
     reader : ContactReader
         The contact reader (its impact records: :meth:`ContactReader.newest_records`).
     pulses : ImpactPulses
