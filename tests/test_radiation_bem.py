@@ -125,3 +125,19 @@ def test_objects_match_the_converged_reference(name):
     est = np.array([np.nan if e is None else e for e in m.info["radiation"]["error_db"]], float)
     for g in np.flatnonzero(~converged):
         assert np.nanmax(est[groups == g]) > 1.0
+
+
+def test_a_surface_sealed_by_seams_counts_as_closed_an_open_one_does_not():
+    from mjsound.modal.radiation_mesh import sealed
+
+    s = trimesh.creation.icosphere(subdivisions=2)
+    assert sealed(s)
+    # the upper half's vertices duplicated: the equator becomes two coincident boundary loops
+    v = np.asarray(s.vertices)
+    f = np.asarray(s.faces).copy()
+    upper = v[f].mean(axis=1)[:, 2] > 0
+    f[upper] += len(v)
+    seamed = trimesh.Trimesh(np.vstack([v, v]), f, process=False)
+    assert not seamed.is_watertight and sealed(seamed)
+    cap = trimesh.Trimesh(v, np.asarray(s.faces)[~upper], process=False)
+    assert not sealed(cap)

@@ -354,7 +354,9 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     points, normals = surface_samples(tm, n_points)
     rplan = None
     # an open outer surface (a sheet given with thickness=) has no exterior problem here: compact estimate
-    if rad_quality is not False and outer.is_watertight and outer.is_winding_consistent:
+    from .radiation_mesh import sealed
+
+    if rad_quality is not False and sealed(outer):
         from .radiation import plan_radiation
 
         if rad_quality is None:
@@ -385,7 +387,7 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     shapes = (disc.interp @ sol.vectors).reshape(len(sampled), 3, -1)
     if rplan is None:
         radiation, radiation_sh, centre = _radiation(points, normals, shapes, omega, float(tm.area))
-        why = "radiation=False" if rad_quality is False else "the outer surface is not closed"
+        why = "radiation=False" if rad_quality is False else "the outer surface does not bound a volume"
         rad_info = dict(method=f"compact monopole + dipole ({why})")
     else:
         from .radiation import solve_radiation

@@ -128,3 +128,28 @@ def level_mesh(tm, h: float):
         if len(cf) >= 8 and abs(area / tm.area - 1) < 0.1:  # else the surface as given
             v, f = cv, cf
     return refine_to(v, f, h)
+
+
+def sealed(tm, tol: float = 1e-3) -> bool:
+    """Whether the surface bounds a volume for the exterior problem: closed, or open only
+    along seams (every boundary vertex within ``tol`` of the object's size of a boundary edge
+    it is not on, as where a lid's ring meets a body's with vertices that do not coincide),
+    with consistent winding and the normals outwards."""
+    if not tm.is_winding_consistent or not tm.volume > 0:
+        return False
+    if tm.is_watertight:
+        return True
+    e = np.asarray(tm.edges_sorted)
+    u, c = np.unique(e, axis=0, return_counts=True)
+    b = u[c == 1]
+    if len(b) == 0 or (c > 2).any():
+        return False
+    v = np.asarray(tm.vertices, float)
+    a, d = v[b[:, 0]], v[b[:, 1]] - v[b[:, 0]]
+    pts = np.unique(b.reshape(-1))
+    x = v[pts]
+    # distance of each boundary vertex to each boundary segment, excluding the segments it ends
+    s = np.clip(np.einsum("pec,ec->pe", x[:, None, :] - a[None], d) / np.einsum("ec,ec->e", d, d), 0.0, 1.0)
+    dist = np.linalg.norm(x[:, None, :] - (a[None] + s[..., None] * d[None]), axis=2)
+    dist[(b[None, :, 0] == pts[:, None]) | (b[None, :, 1] == pts[:, None])] = np.inf
+    return bool(dist.min(axis=1).max() <= tol * float(np.max(tm.extents)))
