@@ -241,11 +241,18 @@ def test_touching_geoms_of_a_body_analyse_as_one_solid():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # (MuJoCo counts the overlap twice in its mass)
         scene = SoundScene.from_model(model, materials={"*": "aluminium"}, sample_rate=16000, quality="draft",
-                                      progress=False, error_estimate=False)
+                                      progress=False, error_estimate=False, masses="material")
     (plate,) = scene.sounding
     assert len(plate.geom_ids) == 3 and plate.model.info["watertight"] and plate.model.n_modes > 3
     assert plate.model.mass_kg == pytest.approx(2700 * 0.4 * 0.2 * 0.01, rel=1e-3)
     assert not any("closed" in n for n in plate.notes)
+    # MuJoCo's masses (the default): density 1000 (scaled with the stiffness: the same modes)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        light = SoundScene.from_model(model, materials={"*": "aluminium"}, sample_rate=16000, quality="draft",
+                                      progress=False, error_estimate=False).sounding[0]
+    assert light.mass_rule == "scaled" and light.model.mass_kg == pytest.approx(1000 * 0.4 * 0.2 * 0.01, rel=1e-3)
+    np.testing.assert_allclose(light.model.frequencies_hz, plate.model.frequencies_hz, rtol=1e-6)
 
 
 def test_cli_materials_take_the_star_and_report_objects(tmp_path, capsys):
@@ -263,7 +270,8 @@ def test_cli_materials_take_the_star_and_report_objects(tmp_path, capsys):
                "--quality", "draft", "--materials", json.dumps({"*": "aluminium"})])
     out = capsys.readouterr().out
     assert rc == 0 and "sounding   1 object(s)" in out and "tray" in out and "aluminium" in out
-    assert "against MuJoCo's" in out  # density 1000 in the MJCF, aluminium in the sound
+    # density 1000 in the MJCF, aluminium in the sound: the sound takes MuJoCo's mass
+    assert "mass: density and stiffness x0.37" in out and "MuJoCo's 0.8 kg" in out
     rc = main(["sonify", str(xml), "-o", str(tmp_path / "out.wav"), "--duration", "0.1", "--materials",
                json.dumps({"tary": "aluminium"})])
     assert rc == 2 and "no geom or body named 'tary'; closest: 'tray'" in capsys.readouterr().err

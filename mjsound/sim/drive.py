@@ -15,12 +15,14 @@ reader's pair slot to that stream (-1: none yet, :data:`.step.STREAMS`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..jit import njit, njit_inner
 from ..synth.constants import MAX_AMPLITUDE
 from ..synth.kernels import commit_queued, impacts_to_queue
-from ..synth.pulse import contact_time, effective, hertz_coef
+from ..synth.pulse import contact_time, effective, hertz_coef, shell_contact_time
 from ..synth.streams import ring_need, stream_drive
 
 __all__ = ["sync_poses", "impact_sides", "queue_impacts", "missing_streams", "drive_sustained", "pose_rows",
@@ -116,10 +118,34 @@ def impact_sides(drive, impacts, k):
             for q in range(3):
                 P[n, q] = im.point[q]
                 J[n, q] = a * im.normal[q]
-            tau[n] = contact_time(c, im.speed)
+            tau[n] = _with_shells(contact_time(c, im.speed), s, o, im.speed)
             budget[n] = 0.5 * abs(im.impulse * im.speed) if im.speed > 0 else np.inf
             n += 1
     return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n
+
+
+@njit_inner(cache=True)
+def _with_shells(tau, s, o, speed):
+    """The contact time ``tau`` [s] (Hertz's) of the struck side ``s`` and the other ``o``
+    (``drive.sound`` rows), or, when either is a thin hollow shell (``s.shell``,
+    ``o.other_shell`` > 0: its wall's point-load compliance [m/N],
+    :func:`mjsound.sim.clicks.shell_compliances`; the struck side's only when its modes are a
+    hollow wall's) and that is
+    longer, the mass on the walls' springs, ``pi sqrt(m* (s1 + s2))``, at most ``pi R / v``
+    (``R`` the smaller shell's radius): the clicks' contact time
+    (:func:`.click_kernels.pair_contact_time`), so the modes and the click of one impact
+    share one pulse. Exactly ``tau`` when neither is a shell."""
+    if not (s.shell > 0 or o.other_shell > 0):
+        return tau
+    shell = shell_contact_time(effective(s.mass, o.other_mass), s.shell, o.other_shell)
+    r = math.inf
+    if s.shell > 0 and s.radius < r:
+        r = s.radius
+    if o.other_shell > 0 and o.other_radius < r:
+        r = o.other_radius
+    if speed > 0 and not math.isinf(r):
+        shell = min(shell, math.pi * r / speed)
+    return shell if shell > tau else tau
 
 
 @njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts every array of its records)

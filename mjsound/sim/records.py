@@ -120,9 +120,13 @@ MISSING = np.dtype([("a", i8), ("b", i8)])
 #: it when it is struck (a sounding geom: its object's mass [kg], its radius of curvature [m],
 #: its material's compliance ``(1 - nu^2) / E`` [1/Pa]) and when it strikes a sounding geom
 #: (its body's moving subtree mass, inf: welded to the world; its contact radius, inf: flat;
-#: its material's compliance, 0: rigid or none).
+#: its material's compliance, 0: rigid or none); and, where its body is a thin hollow shell
+#: (:func:`mjsound.sim.clicks.shell_compliances`), its wall's point-load compliance [m/N] when it
+#: is struck (only an object analysed hollow: its modes are the wall's) and when it strikes (0:
+#: solid).
 SOUND = np.dtype([("obj", i8), ("mass", f8), ("radius", f8), ("compliance", f8), ("other_mass", f8),
-                  ("other_radius", f8), ("other_compliance", f8)])
+                  ("other_radius", f8), ("other_compliance", f8), ("shell", f8),
+                  ("other_shell", f8)])
 
 #: The drive's constants (owner: AudioSimulator): slide / roll roughness [1/(m/s)] and
 #: low-pass length [m], samples between a stream's gain updates, whether sustained contacts

@@ -38,6 +38,7 @@ omega_i``). Every truncation is listed in :meth:`SoundScene.report`.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from dataclasses import dataclass, field
@@ -54,6 +55,7 @@ from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, AnalysisOptions, _a
                              object_model, warn_unheard)  # (re-exported)
 from .scene_budget import share_budget
 from .scene_materials import CANNOT_COLLIDE, NO_MATERIAL, assign_materials, warn_unknown_texts
+from .scene_masses import decide, decide_masses, masses_option
 from .scene_mics import place_microphones
 
 __all__ = ["SoundScene", "SoundingGeom", "SoundingObject", "geom_mesh_spec", "geom_contact_radius"]
@@ -97,6 +99,10 @@ class SoundingGeom:
         Every geom whose contacts excite this object (the anchor first).
     notes : list[str]
         What the scene noticed or decided (mode budget, open surface, mass against MuJoCo's).
+    mass_rule : str
+        How the object got MuJoCo's mass (:mod:`.scene_masses`): ``"solid"`` (its material's
+        already), ``"hollow"`` (a wall from the mass), ``"scaled"`` (density and stiffness
+        scaled together), ``"kept"`` (``masses="material"``), ``"none"`` (no MuJoCo mass to follow).
     """
 
     geom_id: int
@@ -111,6 +117,7 @@ class SoundingGeom:
     method: str = "hex"
     geom_ids: tuple = ()
     notes: list = field(default_factory=list)
+    mass_rule: str = "kept"
 
     def __post_init__(self):
         if not self.geom_ids:
@@ -182,6 +189,7 @@ class SoundScene:
         sound_meshes: dict | None = None,
         max_modes_per_object="auto",
         error_estimate: bool = True,
+        masses: str | None = None,
     ) -> "SoundScene":
         """Build the scene of a model.
 
@@ -234,6 +242,12 @@ class SoundScene:
         error_estimate : bool
             Let ``analyze`` estimate each model's frequency error (a second, coarser solve);
             the report shows it and flags objects above 50 cents.
+        masses : {"mujoco", "material"}, optional
+            ``"mujoco"`` (default): every object weighs what MuJoCo says, as a hollow wall
+            when it is lighter than a solid of its material and thin enough, else with its
+            density and stiffness scaled together (:mod:`.scene_masses`; the report says which
+            per object). ``"material"``: every material keeps its own density. Default: the
+            MJCF custom text ``<text name="mjsound-masses" data="..."/>``, else ``"mujoco"``.
 
         Returns
         -------
@@ -256,6 +270,7 @@ class SoundScene:
         assigned = assign_materials(model, materials, custom, star)
         scene.geom_material, scene.silent = assigned.materials, assigned.silent
         plans = _plan_objects(model, assigned, objects, sound_meshes, models)
+        decide_masses(model, plans, masses_option(model, masses))
         t0 = time.perf_counter()
         f_max = default_f_max(sample_rate)
         options = AnalysisOptions(method, quality, int(sample_rate), max_modes_per_object, bool(error_estimate),
@@ -430,6 +445,9 @@ def _analyse_objects(model, plans: list, models: dict, options: AnalysisOptions,
             if bar is not None:
                 bar.set_postfix_str(name, refresh=False)
             mm, notes = models.get(name), []
+            if mm is not None:  # (a model given: it weighs what it weighs)
+                plan["material"] = mat = plan.get("material_named", mat)
+                plan["mass_rule"], plan["mass_note"] = "kept", None
             inaudible = _sphere_inaudible(model, members[0], mat, options.sample_rate) if len(members) == 1 and \
                 plan["sound_mesh"] is None else None
             if mm is None and inaudible:
@@ -440,7 +458,8 @@ def _analyse_objects(model, plans: list, models: dict, options: AnalysisOptions,
                     if progress and bar is None:
                         bar = _progress_bar(len(plans), done, name)
 
-                mm, notes = object_model(plan, options, start_bar)
+                mm, notes = _object_model(model, plan, options, start_bar)
+                mat = plan["material"]
                 if mm is None:
                     silent[name] = "analysis failed (see warning)"
             if bar is not None:
@@ -452,19 +471,42 @@ def _analyse_objects(model, plans: list, models: dict, options: AnalysisOptions,
                 silent[name] = f"no audible modes (none between 20 Hz and f_max {top / 1000:.1f} kHz)"
                 continue
             notes.extend(_surface_notes(mm))
+            if plan.get("mass_note"):
+                notes.insert(0, plan["mass_note"])
             body = int(model.geom_bodyid[members[0]])
             analysed.append(
                 SoundingGeom(
                     geom_id=members[0], body_id=body, name=name, material=mat, model=mm,
                     n_modes_analysed=mm.n_modes, source=plan["source"], mesh=plan["label"],
                     dynamic=bool(model.body_weldid[body] != 0), method=str(mm.method),
-                    geom_ids=tuple(members), notes=notes,
+                    geom_ids=tuple(members), notes=notes, mass_rule=plan.get("mass_rule", "kept"),
                 )
             )
     finally:
         if bar is not None:
             bar.close()
     return analysed
+
+
+def _object_model(model, plan: dict, options: AnalysisOptions, on_analyse):
+    """:func:`.scene_analysis.object_model`; a hollow object the analysis cannot resolve (the
+    wall too thin for its size at this sample rate) is analysed again with its density and
+    stiffness scaled instead (:mod:`.scene_masses`), and its note says so."""
+    if plan.get("mass_rule") != "hollow":
+        return object_model(plan, options, on_analyse)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mm, notes = object_model(plan, options, on_analyse)
+    if mm is not None:
+        return mm, notes
+    wall = plan["material"].wall
+    solid = dataclasses.replace(plan["material"], wall=None)
+    material, rule, note = decide(model, plan["members"], solid, hollow=False)
+    plan["material"], plan["mass_rule"] = material, rule
+    plan["mass_note"] = f"{note}; as a hollow wall of {wall * 1e3:.3g} mm it could not be analysed"
+    return object_model(plan, options, on_analyse)
 
 
 def geom_contact_radius(model, g: int) -> float:

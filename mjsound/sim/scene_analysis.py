@@ -41,13 +41,19 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
     """Why a solid sphere is too small/stiff to ring below f_max, or None.
 
     The lowest mode of a free solid sphere (spheroidal n=0, l=2) is at
-    ``omega R / c_s ~ 2.6`` (nu 0..0.45), ``c_s = sqrt(G / rho)``; a margin of two keeps it safe.
+    ``omega R / c_s ~ 2.6`` (nu 0..0.45), ``c_s = sqrt(G / rho)``; of a thin hollow one (a
+    material with a ``wall``) about 0.6 of the ring frequency ``sqrt(E / (rho (1 - nu^2))) /
+    (2 pi R)``; a margin of two keeps it safe.
     """
     mujoco = _mujoco()
-    if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_SPHERE or getattr(mat, "wall", None) is not None:
-        return None  # (a hollow sphere rings lower)
+    if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_SPHERE:
+        return None
     R = float(model.geom_size[g][0])
-    f1 = 2.6 * np.sqrt(mat.shear_modulus / mat.rho) / (2 * np.pi * R)
+    if getattr(mat, "wall", None) is None:
+        f1 = 2.6 * np.sqrt(mat.shear_modulus / mat.rho) / (2 * np.pi * R)
+    else:  # a thin spherical shell: its lowest bending modes lie just under the membrane's
+        # ring frequency sqrt(E / (rho (1 - nu^2))) / (2 pi R), from about 0.6 of it
+        f1 = 0.6 * np.sqrt(mat.E / (mat.rho * (1 - mat.nu**2))) / (2 * np.pi * R)
     f_max = min(20000.0, 0.45 * float(sample_rate))
     if 0.5 * f1 > f_max:
         return f"no audible modes (lowest mode ~{f1 / 1000:.0f} kHz > f_max {f_max / 1000:.1f} kHz)"
@@ -299,11 +305,15 @@ def warn_unheard(scene, plans, f_max) -> None:
                       f"It still excites what it hits (and clicks when it moves); {fix}.", UserWarning, stacklevel=user_stacklevel())
 
 def check_masses(scene) -> None:
-    """Compare every body's sounding mass with MuJoCo's ``body_mass``; note and warn > 5 % off.
+    """Compare every body's sounding mass with MuJoCo's ``body_mass``; note > 5 % off, and warn
+    of the objects whose material the user named and whose mass the scene did not make
+    MuJoCo's (``masses="material"``, or no MuJoCo mass to follow: :mod:`.scene_masses`).
 
     Only bodies (not the world) whose colliding geoms all sound are compared: the modal
     models' masses (``rho V``, what the sound assumes) summed over the body's objects
-    against what the physics uses (MJCF density, ``mass`` or ``<inertial>``).
+    against what the physics uses (MJCF density, ``mass`` or ``<inertial>``). An object the
+    mass rule made hollow or scaled is not warned of (its note says what it became; a
+    voxelised volume may still differ from the geoms' by a few per cent).
     """
     m = scene.model
     by_body: dict = {}
@@ -323,14 +333,19 @@ def check_masses(scene) -> None:
             continue
         ref = float(m.body_mass[b])
         if abs(mass / ref - 1.0) > MASS_TOLERANCE:
+            followed = all(getattr(s, "mass_rule", "kept") in ("solid", "hollow", "scaled", "foil") for s in objs)
             note = (f"mass {mass:.3g} kg ({', '.join(sorted({s.material.name for s in objs}))}) against MuJoCo's "
-                    f"{ref:.3g} kg for its body ({100 * (mass / ref - 1):+.0f} %): set the body's density or mass in "
-                    "the MJCF, or choose the material it is made of")
+                    f"{ref:.3g} kg for its body ({100 * (mass / ref - 1):+.0f} %)")
+            if not followed:
+                note += (": set the body's density or mass in the MJCF, choose the material it is made of, or "
+                         "masses='mujoco'")
             for s in objs:
                 s.notes.append(note)
-            off.append(f"{objs[0].name} {mass:.3g} vs {ref:.3g} kg")
+            named = any(s.source in ("mapping", "custom", "mjcf-material") for s in objs)
+            if named and not followed:
+                off.append(f"{objs[0].name} {mass:.3g} vs {ref:.3g} kg")
     if off:
-        warnings.warn(f"mjsound: {len(off)} object(s) differ in mass from MuJoCo's by more than "
-                      f"{100 * MASS_TOLERANCE:.0f} % (the sound and the physics disagree; scene.report() says "
-                      f"more): {'; '.join(off[:6])}{' ...' if len(off) > 6 else ''}", UserWarning, stacklevel=user_stacklevel())
+        warnings.warn(f"mjsound: {len(off)} object(s) whose material you named differ in mass from MuJoCo's by "
+                      f"more than {100 * MASS_TOLERANCE:.0f} % (the sound and the physics disagree; scene.report() "
+                      f"says more): {'; '.join(off[:6])}{' ...' if len(off) > 6 else ''}", UserWarning, stacklevel=user_stacklevel())
 

@@ -60,8 +60,10 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         A prepared scene; built with :meth:`SoundScene.from_model` otherwise.
     sample_rate : int
         Audio sample rate [Hz].
-    materials, microphones, budget_modes, quality, progress
-        Passed to :meth:`SoundScene.from_model` when ``scene`` is None.
+    materials, microphones, budget_modes, quality, progress, masses
+        Passed to :meth:`SoundScene.from_model` when ``scene`` is None (``masses``: ``"mujoco"``,
+        the default, gives the sound's objects MuJoCo's masses; ``"material"`` keeps every
+        material's density; :mod:`.scene_masses`).
     synth_kwargs : dict, optional
         Extra keyword arguments for :class:`mjsound.synth.synthesizer.Synthesizer`.
     reader_kwargs : dict, optional
@@ -142,6 +144,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         fused: bool = True,
         reflections=True,
         room=None,
+        masses: str | None = None,
     ):
         import mujoco
 
@@ -157,7 +160,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         if scene is None:
             scene = SoundScene.from_model(model, materials=materials, microphones=microphones,
                                           budget_modes=budget_modes, sample_rate=sample_rate, quality=quality,
-                                          progress=progress)
+                                          progress=progress, masses=masses)
         self.scene = scene
         self.sample_rate = int(sample_rate)
         self.sustained = bool(sustained)
@@ -223,6 +226,13 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         prm[0]["sustained"] = int(self.sustained)
         self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air + n_img, self._contact_sites,
                                     self.sample_rate, clicks=clicks, active=makes_pulses)
+        # a thin hollow shell's wall bends under the contact: the modes get the clicks' pulse length
+        # (struck: an object analysed as a hollow wall only; a solid's modes keep Hertz's time)
+        shells = self.pulses.state.model.geoms["shell_compliance"]
+        self._sound["other_shell"] = shells
+        for g, s in self._sounding.items():
+            if getattr(s, "mass_rule", "") == "hollow":
+                self._sound["shell"][g] = shells[g]
         prm[0]["pulses"] = int(self.pulses.active)
         # (the kernel mixes the track into a float32 block; a float64 one is mixed after its conversion)
         prm[0]["mix_pulses"] = int(self.pulses.active and self.synth is not None and self.synth.dtype == np.float32)
