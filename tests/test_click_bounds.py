@@ -199,7 +199,7 @@ def test_settling_peg_clicks_as_its_shape_whatever_its_inertia():
     assert rec.speed == pytest.approx(0.9, rel=0.05)
     click, ref_click = np.abs(on - off).max(), np.abs(ref_on - off).max()
     assert 20 * math.log10(click / ref_click) == pytest.approx(0.0, abs=1.0)
-    assert np.abs(on).max() < 5.0  # (85 Pa before)
+    assert click < 5.0  # (85 Pa before, the click dominating)
 
 
 FINGER_XML = """<mujoco><worldbody>
