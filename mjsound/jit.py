@@ -55,7 +55,7 @@ _ROOT = os.path.dirname(os.path.abspath(__file__))
 #: each list holds its kernels' import closure: add a module here when a kernel module of the
 #: group starts importing it.
 KERNEL_GROUPS = {
-    "modal": ("io.py", "jit.py", "materials.py", "modal/banded.py", "modal/block_lanczos.py",
+    "modal": ("io.py", "jit.py", "materials.py", "modal/banded.py", "modal/bem.py", "modal/block_lanczos.py",
               "modal/discretization.py", "modal/facet_shell.py", "modal/hex.py", "modal/hex_cell.py",
               "modal/midsurface.py", "modal/node_mass.py", "modal/pencil.py", "modal/quadratic_forms.py",
               "modal/surface.py", "modal/voxelize.py"),
