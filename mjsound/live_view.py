@@ -24,7 +24,7 @@ import numpy as np
 
 from .live import LiveAudioError, LivePlayer, check_output_device, open_sounddevice, output_channels
 
-__all__ = ["view", "check_display", "launch_viewer", "close_viewer"]
+__all__ = ["view", "open_scene", "check_display", "launch_viewer", "close_viewer"]
 
 SYNC_S = 1.0 / 60.0
 """How often the viewer is synced with the simulation [s]."""
@@ -66,9 +66,43 @@ def close_viewer(handle) -> None:
             t.join(10.0)
 
 
+def open_scene(scene_xml, *, sample_rate: int = 48000, quality: str = "default", materials=None,
+               budget_modes: int | None = None, timestep: float | None = None, progress: bool = True):
+    """The simulator :func:`view` runs: the scene at its first keyframe (when it has one), and
+    the channels a listener hears (:func:`mjsound.live.output_channels`).
+
+    Parameters are :func:`view`'s. Returns ``(sim, heard)``: the
+    :class:`mjsound.sim.AudioSimulator` (``sim.model``, ``sim.data``) and the list of channels.
+
+    Example
+    -------
+    >>> sim, heard = open_scene("assets/demo_scene.xml")              # doctest: +SKIP
+    >>> frames = sim.advance(sim.steps_per_render)[heard] / 20.0      # doctest: +SKIP
+    """
+    import mujoco
+
+    from .limits import check_timestep
+    from .sim.rollout import load_materials
+    from .sim.scene import SoundScene
+    from .sim.simulator import AudioSimulator
+
+    model = mujoco.MjModel.from_xml_path(os.fspath(scene_xml))
+    if timestep is not None:
+        model.opt.timestep = timestep
+    check_timestep(model.opt.timestep, f"{os.fspath(scene_xml)}: <option timestep>")
+    data = mujoco.MjData(model)
+    if model.nkey > 0:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_forward(model, data)
+    scene = SoundScene.from_model(model, materials=load_materials(materials), sample_rate=sample_rate,
+                                  quality=quality, budget_modes=budget_modes, progress=progress)
+    sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate, keep_events=0)
+    return sim, output_channels(sim.n_channels, sim.contact_channels)
+
+
 def view(scene_xml, *, duration: float | None = None, device=None, viewer: bool = True, sample_rate: int = 48000,
-         full_scale_pa: float = 20.0, lead_s: float = 0.05, device_latency_s: float | None = None, quality: str = "default", materials=None,
-         budget_modes: int | None = None, timestep: float | None = None, progress: bool = True,
+         full_scale_pa: float = 20.0, lead_s: float = 0.05, device_latency_s: float | None = None,
+         quality: str = "default", materials=None, budget_modes: int | None = None, timestep: float | None = None, progress: bool = True,
          on_block=None, on_timing=None) -> dict:
     """Simulate ``scene_xml`` in real time, shown in MuJoCo's viewer and heard on ``device``.
 
@@ -102,16 +136,12 @@ def view(scene_xml, *, duration: float | None = None, device=None, viewer: bool 
     -------
     dict
         The player's :meth:`LivePlayer.stats` plus ``sim_seconds`` (simulated),
-        ``wall_seconds`` (from the first block pushed to the last), ``pace`` (simulated
-        seconds per wall second between them: 1 when paced to the wall clock),
+        ``wall_seconds`` (from the push of simulated time ``2 lead_s``, when the ring is full,
+        to the last), ``pace`` (simulated seconds per wall second between them: 1 when paced
+        to the wall clock),
         ``channels`` (the microphones heard).
     """
-    import mujoco
-
-    from .limits import check_duration, check_timestep
-    from .sim.rollout import load_materials
-    from .sim.scene import SoundScene
-    from .sim.simulator import AudioSimulator
+    from .limits import check_duration
     from .sim.warmup import warmup
 
     fsp = float(full_scale_pa)
@@ -125,18 +155,9 @@ def view(scene_xml, *, duration: float | None = None, device=None, viewer: bool 
     if viewer:
         check_display()
     check_output_device(device, sample_rate)
-    model = mujoco.MjModel.from_xml_path(os.fspath(scene_xml))
-    if timestep is not None:
-        model.opt.timestep = timestep
-    check_timestep(model.opt.timestep, f"{os.fspath(scene_xml)}: <option timestep>")
-    data = mujoco.MjData(model)
-    if model.nkey > 0:
-        mujoco.mj_resetDataKeyframe(model, data, 0)
-    mujoco.mj_forward(model, data)
-    scene = SoundScene.from_model(model, materials=load_materials(materials), sample_rate=sample_rate,
-                                  quality=quality, budget_modes=budget_modes, progress=progress)
-    sim = AudioSimulator(model, data, scene=scene, sample_rate=sample_rate, keep_events=0)
-    heard = output_channels(sim.n_channels, sim.contact_channels)
+    sim, heard = open_scene(scene_xml, sample_rate=sample_rate, quality=quality, materials=materials,
+                            budget_modes=budget_modes, timestep=timestep, progress=progress)
+    model, data = sim.model, sim.data
     warmup(verbose=False, once=True)  # (a cold numba cache compiles now, not while playing)
     every = sim.steps_per_render
     total = None if duration is None else int(round(duration / float(model.opt.timestep)))
@@ -174,7 +195,9 @@ def view(scene_xml, *, duration: float | None = None, device=None, viewer: bool 
             if handle is not None:
                 close_viewer(handle)
     dt = float(model.opt.timestep)
-    wall = paced[-1][0] - paced[0][0] if len(paced) > 1 else 0.0
-    sim_paced = (paced[-1][1] - paced[0][1]) * dt if len(paced) > 1 else 0.0
+    # pace: from the first push that had to wait for the device (the ring holds lead_s), to the last
+    steady = [p for p in paced if p[1] * dt >= 2 * lead_s] or paced
+    wall = steady[-1][0] - steady[0][0] if len(steady) > 1 else 0.0
+    sim_paced = (steady[-1][1] - steady[0][1]) * dt if len(steady) > 1 else 0.0
     return dict(stats, sim_seconds=steps * dt, channels=[sim.channel_names[c] for c in heard],
                 wall_seconds=wall, pace=sim_paced / wall if wall > 0 else float("nan"))
