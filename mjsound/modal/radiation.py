@@ -130,6 +130,11 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
         if h <= h_need and len(ff) >= settings["n_max"] / 2:
             break
         h /= np.sqrt(2.0)
+    if len(levels) == 1:  # a coarser level below, so that every mode gets an error estimate
+        vv, ff = level_mesh(outer, hs[0] * np.sqrt(2.0))
+        if len(ff) < len(levels[0]):
+            levels.insert(0, BemMesh(vv, ff))
+            hs.insert(0, hs[0] * np.sqrt(2.0))
     return RadiationPlan(levels=levels, h=hs, centre=centre, radius=radius, settings=settings)
 
 
