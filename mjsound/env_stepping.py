@@ -255,15 +255,16 @@ class _HeardMujoco:
 
 class ModuleStepping(Stepping):
     """An env that steps in its own loop with ``mujoco.mj_step(model, data)`` calls written in
-    its class's module (lerobot-env-so101's ``MujocoGymEnv.apply_action``): that module's
-    global ``mujoco`` becomes a stand-in whose ``mj_step`` on this env's ``data`` is followed by
-    ``sim.step(render=False)`` (the own-loop route; other data pass through untouched). The
-    env step's length comes from its own attributes (:func:`steps_of`)."""
+    the modules of its class and base classes (lerobot-env-so101's
+    ``MujocoGymEnv.apply_action``): each such module's global ``mujoco`` becomes a stand-in
+    whose ``mj_step`` on this env's ``data`` is followed by ``sim.step(render=False)`` (the
+    own-loop route; other data pass through untouched). The env step's length comes from its
+    own attributes (:func:`steps_of`)."""
 
-    def __init__(self, owner, module):
+    def __init__(self, owner, modules):
         super().__init__(owner)
-        self.module = module
-        self.route = f"mujoco.mj_step calls in {module.__name__}"
+        self.modules = list(modules)
+        self.route = f"mujoco.mj_step calls in {', '.join(m.__name__ for m in self.modules)}"
 
     def current(self):
         return self.owner.model, self.owner.data
@@ -272,42 +273,46 @@ class ModuleStepping(Stepping):
         return None
 
     def _install(self, sim):
-        view = vars(self.module)["mujoco"]
-        if not isinstance(view, _HeardMujoco):
-            view = _HeardMujoco(view)
-            self.module.mujoco = view
         data = self.owner.data
-        view._sims[id(data)] = (data, sim)
+        for module in self.modules:
+            view = vars(module)["mujoco"]
+            if not isinstance(view, _HeardMujoco):
+                view = _HeardMujoco(view)
+                module.mujoco = view
+            view._sims[id(data)] = (data, sim)
         self._view_key = id(data)
 
     def remove(self):
-        view = vars(self.module).get("mujoco")
-        if isinstance(view, _HeardMujoco):
-            view._sims.pop(getattr(self, "_view_key", None), None)
-            if not view._sims:
-                self.module.mujoco = view._mujoco
+        for module in self.modules:
+            view = vars(module).get("mujoco")
+            if isinstance(view, _HeardMujoco):
+                view._sims.pop(getattr(self, "_view_key", None), None)
+                if not view._sims:
+                    module.mujoco = view._mujoco
 
 
-def _stepping_module(env):
-    """The module of ``env``'s class (or a base class) whose global ``mujoco`` is MuJoCo's and
-    whose source calls ``mujoco.mj_step``, or None."""
+def _stepping_modules(env) -> list:
+    """The modules of ``env``'s class and its bases whose global ``mujoco`` is MuJoCo's and
+    whose source calls ``mujoco.mj_step`` (none of gymnasium's or mjsound's)."""
     import inspect
     import sys
 
     import mujoco
 
+    found = []
     for cls in type(env).__mro__:
         module = sys.modules.get(cls.__module__)
-        if module is None or module.__name__.split(".")[0] in ("gymnasium", "mjsound", "builtins", "typing"):
+        if module is None or module in found or module.__name__.split(".")[0] in ("gymnasium", "mjsound", "builtins",
+                                                                                   "typing"):
             continue
         glob = vars(module).get("mujoco")
         if glob is mujoco or isinstance(glob, _HeardMujoco):
             try:
                 if "mujoco.mj_step(" in inspect.getsource(module):
-                    return module
+                    found.append(module)
             except (OSError, TypeError):
                 continue
-    return None
+    return found
 
 
 def _is_mjsim(obj) -> bool:
@@ -367,9 +372,9 @@ def find_stepping(uw) -> Stepping | None:
     import mujoco
 
     if isinstance(getattr(uw, "model", None), mujoco.MjModel) and isinstance(getattr(uw, "data", None), mujoco.MjData):
-        module = _stepping_module(uw)
-        if module is not None:
-            return ModuleStepping(uw, module)
+        modules = _stepping_modules(uw)
+        if modules:
+            return ModuleStepping(uw, modules)
     return None
 
 
@@ -394,7 +399,10 @@ def _route_of_inner(uw) -> Stepping | None:
                 if route is not None:
                     return route
             continue
-        route = _route_of(value)
+        try:
+            route = _route_of(value)
+        except Exception:  # (an attribute that fails when looked at, e.g. a dead weak proxy: not a route)
+            continue
         if isinstance(route, (DmPhysicsStepping, MjSimStepping)):
             return route
     return None

@@ -123,6 +123,7 @@ def test_so101_own_mj_step_loop_is_heard():
     assert env.window == round(u.control_dt * 16000) == 1600  # (was 32: one physics step)
     samples, impacts, simulated, heard = own_loop_run(env, 5)
     assert samples == round(simulated * 16000) == 5 * 1600 and heard == 5 * 50
-    module = env._route.module
+    (module,) = env._route.modules
+    assert module.__name__ == "lerobot_env_so101.mujoco_env"  # (apply_action's substep loop)
     env.close()
     assert module.mujoco is sys.modules["mujoco"]

@@ -95,7 +95,7 @@ def test_an_own_loop_env_is_heard_through_its_modules_mj_step():
 
     here = sys.modules[OwnLoopEnv.__module__]
     env = AudioObservation(OwnLoopEnv(frame_skip=5), materials={"box": "steel"}, sample_rate=16000, progress=False)
-    assert isinstance(env._route, ModuleStepping) and env._route.module is here
+    assert isinstance(env._route, ModuleStepping) and env._route.modules == [here]
     bare = OwnLoopEnv()
     bare.reset()
     _, samples = run(env, 40)
