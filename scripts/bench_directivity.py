@@ -1,23 +1,24 @@
 #!/usr/bin/env python
-"""What hearing the direction costs per physics step: the demo scene (or any MJCF) with its
-models as they are, against the same scene with every model given a radiation pattern of
-spherical-harmonic order ``--order`` (benchmark, not a test).
+"""What hearing the direction costs per physics step (benchmark, not a test): the demo scene
+(or any MJCF) heard three ways in the same process, interleaved in rounds:
 
-The patterns are synthetic (each mode's D a seeded random combination of the real spherical
-harmonics up to the order, scaled to RMS 1, so every object is directional and the fit keeps
-that order): what is measured is the synthesis's work, the same for any pattern of that order.
-Three passes per round, interleaved (physics only, audio as is, audio with patterns), CPU time
-(``time.process_time``: the machine is shared); the medians over rounds of each round's
-``step_ratio`` (time per step with audio / physics only) and of the difference [us per step].
-Both audio runs render the same scene in the same process, so their difference is what the
-direction factors cost (evaluations, ramps, event and forcing scaling).
+* ``isotropic``: every model's pattern replaced by its RMS in every direction (the synthesis
+  before directions: none of :mod:`mjsound.synth.directivity` runs);
+* ``as_is``: the models' own ``radiation_pattern`` (what the analysis stores);
+* ``synthetic``: every model given a pattern of spherical-harmonic order ``--order`` (each
+  mode's factor a seeded random combination of the harmonics up to that order, RMS 1, so every
+  mode keeps that order: the synthesis's work for patterns that fine).
 
-``--env Ant-v5``: a gymnasium env instead, bare / wrapped as is / wrapped with patterns
-(``AudioObservation``, waveform mode), the same seeded random actions, interleaved in rounds
-of ``--steps`` env steps; ratios against the bare env.
+CPU time (``time.process_time``: the machine is shared), physics only in the same rounds; the
+medians over rounds of each round's ``step_ratio`` (time per step with audio / physics only) and
+of the differences to ``isotropic`` [us per step].
 
-Usage: python scripts/bench_directivity.py [SCENE.xml] [--duration 3] [--rounds 5] [--order 8]
-       python scripts/bench_directivity.py --env Ant-v5 [--steps 1000] [--rounds 7] [--order 8]
+``--env Ant-v5``: a gymnasium env instead (``AudioObservation``, waveform mode, 16 kHz), bare
+and the three wrapped, the same seeded random actions, ``--steps`` env steps per round; ratios
+against the bare env.
+
+Usage: python scripts/bench_directivity.py [SCENE.xml] [--duration 3] [--rounds 5] [--order 16]
+       python scripts/bench_directivity.py --env Ant-v5 [--steps 500] [--rounds 5] [--order 16]
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ import sys
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+VARIANTS = ("isotropic", "as_is", "synthetic")
 
 
 def synthetic_pattern(order: int, seed: int = 0):
@@ -47,20 +50,37 @@ def synthetic_pattern(order: int, seed: int = 0):
     return radiation_pattern
 
 
-def with_patterns(order, make):
-    """``make()`` with every ModalModel given :func:`synthetic_pattern` (the fit happens when
-    the synthesizer adds the objects, inside ``make``)."""
+def isotropic_pattern(self, directions):
+    """``radiation`` in every direction."""
+    import numpy as np
+
+    return np.broadcast_to(self.radiation.astype(np.complex128), (len(directions), len(self.radiation)))
+
+
+def made_as(variant: str, order: int, make):
+    """``make()`` with every ModalModel's pattern as ``variant`` says (the fit happens when the
+    synthesizer adds the objects, inside ``make``)."""
     from mjsound.modal.model import ModalModel
 
-    had = ModalModel.__dict__.get("radiation_pattern")
-    ModalModel.radiation_pattern = synthetic_pattern(order)
+    if variant == "as_is":
+        return make()
+    had = ModalModel.__dict__["radiation_pattern"]
+    ModalModel.radiation_pattern = isotropic_pattern if variant == "isotropic" else synthetic_pattern(order)
     try:
         return make()
     finally:
-        if had is None:
-            del ModalModel.radiation_pattern
-        else:
-            ModalModel.radiation_pattern = had
+        ModalModel.radiation_pattern = had
+
+
+def summary(t: dict, base: str, steps: int) -> dict:
+    """Median ratios to ``base`` and differences to ``isotropic`` [us per step] of the rounds' times."""
+    import numpy as np
+
+    t = {k: np.array(v) for k, v in t.items()}
+    out = {f"step_ratio_{k}": float(np.median(t[k] / t[base])) for k in VARIANTS}
+    out.update({f"{k}_us_per_step": 1e6 * float(np.median(t[k] - t["isotropic"])) / steps for k in VARIANTS[1:]})
+    out[f"us_per_step_{base}"] = 1e6 * float(np.median(t[base])) / steps
+    return out
 
 
 def bench_env(args) -> dict:
@@ -70,10 +90,10 @@ def bench_env(args) -> dict:
 
     from mjsound import AudioObservation
 
-    envs = {"bare": gym.make(args.env),
-            "as_is": AudioObservation(gym.make(args.env), sample_rate=16000, progress=False),
-            "directional": with_patterns(args.order, lambda: AudioObservation(gym.make(args.env), sample_rate=16000,
-                                                                              progress=False))}
+    envs = {"bare": gym.make(args.env)}
+    for k in VARIANTS:
+        envs[k] = made_as(k, args.order, lambda: AudioObservation(gym.make(args.env), sample_rate=16000,
+                                                                  progress=False))
     acts = np.random.default_rng(0).uniform(-1, 1, (args.steps,) + envs["bare"].action_space.shape)
     t = {k: [] for k in envs}
     for r in range(args.rounds + 1):
@@ -86,12 +106,8 @@ def bench_env(args) -> dict:
                     e.reset()
             if r:  # (round 0: warm-up)
                 t[k].append(time.process_time() - t0)
-    t = {k: np.array(v) for k, v in t.items()}
     return {"env": args.env, "steps": args.steps, "rounds": args.rounds, "order": args.order,
-            "step_ratio_as_is": float(np.median(t["as_is"] / t["bare"])),
-            "step_ratio_directional": float(np.median(t["directional"] / t["bare"])),
-            "directional_us_per_step": 1e6 * float(np.median(t["directional"] - t["as_is"])) / args.steps,
-            "us_per_step_bare": 1e6 * float(np.median(t["bare"])) / args.steps}
+            **summary(t, "bare", args.steps)}
 
 
 def main(argv=None) -> int:
@@ -105,10 +121,10 @@ def main(argv=None) -> int:
     p.add_argument("scene", nargs="?", default=None, help="MJCF (default: the demo scene)")
     p.add_argument("--duration", type=float, default=3.0, help="simulated seconds (default 3)")
     p.add_argument("--rounds", type=int, default=5)
-    p.add_argument("--order", type=int, default=8, help="spherical-harmonic order of the patterns (default 8)")
+    p.add_argument("--order", type=int, default=16, help="spherical-harmonic order of the synthetic patterns")
     p.add_argument("--sample-rate", type=int, default=48000)
     p.add_argument("--env", default=None, help="a gymnasium env id (e.g. Ant-v5) instead of a scene")
-    p.add_argument("--steps", type=int, default=1000, help="env steps per round (--env)")
+    p.add_argument("--steps", type=int, default=500, help="env steps per round (--env)")
     args = p.parse_args(argv)
     if args.env:
         print(json.dumps(bench_env(args), indent=1))
@@ -125,16 +141,17 @@ def main(argv=None) -> int:
 
     scene = SoundScene.from_model(model, sample_rate=args.sample_rate, progress=False)
     nsteps = int(round(args.duration / model.opt.timestep))
-    reset()
-    sim_as_is = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate)
-    reset()
-    sim_dir = with_patterns(args.order, lambda: AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate))
-    orders = sorted({sim_dir.synth.object_modes(n).directions.order for n in sim_dir.synth.objects})
-    for sim in (sim_as_is, sim_dir):  # warm-up (numba)
+    sims = {}
+    for k in VARIANTS:
+        reset()
+        sims[k] = made_as(k, args.order, lambda: AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate))
+    orders = {k: sorted({int(o) for n in s.synth.objects for o in s.synth.object_modes(n).directions.orders})
+              for k, s in sims.items()}
+    for sim in sims.values():  # warm-up (numba)
         reset()
         sim.reset()
         sim.run(0.05)
-    t = {"physics": [], "as_is": [], "directional": []}
+    t = {"physics": [], **{k: [] for k in VARIANTS}}
     peaks = {}
     for _ in range(args.rounds):
         reset()
@@ -142,26 +159,16 @@ def main(argv=None) -> int:
         for _ in range(nsteps):
             mujoco.mj_step(model, data)
         t["physics"].append(time.process_time() - t0)
-        for key, sim in (("as_is", sim_as_is), ("directional", sim_dir)):
+        for k, sim in sims.items():
             reset()
             sim.reset()
             t0 = time.process_time()
             audio = sim.run(args.duration)
-            t[key].append(time.process_time() - t0)
-            air = [i for i, n in enumerate(sim.channel_names) if i not in sim.synth._contacts]
-            peaks[key] = [float(np.abs(audio[i]).max()) for i in air]
-    t = {k: np.array(v) for k, v in t.items()}
-    out = {
-        "scene": os.path.basename(path),
-        "steps": nsteps,
-        "objects": len(sim_dir.synth.objects),
-        "fitted_orders": orders,
-        "step_ratio_as_is": float(np.median(t["as_is"] / t["physics"])),
-        "step_ratio_directional": float(np.median(t["directional"] / t["physics"])),
-        "directional_us_per_step": 1e6 * float(np.median(t["directional"] - t["as_is"])) / nsteps,
-        "us_per_step_physics": 1e6 * float(np.median(t["physics"])) / nsteps,
-        "air_peaks_pa": peaks,
-    }
+            t[k].append(time.process_time() - t0)
+            air = [i for i in range(audio.shape[0]) if i not in sim.synth._contacts]
+            peaks[k] = [round(float(np.abs(audio[i]).max()), 4) for i in air]
+    out = {"scene": os.path.basename(path), "steps": nsteps, "objects": len(sims["as_is"].synth.objects),
+           "mode_orders": orders, **summary(t, "physics", nsteps), "air_peaks_pa": peaks}
     print(json.dumps(out, indent=1))
     return 0
 

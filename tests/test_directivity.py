@@ -93,7 +93,7 @@ def test_fit_finds_the_order_and_reproduces_the_pattern():
     ref = np.conj(pattern(u)) / np.array([2.0, 0.5, 1.0])  # (e^{-j w t} pattern, e^{+j w t} oscillators)
     ref[:, 2] = 1.0  # a mode with no radiation at all is heard with D = 1 (it is silent anyway)
     np.testing.assert_allclose(D, ref, atol=1e-12)
-    # the same pattern broadcast everywhere is order -1; a model without one too
+    # the same pattern broadcast everywhere is order -1; a model without a stored one too
     iso = model(lambda u: np.broadcast_to(np.array([1.0]), (len(u), 1)))
     assert fit_directions(iso, np.arange(1), iso.radiation).order == -1
     assert fit_directions(model(), np.arange(1), np.ones(1)).order == -1
@@ -296,3 +296,20 @@ def test_contact_microphones_and_isotropic_patterns_sound_as_before():
     assert np.array_equal(iso, plain) and np.array_equal(off, plain)
     assert np.array_equal(on[2], plain[2])  # the contact channel
     assert not np.allclose(on[0], plain[0], atol=1e-3 * np.abs(plain[0]).max())
+
+
+def test_the_per_sample_root_of_a_gain_ratio():
+    """``_root(r, n)``: ``x = log(r) / n`` and ``rho = e^x`` (so ``rho^n = r``), by its series
+    near 1 and by log / exp elsewhere, the sign flip ``r = -1`` included."""
+    from mjsound.jit import call_inner
+    from mjsound.synth.directivity import _root
+
+    rng = np.random.default_rng(0)
+    rs = np.concatenate([1 + 0.17 * (rng.uniform(-1, 1, 300) + 1j * rng.uniform(-1, 1, 300)),
+                         rng.uniform(0.01, 5, 50) * np.exp(1j * rng.uniform(-3, 3, 50)), [-1.0 + 0j, 0.5 + 0j]])
+    for r in rs:
+        xr, xi, rr, ri = call_inner(_root, r.real, r.imag, 480)
+        x, rho = complex(xr, xi), complex(rr, ri)
+        ref = np.log(r) / 480
+        assert abs(x - ref) <= 1e-9 * abs(ref) + 1e-300
+        assert abs(rho - np.exp(x)) <= 1e-15 and abs(rho**480 / r - 1) < 1e-8

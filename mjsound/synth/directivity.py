@@ -175,13 +175,9 @@ class DirectionFit(NamedTuple):
         return cls(-1, np.full(n, -1, np.int64), np.zeros((n, 0), np.complex128), np.zeros(n))
 
 
-def _pattern(model, directions: np.ndarray, name: str) -> np.ndarray | None:
-    """The model's (n_dirs, n_modes) pattern at ``directions``; ``None`` for a model without
-    one (heard the same in every direction). Checks its shape and values."""
-    fn = getattr(model, "radiation_pattern", None)
-    if fn is None:
-        return None
-    P = np.asarray(fn(directions))
+def _pattern(model, directions: np.ndarray, name: str) -> np.ndarray:
+    """The model's (n_dirs, n_modes) pattern at ``directions``, its shape and values checked."""
+    P = np.asarray(model.radiation_pattern(directions))
     n = len(model.frequencies_hz)
     if P.shape != (len(directions), n):
         raise ValueError(f"model of {name!r}: radiation_pattern(directions) gave shape {P.shape}, expected "
@@ -200,8 +196,8 @@ def fit_directions(model, keep: np.ndarray, weights: np.ndarray, name: str = "ob
     Parameters
     ----------
     model : ModalModel
-        With ``radiation_pattern(directions)`` -> (n_dirs, n_modes) [Pa m] (real or complex,
-        in the ``e^{-j w t}`` convention); without one it is heard the same in every direction.
+        Its ``radiation_pattern(directions)`` -> (n_dirs, n_modes) [Pa m] (complex, in the
+        ``e^{-j w t}`` convention).
     keep : (n,) int
         The modes the synthesizer keeps.
     weights : (n,) float
@@ -232,7 +228,7 @@ def fit_directions(model, keep: np.ndarray, weights: np.ndarray, name: str = "ob
     q_order = max(order_max, int(round(np.sqrt(np.shape(sh)[1]))) - 1 if np.ndim(sh) == 2 else 0)
     dirs, wq = _quadrature(q_order)
     P = _pattern(model, dirs, name)
-    if P is None or n == 0:
+    if n == 0:
         return DirectionFit.none(n)
     P = P[:, keep]
     if np.array_equal(P, np.broadcast_to(w, P.shape)):
@@ -268,22 +264,18 @@ def evaluate_fit(fit: DirectionFit, directions) -> np.ndarray:
     return _basis(fit.order, d / np.linalg.norm(d, axis=1, keepdims=True)) @ fit.coef.T
 
 
-@njit_inner(cache=True)
-def _voice_rows(ev, src, m, c0, nm):
-    """Whether the voice at columns ``c0 .. c0 + nm`` of bank ``m`` has an event or a forcing
-    row in this block."""
-    for e in range(ev.ptr[m], ev.ptr[m + 1]):
+@njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts the records)
+def _voice_rows(ptr, re, im, m, c0, nm):
+    """Whether the voice at columns ``c0 .. c0 + nm`` of bank ``m`` has a non-zero row among
+    rows ``ptr[m] .. ptr[m + 1]`` of ``re + j im`` (events or forcing rows of the block)."""
+    for e in range(ptr[m], ptr[m + 1]):
         for j in range(c0, c0 + nm):
-            if ev.re[e, j] != 0.0 or ev.im[e, j] != 0.0:
-                return True
-    for q in range(src.ptr[m], src.ptr[m + 1]):
-        for j in range(c0, c0 + nm):
-            if src.gr[q, j] != 0.0 or src.gi[q, j] != 0.0:
+            if re[e, j] != 0.0 or im[e, j] != 0.0:
                 return True
     return False
 
 
-@njit_inner(cache=True, fastmath=FAST)
+@njit_inner(cache=True, fastmath=FAST, inline="always")
 def _factor(Y, cr, ci, base, nsh):
     """``sum_k Y[k] (cr + j ci)[base + k]`` for ``k < nsh`` (one mode's factor; vectorised)."""
     re = 0.0
@@ -294,16 +286,42 @@ def _factor(Y, cr, ci, base, nsh):
     return complex(re, im)
 
 
-@njit_inner(cache=True)
-def _target(dr, Y, g, floor):
-    """Mode ``g``'s factor at the harmonics ``Y``, floored at ``|D| = floor`` (a null, or a
-    NaN pattern: the floor, with the phase if any)."""
-    k0 = dr.msh_off[g]
-    t = _factor(Y, dr.coef_r, dr.coef_i, k0, dr.msh_off[g + 1] - k0)
-    a = abs(t)
-    if not a >= floor:
-        t = t / a * floor if a > 0.0 else complex(floor, 0.0)
-    return t
+@njit_inner(cache=True, inline="always")
+def _cmul(ar, ai, br, bi):
+    """``(ar + j ai)(br + j bi)`` as its real and imaginary parts."""
+    return ar * br - ai * bi, ar * bi + ai * br
+
+
+@njit_inner(cache=True, inline="always")
+def _root(qr, qi, n):
+    """``(xr, xi, rr, ri)``: ``x = log(q) / n`` (principal branch) and ``rho = e^x``, the
+    per-sample factor whose ``n``-th power is ``q = qr + j qi``. Near 1 (``|q - 1| < 1/4``: a
+    turn of a few degrees per block, the common case) from ``log q = 2 atanh w``,
+    ``w = (q - 1) / (q + 1)``, to the ninth power of ``w`` (``|w| < 0.15``: relative error
+    below 1e-9) and ``e^x`` to the fourth power of ``x`` (``|x| < 1e-3 / n``), in real
+    arithmetic; else from ``log`` and ``exp``."""
+    dr = qr - 1.0
+    inv_n = 1.0 / n
+    if dr * dr + qi * qi < 0.0625:
+        sr = qr + 1.0
+        den = sr * sr + qi * qi
+        wr, wi = _cmul(dr, qi, sr / den, -qi / den)
+        w2r, w2i = _cmul(wr, wi, wr, wi)
+        pr, pi = 1.0 / 7.0 + w2r / 9.0, w2i / 9.0  # Horner: 1 + w2 (1/3 + w2 (1/5 + w2 (1/7 + w2/9)))
+        pr, pi = _cmul(w2r, w2i, pr, pi)
+        pr, pi = _cmul(w2r, w2i, pr + 0.2, pi)
+        pr, pi = _cmul(w2r, w2i, pr + 1.0 / 3.0, pi)
+        zr, zi = _cmul(wr, wi, pr + 1.0, pi)
+        xr = 2.0 * zr * inv_n
+        xi = 2.0 * zi * inv_n
+        er, ei = xr * (1.0 / 24.0) + 1.0 / 6.0, xi * (1.0 / 24.0)  # e^x = 1 + x (1 + x (1/2 + x (1/6 + x/24)))
+        er, ei = _cmul(xr, xi, er, ei)
+        er, ei = _cmul(xr, xi, er + 0.5, ei)
+        er, ei = _cmul(xr, xi, er + 1.0, ei)
+        return xr, xi, er + 1.0, ei
+    x = np.log(complex(qr, qi)) * inv_n
+    rho = np.exp(x)
+    return x.real, x.imag, rho.real, rho.imag
 
 
 @njit(cache=True)
@@ -321,86 +339,92 @@ def hear_directions(synth, bank, layout, ev, src, n):
     dr = bank.direction
     if dr.n_objects[0] == 0 or n <= 0:
         return
+    # (the records' arrays as locals: a record passed on or read in a loop is reference-counted
+    # member by member on every use)
     prm = dr.params[0]
     cos_step, floor = prm.cos_step, prm.floor
-    chans = synth.channels
-    M = chans.shape[0]
-    Y = dr.sh
-    act = bank.active
-    for o in range(dr.order.shape[0]):
-        L = dr.order[o]
-        if L < 0 or o >= layout.vbase.shape[0] or layout.vbase[o] < 0:
+    floor2 = floor * floor
+    order, msh_off, cr, ci, U = dr.order, dr.msh_off, dr.coef_r, dr.coef_i, dr.u
+    ar, ai, tr, ti, lr, li, rr, ri, ramp = dr.ar, dr.ai, dr.tr, dr.ti, dr.lr, dr.li, dr.rho_r, dr.rho_i, dr.ramp
+    Y, tab = dr.sh, dr.sh_tab
+    act, peak2, bstart = bank.active, bank.peak2, bank.start
+    vbase, v_rel, v_len = layout.vbase, layout.v_rel, layout.v_len
+    ev_ptr, ev_re, ev_im = ev.ptr, ev.re, ev.im
+    src_ptr, src_gr, src_gi = src.ptr, src.gr, src.gi
+    owner = synth.channels["owner"]
+    mics, P, Rs, mode_off = synth.mics, synth.pos, synth.R, synth.objects.mode_off
+    M = owner.shape[0]
+    for o in range(order.shape[0]):
+        L = order[o]
+        if L < 0 or o >= vbase.shape[0] or vbase[o] < 0:
             continue
-        g0 = synth.objects.mode_off[o]
-        pos = synth.pos[o]
-        R = synth.R[o]
+        g0 = mode_off[o]
         for m in range(M):
-            if chans[m].owner != AIR:
+            if owner[m] != AIR:
                 continue
-            v = layout.vbase[o] + m
-            c0 = layout.v_rel[v]
-            nm = layout.v_len[v]
-            s0 = bank.start[m] + c0
+            v = vbase[o] + m
+            c0 = v_rel[v]
+            nm = v_len[v]
+            s0 = bstart[m] + c0
             ringing = False
             for i in range(s0, s0 + nm):
                 if act[i]:
                     ringing = True
                     break
-            rows = _voice_rows(ev, src, m, c0, nm)
+            rows = _voice_rows(ev_ptr, ev_re, ev_im, m, c0, nm) or _voice_rows(src_ptr, src_gr, src_gi, m, c0, nm)
             if not (ringing or rows):
                 continue
-            u = dr.u[v]
-            dx = synth.mics[m, 0] - pos[0]
-            dy = synth.mics[m, 1] - pos[1]
-            dz = synth.mics[m, 2] - pos[2]
+            dx = mics[m, 0] - P[o, 0]
+            dy = mics[m, 1] - P[o, 1]
+            dz = mics[m, 2] - P[o, 2]
             r = np.sqrt(dx * dx + dy * dy + dz * dz)
             turned = False
             if r > 0.0:  # (a microphone at the object's origin: no direction to follow)
-                ux = (R[0, 0] * dx + R[1, 0] * dy + R[2, 0] * dz) / r  # u = R^T (mic - pos) / r
-                uy = (R[0, 1] * dx + R[1, 1] * dy + R[2, 1] * dz) / r
-                uz = (R[0, 2] * dx + R[1, 2] * dy + R[2, 2] * dz) / r
-                if not ux * u[0] + uy * u[1] + uz * u[2] >= cos_step:  # (NaN: never made)
-                    u[0] = ux
-                    u[1] = uy
-                    u[2] = uz
+                ux = (Rs[o, 0, 0] * dx + Rs[o, 1, 0] * dy + Rs[o, 2, 0] * dz) / r  # u = R^T (mic - pos) / r
+                uy = (Rs[o, 0, 1] * dx + Rs[o, 1, 1] * dy + Rs[o, 2, 1] * dz) / r
+                uz = (Rs[o, 0, 2] * dx + Rs[o, 1, 2] * dy + Rs[o, 2, 2] * dz) / r
+                if not ux * U[v, 0] + uy * U[v, 1] + uz * U[v, 2] >= cos_step:  # (NaN: never made)
+                    U[v, 0] = ux
+                    U[v, 1] = uy
+                    U[v, 2] = uz
                     turned = True
-            if not np.isfinite(u[0]):
+            if not np.isfinite(U[v, 0]) or not (turned or rows):  # (nothing to make)
                 continue
-            made = False  # (Y at u)
+            made = False  # (Y at U[v])
             ramps = False
             for j in range(nm):
                 i = s0 + j
-                stale = not np.isfinite(dr.ar[i])
+                stale = not np.isfinite(ar[i])
                 ring = act[i] and not stale
                 if ring and not turned:
                     continue
                 if not ring and not rows:  # (silent, nothing for it in this block: made when it has)
                     if turned:
-                        dr.ar[i] = np.nan
+                        ar[i] = np.nan
                     continue
                 if not ring and not (turned or stale):
                     continue
                 if not made:
-                    real_sh(L, u[0], u[1], u[2], Y, dr.sh_tab)
+                    real_sh(L, U[v, 0], U[v, 1], U[v, 2], Y, tab)
                     made = True
-                t = _target(dr, Y, g0 + j, floor)
-                dr.tr[i] = t.real
-                dr.ti[i] = t.imag
+                k0 = msh_off[g0 + j]
+                t = _factor(Y, cr, ci, k0, msh_off[g0 + j + 1] - k0)
+                a2 = t.real * t.real + t.imag * t.imag
+                if not a2 >= floor2:  # (a null, or a NaN pattern: the floor, with the phase if any)
+                    t = t * (floor / np.sqrt(a2)) if a2 > 0.0 else complex(floor, 0.0)
+                tr[i] = t.real
+                ti[i] = t.imag
                 if ring:  # ramped across the block
-                    ratio = t / complex(dr.ar[i], dr.ai[i])
-                    lg = np.log(ratio) / n
-                    rho = np.exp(lg)
-                    dr.lr[i] = lg.real
-                    dr.li[i] = lg.imag
-                    dr.rho_r[i] = rho.real
-                    dr.rho_i[i] = rho.imag
-                    bank.peak2[i] *= ratio.real * ratio.real + ratio.imag * ratio.imag
+                    den = ar[i] * ar[i] + ai[i] * ai[i]  # (|A| >= floor > 0)
+                    qr, qi = _cmul(t.real, t.imag, ar[i] / den, -ai[i] / den)  # T / A
+                    lr[i], li[i], rr[i], ri[i] = _root(qr, qi, n)
+                    peak2[i] *= qr * qr + qi * qi
                     ramps = True
                 else:  # silent: at once
-                    dr.ar[i] = t.real
-                    dr.ai[i] = t.imag
+                    ar[i] = t.real
+                    ai[i] = t.imag
             if ramps:
-                dr.ramp[m] = True
+                ramp[m] = True
 
 
 # ---------------------------------------------------------------- applied by the render (.kernels)
@@ -421,7 +445,7 @@ class ModeGains(NamedTuple):
     rho_i: np.ndarray
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, inline="always")
 def gain_at(gains, i, s):
     """``D_i(s)`` of :class:`ModeGains` (complex)."""
     d = complex(gains.ar[i], gains.ai[i])
