@@ -162,6 +162,9 @@ class StepDriver:
         self._silent_synth = None if synth is not None else silent_synth_state()
         self._silent_target = None if synth is not None else silent_render_target()
         self.on_block = None
+        #: optional ``before_steps(n0, n1)`` called with the samples of the steps about to be
+        #: read (not on a replay): actuator noise drives its streams there (:mod:`.actuators`)
+        self.before_steps = None
         self._held = []  # blocks rendered before an automatic reset, returned by the next render
         self.bind(model, data)
         self.clock.rec[0]["origin"] = self.clock.n
@@ -243,6 +246,8 @@ class StepDriver:
             k0, n0, n1 = clock.span(nstep)
             if k0 + nstep > clock.k_max_int64:
                 return self._python_steps(nstep, render, keep, stepped)
+            if self.before_steps is not None:
+                self.before_steps(n0, n1)
         else:
             k0, n0, n1 = clock.k, times[2], times[3]
         pending = self._pending

@@ -91,6 +91,11 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
     room : Room, optional
         A room around the scene (:class:`.rooms.Room`): its walls reflect (images up to its
         ``order``) instead of the scene's planes.
+    actuators : str | dict, optional
+        Actuator noise (:mod:`.actuators`, ``docs/actuators.md``): a preset for every
+        actuator (``"servo"``, ``"harmonic"``, ``"qdd"``, ``"none"``) or ``{actuator name:
+        preset}``, over the MJCF custom texts ``mjsound-actuator:NAME``. Default: off unless a
+        preset is named.
     fused : bool
         Let :meth:`advance` call ``mj_step`` from numba (default; where this MuJoCo build's
         C functions and struct layout check out). False (or the environment variable
@@ -145,6 +150,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         reflections=True,
         room=None,
         masses: str | None = None,
+        actuators=None,
     ):
         import mujoco
 
@@ -253,6 +259,14 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                                  make_streams=self._make_streams, amplitude_error=self._amplitude_error,
                                  reset_sound=self._reset_sound, n_channels=self.n_channels, images=self.images,
                                  n_air=self.n_air, keep_events=self.keep_events, use_c=use_c, owner=self)
+        self.actuators = None
+        if self.synth is not None:
+            from .actuators import ActuatorSound, actuator_config
+
+            config = actuator_config(model, actuators)
+            if config:
+                self.actuators = ActuatorSound(self, config)
+                self.driver.before_steps = self.actuators.drive
         if use_c and not self.driver.fused:
             warnings.warn("mjsound: substeps run through Python (MuJoCo's C functions or struct layout could not be "
                           "checked)", RuntimeWarning, stacklevel=user_stacklevel())

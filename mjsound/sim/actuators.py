@@ -1,0 +1,253 @@
+"""Actuator noise: motors and gears of the joints' drives shake the links they connect.
+
+For each MuJoCo actuator on a hinge or slide joint that names a preset (:data:`PRESETS`;
+off unless one is named, in MJCF custom text ``<text name="mjsound-actuator:NAME"
+data="servo"/>`` (``NAME`` an actuator's name or ``*`` for all) or in Python,
+``AudioSimulator(..., actuators={"NAME": "servo"})`` or ``actuators="servo"`` for all):
+
+- rotor speed ``w_m = N qdot`` [rad/s] (hinge; ``N`` the preset's reduction, not MJCF's
+  ``gear``, which scales the force), ``w_m = N 2 pi qdot / lead`` for a slide (``lead``
+  [m] per rotor turn);
+- transmitted torque ``tau = gear * actuator_force`` [N m] (a slide: force [N]);
+- force scale ``a = |tau| / radius * gate`` [N], ``gate = min(1, |qdot| / GATE_RAD_S)``:
+  **a joint holding still is silent** (a servo holding a load against gravity hums from
+  its PWM in reality; that electrical noise is not modelled);
+- the force signal (:func:`mjsound.synth.drive_tones.drive_tones`): tonal components at
+  ``order`` times the rotor's rate with amplitude ``A`` relative to ``a``: gear mesh
+  (teeth times each stage's shaft rate, harmonics ``1/h``), motor ripple (slots / poles
+  multiples of the rotor rate), plus broadband noise. Every amplitude is linear in the
+  torque: the level rises 6 dB per doubling of torque at a given speed.
+
+The force acts at the joint's anchor (``data.xanchor``) on the joint's body and, equal and
+opposite, on its parent, across the axis (a hinge: along ``axis x e``, ``e`` the world
+axis least aligned with the joint's; a slide: along the axis), each side through a
+persistent stream of the synthesizer (the sliding contacts' machinery): air microphones
+hear the links ring, a contact microphone on a driven link hears it directly.
+See ``docs/actuators.md`` for the presets' numbers and where they come from.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..jit import njit  # noqa: F401  (kernels live in synth.drive_tones)
+from ..synth.drive_tones import drive_tones, streams_write
+
+__all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "ActuatorSound", "actuator_config"]
+
+#: MJCF custom text prefix naming an actuator's preset.
+ACTUATOR_TEXT_PREFIX = "mjsound-actuator:"
+#: Joint speed [rad/s or m/s] at and above which the drive sounds at full level (below: in
+#: proportion; 0: silent).
+GATE_RAD_S = 0.05
+
+
+@dataclass(frozen=True)
+class ActuatorPreset:
+    """A drive train's sound parameters.
+
+    Parameters
+    ----------
+    reduction : float
+        Rotor turns per joint turn ``N`` (hinge), or per lead (slide).
+    radius : float
+        Radius [m] at which the torque's fluctuation acts on the housing (the force is
+        ``|tau| / radius``); a slide's force is used as is.
+    tones : tuple of (order, amplitude)
+        Multiples of the rotor's rate and their amplitudes relative to the force scale.
+    broadband : float
+        Broadband noise level relative to the force scale.
+    lead : float
+        A slide's travel per rotor turn before the reduction [m].
+    """
+
+    reduction: float
+    radius: float
+    tones: tuple = field(default_factory=tuple)
+    broadband: float = 0.0
+    lead: float = 0.01
+
+
+def _mesh(teeth_and_ratios, frac, harmonics=3):
+    """Gear mesh tones: stage ``s`` (pinion ``teeth``, stage ratio ``ratio``) meshes at ``teeth``
+    times its shaft's rate, the rotor's rate over the product of the earlier stages' ratios;
+    harmonics ``h`` at ``frac / h``."""
+    out = []
+    div = 1.0
+    for teeth, ratio in teeth_and_ratios:
+        for h in range(1, harmonics + 1):
+            out.append((h * teeth / div, frac / h))
+        div *= ratio
+    return tuple(out)
+
+
+#: Named presets (``none``: silent). The numbers are assumptions of typical designs (see
+#: ``docs/actuators.md``): ``servo`` a small brushed DC servo (3-slot motor: commutation
+#: ripple at 6x the rotor rate; 10-tooth pinions, stages 5 x 6 x 10 = 300:1);
+#: ``harmonic`` a BLDC motor (12 slots, 8 poles: ripple / cogging at lcm = 24x) into a
+#: 100:1 harmonic drive (two-lobe wave generator at 2x, flexspline 200 teeth);
+#: ``qdd`` a quasi-direct-drive leg motor (36 slots, 42 poles: 126x ripple, cogging 252x)
+#: with one 6:1 planetary stage (12-tooth sun: mesh at 12 (1 - 1/6) = 10x).
+PRESETS = {
+    "none": None,
+    "servo": ActuatorPreset(300.0, 0.01, _mesh(((10, 5.0), (10, 6.0), (10, 10.0)), 0.05) + ((6.0, 0.05),), 0.02),
+    "harmonic": ActuatorPreset(100.0, 0.04, ((2.0, 0.03), (4.0, 0.015), (200.0, 0.02), (400.0, 0.01), (24.0, 0.02)),
+                               0.01),
+    "qdd": ActuatorPreset(6.0, 0.05, _mesh(((10, 6.0),), 0.03) + ((126.0, 0.02), (252.0, 0.01)), 0.01),
+}
+
+
+def _preset(value, where):
+    if isinstance(value, ActuatorPreset) or value is None:
+        return value
+    if isinstance(value, str) and value.strip().lower() in PRESETS:
+        return PRESETS[value.strip().lower()]
+    raise ValueError(f"{where}: unknown actuator preset {value!r}; give one of {sorted(PRESETS)} or an "
+                     "ActuatorPreset")
+
+
+def actuator_config(model, actuators=None) -> dict:
+    """``{actuator id: ActuatorPreset}`` of the actuators that sound: MJCF custom texts
+    ``mjsound-actuator:NAME`` (``*``: every actuator) first, then ``actuators`` (a preset for
+    all, or ``{name: preset}``, ``"*"`` for all) over them. Unknown names and presets raise
+    ``ValueError``; an actuator on a tendon, site or body, or on a ball / free joint, that
+    names a preset raises too (only hinge and slide joints are driven)."""
+    import mujoco
+
+    from .objects import custom_texts
+
+    names = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}": i for i in range(model.nu)}
+    chosen: dict[int, ActuatorPreset | None] = {}
+
+    def apply(mapping, where):
+        if "*" in mapping:
+            p = _preset(mapping["*"], f"{where} '*'")
+            for i in range(model.nu):
+                chosen[i] = p
+        for key, value in mapping.items():
+            if key == "*":
+                continue
+            if key not in names:
+                raise ValueError(f"{where}: no actuator named {key!r} in this model; actuators: {sorted(names)}")
+            chosen[names[key]] = _preset(value, f"{where} {key!r}")
+
+    apply(custom_texts(model, ACTUATOR_TEXT_PREFIX), "MJCF custom text 'mjsound-actuator:'")
+    if actuators is not None:
+        apply(actuators if isinstance(actuators, dict) else {"*": actuators}, "actuators")
+    out = {}
+    for i, p in chosen.items():
+        if p is None:
+            continue
+        if int(model.actuator_trntype[i]) != int(mujoco.mjtTrn.mjTRN_JOINT) or int(
+                model.jnt_type[model.actuator_trnid[i, 0]]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            raise ValueError(f"actuator {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i)!r} does not drive a "
+                             "hinge or slide joint: only those have a drive-train sound; set it to 'none'")
+        out[i] = p
+    return out
+
+
+class ActuatorSound:
+    """The sounding actuators of a simulator and their state (phases, noise, last speeds).
+
+    Parameters
+    ----------
+    sim : AudioSimulator
+        The simulator (its model, data, synthesizer, geoms' objects).
+    config : dict
+        ``{actuator id: ActuatorPreset}`` (:func:`actuator_config`).
+    """
+
+    def __init__(self, sim, config: dict):
+        import mujoco
+
+        m = sim.model
+        self._sim = sim
+        self.ids = np.array(sorted(config), np.int64)
+        J = len(self.ids)
+        self.joint = m.actuator_trnid[self.ids, 0].astype(np.int64)
+        self.dof = m.jnt_dofadr[self.joint].astype(np.int64)
+        self.gear = m.actuator_gear[self.ids, 0].astype(float)
+        slide = m.jnt_type[self.joint] == int(mujoco.mjtJoint.mjJNT_SLIDE)
+        presets = [config[i] for i in self.ids.tolist()]
+        self.ratio = np.array([p.reduction * (2 * math.pi / p.lead if s else 1.0) for p, s in zip(presets, slide)])
+        self.inv_radius = np.array([1.0 if s else 1.0 / p.radius for p, s in zip(presets, slide)])
+        self.slide = slide
+        self.comp_off = np.zeros(J + 1, np.int64)
+        self.comp_off[1:] = np.cumsum([len(p.tones) for p in presets])
+        self.order = np.array([o for p in presets for o, _ in p.tones], float)
+        self.amp = np.array([a for p in presets for _, a in p.tones], float)
+        self.phase = np.zeros(len(self.order))
+        self.broadband = np.array([p.broadband for p in presets])
+        self.rng = np.array([0x5EED0000 + int(i) for i in self.ids], np.int64)
+        self.lp = np.zeros(J)
+        # the two bodies' sounding geoms (the joint's body, its parent): the object each excites
+        body = m.jnt_bodyid[self.joint]
+        obj = sim._sound["obj"]
+        self.geoms = np.full((J, 2), -1, np.int64)
+        for j in range(J):
+            for side, b in enumerate((body[j], m.body_parentid[body[j]])):
+                g = np.flatnonzero((m.geom_bodyid == b) & (obj >= 0))
+                if len(g):
+                    self.geoms[j, side] = g[0]
+        self.sign = np.tile([1.0, -1.0], J)
+        self._sidx = np.full(2 * J, -1, np.int64)
+        self._epoch = None
+        self._last = None  # (rotor speed, force scale) at the end of the last block
+
+    def reset(self) -> None:
+        """Forget the last block's speeds (the next block starts from its own)."""
+        self._last = None
+
+    def _streams(self, synth):
+        if self._epoch != synth.streams_epoch:
+            names = self._sim._names
+            for r in range(len(self._sidx)):
+                g = self.geoms[r // 2, r % 2]
+                self._sidx[r] = -1 if g < 0 else synth.stream(("actuator", int(self.ids[r // 2]), r % 2), names[g])
+            self._epoch = synth.streams_epoch
+        return self._sidx
+
+    def drive(self, n0: int, n1: int) -> None:
+        """Drive the streams on the clock's samples ``[n0, n1)`` from the actuators' state now."""
+        L = n1 - n0
+        if L <= 0:
+            return
+        sim = self._sim
+        d = sim.data
+        qd = d.qvel[self.dof]
+        w = qd * self.ratio
+        a = np.abs(d.actuator_force[self.ids] * self.gear) * self.inv_radius * np.minimum(1.0, np.abs(qd) / GATE_RAD_S)
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(a))):
+            w = np.where(np.isfinite(w), w, 0.0)
+            a = np.where(np.isfinite(a) & np.isfinite(w), a, 0.0)
+        w0, a0 = (w, a) if self._last is None else self._last
+        self._last = (w, a)
+        if not (a.any() or a0.any()):
+            return
+        synth = sim.synth
+        F = np.empty((len(self.ids), L))
+        drive_tones(w0, w, a0, a, self.comp_off, self.order, self.amp, self.phase, self.broadband, self.rng,
+                    self.lp, float(synth.sample_rate), F)
+        P = d.xanchor[self.joint]
+        ax = d.xaxis[self.joint]
+        D = np.where(self.slide[:, None], ax, _across(ax))
+        sidx = self._streams(synth)
+        k0 = n0 - int(sim.driver.clock.rec[0]["origin"])
+        regain = int(sim._drive_prm[0]["regain"])
+        while True:
+            need = streams_write(synth._streams.state, synth._consts, sidx, self.sign, k0, F, P, D, regain)
+            if need == 0:
+                break
+            synth.grow_stream_ring(need)
+
+
+def _across(axis):
+    """Unit vectors across each row of ``axis`` (J, 3): ``axis x e``, ``e`` the world axis least
+    aligned with it."""
+    e = np.zeros_like(axis)
+    e[np.arange(len(axis)), np.argmin(np.abs(axis), axis=1)] = 1.0
+    c = np.cross(axis, e)
+    return c / np.maximum(np.linalg.norm(c, axis=1, keepdims=True), 1e-12)

@@ -1,0 +1,135 @@
+"""Actuator noise (mjsound.sim.actuators): lines at the drive's kinematic frequencies, level
+linear in torque, heard through the driven links only, off by default and bit for bit."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjsound.sim.actuators import PRESETS, ActuatorPreset, actuator_config
+from mjsound.sim.simulator import AudioSimulator
+
+FS = 48000
+#: one clean tone: 10x the rotor rate, 100:1 reduction (the test reads the lines it makes)
+ONE_TONE = ActuatorPreset(reduction=100.0, radius=0.01, tones=((10.0, 0.05),), broadband=0.0)
+
+
+def arm_xml(damping=0.05, texts="", ball=False):
+    """A box base fixed in space, an arm on a vertical hinge (velocity-servoed), a far box."""
+    ball_xml = ('<body name="ball" pos="2 0 0.8"><freejoint/><geom name="ball" type="sphere" size=".03"/></body>'
+                if ball else "")
+    ball_text = '<text name="mjsound:ball" data="steel"/>' if ball else ""
+    return f"""<mujoco><option timestep="0.001"/>
+<custom><text name="mjsound:base" data="steel"/><text name="mjsound:link" data="aluminium"/>
+ <text name="mjsound:other" data="steel"/>{ball_text}{texts}</custom>
+<worldbody>
+ <body name="base" pos="0 0 0.5"><geom name="base" type="box" size=".1 .1 .05"/><site name="s_base" pos="0 0 .05"/>
+  <body name="arm" pos="0 0 0.1"><joint name="j" type="hinge" axis="0 0 1" damping="{damping}"/>
+   <geom name="link" type="box" size=".2 .02 .02" pos=".2 0 0"/><site name="s_link" pos=".3 0 .02"/></body></body>
+ <body name="far" pos="2 0 0.5"><geom name="other" type="box" size=".1 .1 .05"/><site name="s_far" pos="0 0 .05"/></body>
+ {ball_xml}
+</worldbody>
+<actuator><velocity name="m" joint="j" kv="5"/></actuator></mujoco>"""
+
+
+def run(xml, ctrl, actuators=None, steps=1000):
+    """Step the scene with ``ctrl(i)``; returns (audio (3, n): air, link contact, far contact;
+    qvel per step; actuator force per step)."""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    sim = AudioSimulator(m, d, microphones=[[0.5, 0.5, 0.8]], contact_mics=["s_link", "s_far"], progress=False,
+                         actuators=actuators)
+    out, qv, fa = [], [], []
+    for i in range(steps):
+        d.ctrl[0] = ctrl(i)
+        mujoco.mj_step(m, d)
+        out.append(sim.step())
+        qv.append(d.qvel[0])
+        fa.append(d.actuator_force[0])
+    return np.concatenate(out, axis=1), np.array(qv), np.array(fa)
+
+
+def test_lines_follow_the_joint_speed_within_one_bin():
+    """A speed ramp (chirp): per 50 ms segment the contact microphone's strongest line near the
+    expected one is at 10 x N x qdot / (2 pi) within one FFT bin, and it stands out."""
+    audio, qv, _ = run(arm_xml(), lambda i: 1.0 + 1.0 * i / 1000, {"m": ONE_TONE})
+    x = audio[1]
+    L = 2400  # 50 ms: 20 Hz bins
+    checked = 0
+    for s in range(4, len(x) // L):  # (after the servo has caught up)
+        seg = x[s * L:(s + 1) * L].astype(float)
+        S = np.abs(np.fft.rfft(seg * np.hanning(L)))
+        f = np.fft.rfftfreq(L, 1 / FS)
+        speed = qv[s * 50:(s + 1) * 50].mean()  # (1 ms steps: 50 per segment)
+        expect = 10.0 * 100.0 * speed / (2 * math.pi)
+        band = np.abs(f - expect) < 200.0
+        peak = f[band][np.argmax(S[band])]
+        assert abs(peak - expect) <= FS / L, (s, peak, expect)
+        assert S[band].max() > 10 * np.median(S[band]), s  # a line, not noise
+        checked += 1
+    assert checked >= 15
+
+
+def test_level_follows_torque_6_db_per_doubling():
+    """The same speed held against twice the damping: twice the torque, +6.02 dB."""
+    rms, torque, speed = [], [], []
+    for damping in (0.05, 0.1):
+        audio, qv, fa = run(arm_xml(damping), lambda i: 2.0, {"m": ONE_TONE}, steps=600)
+        rms.append(np.sqrt(np.mean(audio[1, -14400:].astype(float) ** 2)))
+        torque.append(abs(fa[-300:].mean()))
+        speed.append(qv[-300:].mean())
+    assert abs(speed[1] / speed[0] - 1) < 0.02  # (the same lines)
+    expect = 20 * math.log10(torque[1] / torque[0])
+    assert abs(expect - 6.02) < 0.3  # (the scene does double the torque)
+    assert abs(20 * math.log10(rms[1] / rms[0]) - expect) < 0.3
+
+
+def test_a_contact_mic_on_the_driven_link_hears_it_one_on_an_untouched_body_not():
+    audio, _, _ = run(arm_xml(), lambda i: 2.0, "servo", steps=400)
+    assert np.abs(audio[1]).max() > 1e-3  # the link's contact microphone
+    assert np.abs(audio[0]).max() > 0  # the air microphone hears the links ring
+    assert np.abs(audio[2]).max() == 0.0  # the far body: undriven, untouched
+
+
+def test_a_joint_holding_still_is_silent():
+    audio, _, _ = run(arm_xml(), lambda i: 0.0, "qdd", steps=300)
+    assert np.abs(audio).max() == 0.0
+
+
+@pytest.mark.parametrize("how", ["python-none", "python-dict-none", "mjcf-none"])
+def test_none_changes_nothing_bit_for_bit(how):
+    """With a ball striking the far box (so the scene sounds), ``none`` is the default's audio."""
+    ref, _, _ = run(arm_xml(ball=True), lambda i: 2.0, None, steps=500)
+    assert np.abs(ref).max() > 0
+    if how == "python-none":
+        got, _, _ = run(arm_xml(ball=True), lambda i: 2.0, "none", steps=500)
+    elif how == "python-dict-none":
+        got, _, _ = run(arm_xml(ball=True), lambda i: 2.0, {"m": "none"}, steps=500)
+    else:
+        got, _, _ = run(arm_xml(ball=True, texts='<text name="mjsound-actuator:m" data="none"/>'), lambda i: 2.0,
+                        None, steps=500)
+    assert np.array_equal(ref, got)
+
+
+def test_mjcf_text_and_python_give_the_same_sound():
+    a, _, _ = run(arm_xml(texts='<text name="mjsound-actuator:m" data="harmonic"/>'), lambda i: 2.0, None, steps=300)
+    b, _, _ = run(arm_xml(), lambda i: 2.0, {"m": "harmonic"}, steps=300)
+    assert np.abs(a[1]).max() > 0
+    assert np.array_equal(a, b)
+
+
+def test_configuration_errors_name_the_input():
+    m = mujoco.MjModel.from_xml_string(arm_xml())
+    with pytest.raises(ValueError, match="unknown actuator preset 'whine'"):
+        actuator_config(m, "whine")
+    with pytest.raises(ValueError, match="no actuator named 'hip'"):
+        actuator_config(m, {"hip": "servo"})
+    tendon = """<mujoco><worldbody><body><joint name="a" axis="0 0 1"/><geom size=".1"/></body></worldbody>
+    <tendon><fixed name="t"><joint joint="a" coef="1"/></fixed></tendon>
+    <actuator><motor name="tm" tendon="t"/></actuator></mujoco>"""
+    with pytest.raises(ValueError, match="'tm' does not drive a hinge or slide joint"):
+        actuator_config(mujoco.MjModel.from_xml_string(tendon), "servo")
+    assert actuator_config(mujoco.MjModel.from_xml_string(tendon), "none") == {}
+    assert actuator_config(m) == {}  # off unless a preset is named
+    assert actuator_config(m, "qdd") == {0: PRESETS["qdd"]}
