@@ -229,7 +229,7 @@ class ActuatorSound:
             return
         synth = sim.synth
         F = np.empty((len(self.ids), L))
-        drive_tones(w0, w, a0, a, self.comp_off, self.order, self.amp, self.phase, self.broadband, self.rng,
+        drive_tones(np.stack((w0, w), 1), np.stack((a0, a), 1), self.comp_off, self.order, self.amp, self.phase, self.broadband, self.rng,
                     self.lp, float(synth.sample_rate), F)
         P = d.xanchor[self.joint]
         ax = d.xaxis[self.joint]

@@ -36,13 +36,13 @@ HOLD = 16
 
 
 @njit(cache=True)
-def drive_tones(w0, w1, a0, a1, comp_off, order, amp, phase, broadband, rng, lp, fs, out):
+def drive_tones(w, a, comp_off, order, amp, phase, broadband, rng, lp, fs, out):
     """Fill ``out[j, :]`` with actuator ``j``'s force signal (see the module's formula).
 
     Parameters
     ----------
-    w0, w1 : (J,) float64, rotor speed at the block's start and end [rad/s]
-    a0, a1 : (J,) float64, force scale at the block's start and end [N]
+    w : (J, 2) float64, rotor speed at the block's start and end [rad/s]
+    a : (J, 2) float64, force scale at the block's start and end [N]
     comp_off : (J + 1,) int64, actuator ``j``'s components ``comp_off[j]:comp_off[j+1]``
     order, amp : (C,) float64, multiple of the rotor's rate and relative amplitude per component
     phase : (C,) float64, each component's phase [rad] (updated: the block's end)
@@ -53,6 +53,7 @@ def drive_tones(w0, w1, a0, a1, comp_off, order, amp, phase, broadband, rng, lp,
     out : (J, L) float64, the force [N] (written)
     """
     J, L = out.shape
+    w0, w1, a0, a1 = w[:, 0], w[:, 1], a[:, 0], a[:, 1]
     nyq = 0.45 * fs
     two_pi = 2.0 * math.pi
     for j in range(J):
