@@ -60,6 +60,14 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
     return None
 
 
+#: The radiation setting a scene analyses its objects with, by analysis quality. A scene holds
+#: several objects and is built before the first sound, so its default is the boundary-element
+#: solve's ``draft`` setting: on the reference objects 0.6 dB RMS error of a mode's radiated power
+#: (largest 1.0 dB on converged modes; a few directions of weak modes several dB), at about the
+#: modal analysis's own cost, where ``default`` costs 5-9 times it (docs/radiation.md,
+#: reports/accuracy.md "Levels"). ``quality="high"`` scenes take the converged setting.
+SCENE_RADIATION = {"draft": "draft", "default": "draft", "high": "default"}
+
 #: Process-wide memo of modal models by (surface, material, analysis options), so that several
 #: copies of one env (SyncVectorEnv, repeated gym.make) analyse each object once.
 _MODEL_MEMO: dict = {}
@@ -85,7 +93,8 @@ def _analyze_with_fallback(name, spec, material, method, quality, sample_rate, c
     for m in dict.fromkeys([method, "hex"]):
         try:
             mm = analyze(spec, material, method=m, quality=quality, sample_rate=sample_rate, cache=cache,
-                         progress=False, max_modes=max_modes, error_estimate=error_estimate, f_max=f_max)
+                         progress=False, max_modes=max_modes, error_estimate=error_estimate, f_max=f_max,
+                         radiation=SCENE_RADIATION.get(quality))
             _MODEL_MEMO[key] = mm
             return mm
         except (ValueError, RuntimeError, MemoryError) as exc:
