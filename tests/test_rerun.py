@@ -121,7 +121,11 @@ def test_log_sonify(tmp_path, monkeypatch):
     real = sc.SoundScene.from_model.__func__
 
     def with_stub(cls, model, *a, **kw):
-        kw["models"] = {"plate": stub_model("box:0.2,0.2,0.01", "aluminium", 6, 900.0)}
+        import mujoco
+
+        # only this test's scene (sonify's kernel warm-up builds a scene of its own)
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "plate") >= 0:
+            kw["models"] = {"plate": stub_model("box:0.2,0.2,0.01", "aluminium", 6, 900.0)}
         return real(cls, model, *a, **kw)
 
     monkeypatch.setattr(sc.SoundScene, "from_model", classmethod(with_stub))
