@@ -32,7 +32,10 @@ def modal_model(mesh, material: str, sample_rate: int, key=None, **kw):
     mm = _MODELS.get(k)
     if mm is None:
         from mjsound.modal.analyze import analyze
+        from mjsound.sim.scene_analysis import SCENE_RADIATION
 
+        # an env's objects take a scene's radiation setting (SCENE_RADIATION), not analyze's own
+        kw.setdefault("radiation", SCENE_RADIATION.get(kw.get("quality", "default")))
         mm = analyze(mesh, material, sample_rate=sample_rate, progress=False, **kw)
         _MODELS[k] = mm
     return mm
