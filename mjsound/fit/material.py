@@ -10,6 +10,7 @@ import numpy as np
 
 from ..materials import Material, parse_material
 from ..modal.model import ModalModel
+from ..modal.radiation import radiation_damping
 from .recording import fit_recording
 from .result import FitResult, _num, rayleigh_fit
 
@@ -128,8 +129,10 @@ def fit_material(mesh, recording, base_material=None, *, sample_rate: int | None
     s is found by matching log-frequencies (a grid search over ``scale_range`` of a
     truncated-quadratic distance from every fitted mode to its nearest analysed mode, then a
     one-to-one assignment (Hungarian) within ``tolerance_cents`` and a least-squares s in log
-    frequency, iterated). The decays of the matched modes then give alpha, beta by a
-    non-negative least-squares fit of d = (alpha + beta w^2) / 2 in the relative sense.
+    frequency, iterated). The decays of the matched modes, less each mode's radiation damping
+    (what the model radiates away: :func:`mjsound.modal.radiation.radiation_damping`), then
+    give alpha, beta by a non-negative least-squares fit of d = (alpha + beta w^2) / 2 in the
+    relative sense.
 
     Parameters
     ----------
@@ -189,9 +192,12 @@ def fit_material(mesh, recording, base_material=None, *, sample_rate: int | None
     jj = np.array([p[1] for p in pairs])
     order = np.argsort(ff[ii])
     ii, jj = ii[order], jj[order]
-    alpha, beta = rayleigh_fit(ff[ii], fit.decay_per_s[ii])
+    # a recorded decay is the material's plus what the mode radiates away (the model's own
+    # radiation damping, radiation_damping): the material keeps only its part
+    d_rad = radiation_damping(np.asarray(model.radiation, float)[jj], 2 * np.pi * np.asarray(model.frequencies_hz)[jj])
+    alpha, beta = rayleigh_fit(ff[ii], np.maximum(fit.decay_per_s[ii] - d_rad, 0.05 * fit.decay_per_s[ii]))
     w = 2 * np.pi * ff[ii]
-    dpred = (alpha + beta * w**2) / 2
+    dpred = (alpha + beta * w**2) / 2 + d_rad
     matches = [
         {
             "fitted_hz": float(ff[i]),

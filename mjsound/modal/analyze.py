@@ -352,16 +352,21 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     """The analysis itself, as planned: discretize, solve, sample, radiate, estimate."""
     method, order, h, f_max, quality = plan.method, plan.order, plan.h, plan.f_max, plan.quality
     points, normals = surface_samples(tm, n_points)
-    rplan = None
+    rplan = too_fine = None
     # an open outer surface (a sheet given with thickness=) has no exterior problem here: compact estimate
     from .radiation_mesh import sealed
 
     if rad_quality is not False and sealed(outer):
-        from .radiation import plan_radiation
+        from .radiation import RadiationMeshTooFine, plan_radiation
 
         if rad_quality is None:
             rad_quality = quality if quality in ("draft", "high") else "default"
-        rplan = plan_radiation(outer, f_max, rad_quality)
+        try:
+            rplan = plan_radiation(outer, f_max, rad_quality)
+        except RadiationMeshTooFine as e:
+            warnings.warn(f"mjsound.analyze: compact radiation estimate (tens of dB off, docs/radiation.md): {e}; "
+                          "pass a simpler mesh for boundary-element radiation", stacklevel=3)
+            too_fine = str(e)
     sampled = points if rplan is None else np.vstack([points, rplan.points()[0]])
     moments = hex_moments(tm, h, thickness, quality, order) if method == "hex" else None
     build = partial(_discretize, method, tm, material, points=sampled, quality=quality, thickness=thickness,
@@ -387,7 +392,8 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
     shapes = (disc.interp @ sol.vectors).reshape(len(sampled), 3, -1)
     if rplan is None:
         radiation, radiation_sh, centre = _radiation(points, normals, shapes, omega, float(tm.area))
-        why = "radiation=False" if rad_quality is False else "the outer surface does not bound a volume"
+        why = ("radiation=False" if rad_quality is False else too_fine if too_fine
+               else "the outer surface does not bound a volume")
         rad_info = dict(method=f"compact monopole + dipole ({why})")
     else:
         from .radiation import solve_radiation

@@ -88,6 +88,14 @@ class RadiationPlan:
         return np.split(values, cuts)
 
 
+#: most boundary elements of an object's coarsest level: a dense solve of more is minutes
+RADIATION_MAX_ELEMENTS = 3000
+
+
+class RadiationMeshTooFine(ValueError):
+    """The outer surface cannot be coarsened to an affordable boundary-element mesh."""
+
+
 def radiation_settings(quality) -> dict:
     """The :data:`RADIATION_QUALITY` entry named ``quality``, or the default one updated
     with a dict's entries; an error naming the choices otherwise."""
@@ -117,10 +125,20 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
     h_need = SPEED_OF_SOUND / (f_max * settings["epw"])
     levels, hs = [], []
     h = size / 6.0
+    counts = {}
     for _ in range(6):  # a first level over n_max (a fine mesh the clustering could not coarsen): coarser
-        if len(level_mesh(outer, h)[1]) <= settings["n_max"]:
+        counts[h] = len(level_mesh(outer, h)[1])
+        if counts[h] <= settings["n_max"]:
             break
         h *= np.sqrt(2.0)
+    else:
+        # no size gets under n_max: the fewest elements any reached (coarsening may give up at a
+        # large h and return the surface as given, finer than a smaller h's level)
+        h = min(counts, key=counts.get)
+    if counts[h] > RADIATION_MAX_ELEMENTS:
+        raise RadiationMeshTooFine(
+            f"the outer surface coarsens to no fewer than {counts[h]} boundary elements "
+            f"(most {RADIATION_MAX_ELEMENTS})")
     while True:
         vv, ff = level_mesh(outer, h)
         if levels and len(ff) > settings["n_max"]:
@@ -140,8 +158,12 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
 
 def _clusters(ka, level, dka, max_solves):
     """Groups of mode indices (sorted by ``ka``) on one level each, no wider than ``dka``
-    in ``k a`` (or 15 % of it), widened evenly when there would be more than ``max_solves``."""
-    order = np.argsort(ka)
+    in ``k a`` (or 15 % of it), widened evenly when there would be more than ``max_solves``
+    (or than the number of levels, if that is more)."""
+    # by level, then by k a: a mode's level follows its surface wavelength too, so levels
+    # interleave in k a, and one group per level is the fewest there can be
+    order = np.lexsort((ka, level))
+    max_solves = max(max_solves, len(np.unique(level)))
     while True:
         groups, cur = [], [order[0]] if len(order) else []
         for i in order[1:]:
