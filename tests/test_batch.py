@@ -88,8 +88,6 @@ def no_temp_files(outdir):
 
 
 # ---------------------------------------------------------------------- local pool
-@pytest.mark.xfail(reason="known defect since 5852cbf (one step path): a batch worker's audio differs from "
-                   "sonify's in the parent by ~10 % of the peak (roll00); open, see CHANGELOG", strict=False)
 def test_local_pool_identical_despite_crash_and_bad_rollout(dataset, tmp_path, fake_analyze, monkeypatch):
     from mjsound.batch import sonify_batch
 
@@ -149,8 +147,6 @@ def ray_local():
     ray.shutdown()
 
 
-@pytest.mark.xfail(reason="known defect since 5852cbf (one step path): a batch worker's audio differs from "
-                   "sonify's in the parent by ~10 % of the peak (roll00); open, see CHANGELOG", strict=False)
 def test_ray_identical_to_serial_and_resumable(dataset, tmp_path, fake_analyze, ray_local):
     from mjsound.batch import sonify_batch
 
@@ -184,8 +180,6 @@ def test_ray_identical_to_serial_and_resumable(dataset, tmp_path, fake_analyze, 
     assert no_temp_files(out)
 
 
-@pytest.mark.xfail(reason="known defect since 5852cbf (one step path): a batch worker's audio differs from "
-                   "sonify's in the parent by ~10 % of the peak (roll00); open, see CHANGELOG", strict=False)
 def test_ray_worker_killed_mid_run_still_completes(dataset, tmp_path, fake_analyze, ray_local, monkeypatch):
     from mjsound.batch import sonify_batch
 

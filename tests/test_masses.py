@@ -4,6 +4,7 @@ material; the report says which; ``masses="material"`` keeps the materials' dens
 only of what the user named."""
 
 import math
+import pickle
 import warnings
 
 import mujoco
@@ -106,3 +107,52 @@ def test_masses_option_and_warnings_only_for_named_materials():
     bad = _model(custom='<text name="mjsound-masses" data="heavy"/>')
     with pytest.raises(ValueError, match="MJCF custom text 'mjsound-masses'"):
         masses_option(bad, None)
+
+
+_STUB = dict(materials={"*": "aluminium"}, sample_rate=16000, quality="draft", progress=False, error_estimate=False)
+
+
+def _rules(scene):
+    return {s.name: (s.mass_rule, s.material, s.notes) for s in scene.sounding}
+
+
+def test_a_scenes_models_given_back_keep_its_mass_rules(fake_analyze):
+    """A batch worker builds its scene from the driver's models (pickled): each keeps the mass
+    rule, the analysed material and the note it was analysed under (a hollow wall that lost
+    its rule took Hertz's contact time instead of the shell's: tests/test_batch.py's audio
+    differed by 10 % of the peak); a model of another material keeps its own, rule "kept"."""
+    from mjsound.sim.stub import stub_model
+
+    m = _model()
+    ref = SoundScene.from_model(m, **_STUB)
+    n = len(fake_analyze)
+    assert {k: v[0] for k, v in _rules(ref).items()} == {"can": "hollow", "brick": "scaled", "pair": "scaled"}
+    models = pickle.loads(pickle.dumps({s.name: s.model for s in ref.sounding}))
+    got = SoundScene.from_model(m, models=models, **_STUB)
+    assert len(fake_analyze) == n  # nothing analysed again
+    assert _rules(got) == _rules(ref)
+    assert all(g.model is models[g.name] for g in got.sounding)
+    foreign = SoundScene.from_model(m, models={"brick": stub_model("box:0.2,0.1,0.01", AL, 8, 430.0)}, **_STUB)
+    rule, mat, notes = _rules(foreign)["brick"]
+    assert (rule, mat) == ("kept", AL) and notes[0].startswith("mass 0.54 kg (aluminium) against MuJoCo's 1.08 kg")
+    assert _rules(foreign)["can"] == _rules(ref)["can"]
+
+
+def test_a_hollow_fallbacks_model_given_back_keeps_the_fallback(monkeypatch):
+    """A hollow wall the analysis cannot resolve is analysed scaled (``_object_model``); that
+    model given back is recognised as the fallback's, with its rule and note."""
+    import mjsound.modal.analyze as an
+    from mjsound.sim.stub import stub_model
+
+    def no_walls(mesh, material, **kw):
+        if material.wall is not None:
+            raise RuntimeError("wall too thin")
+        return stub_model(mesh, material, 8, 430.0)
+
+    monkeypatch.setattr(an, "analyze", no_walls)
+    m = _model()
+    ref = SoundScene.from_model(m, **_STUB)
+    rule, mat, notes = _rules(ref)["can"]
+    assert rule == "scaled" and mat.wall is None and "as a hollow wall of 0.6 mm it could not be analysed" in notes[0]
+    models = pickle.loads(pickle.dumps({s.name: s.model for s in ref.sounding}))
+    assert _rules(SoundScene.from_model(m, models=models, **_STUB)) == _rules(ref)

@@ -221,7 +221,9 @@ class SoundScene:
             walls, voxel hexahedra otherwise; see :func:`mjsound.analyze`); on failure falls
             back to ``hex``, then silence.
         models : dict, optional
-            Precomputed ``{object_name: ModalModel}``; those objects skip analysis.
+            Precomputed ``{object_name: ModalModel}``; those objects skip analysis. A model
+            analysed under this scene's mass rule (another scene's of the same MJCF, a batch
+            driver's) keeps the rule; any other keeps its own material (rule ``"kept"``).
         cache : bool
             Use the on-disk model cache.
         objects : {"body", "geom"}
@@ -445,9 +447,9 @@ def _analyse_objects(model, plans: list, models: dict, options: AnalysisOptions,
             if bar is not None:
                 bar.set_postfix_str(name, refresh=False)
             mm, notes = models.get(name), []
-            if mm is not None:  # (a model given: it weighs what it weighs)
-                plan["material"] = mat = plan.get("material_named", mat)
-                plan["mass_rule"], plan["mass_note"] = "kept", None
+            if mm is not None:
+                _adopt_given_model(model, plan, mm)
+                mat = plan["material"]
             inaudible = _sphere_inaudible(model, members[0], mat, options.sample_rate) if len(members) == 1 and \
                 plan["sound_mesh"] is None else None
             if mm is None and inaudible:
@@ -488,6 +490,37 @@ def _analyse_objects(model, plans: list, models: dict, options: AnalysisOptions,
     return analysed
 
 
+def _adopt_given_model(model, plan: dict, mm) -> None:
+    """Set ``plan``'s material and mass rule for a model given to :meth:`SoundScene.from_model`.
+
+    A model analysed under this scene's mass decision (its material is the one
+    :func:`.scene_masses.decide_masses` chose, or the scaled fallback of a hollow wall the
+    analysis could not resolve: a batch driver's models, another scene's of the same MJCF) keeps
+    that decision, so a batch worker's scene is the driver's and its audio that of ``sonify``;
+    any other model weighs what it weighs (its named material, rule ``"kept"``).
+    """
+    if mm.material == plan["material"]:
+        return
+    if plan.get("mass_rule") == "hollow":
+        fallback = dict(plan)
+        _hollow_fallback(model, fallback)
+        if mm.material == fallback["material"]:
+            plan.update(fallback)
+            return
+    plan["material"] = plan.get("material_named", plan["material"])
+    plan["mass_rule"], plan["mass_note"] = "kept", None
+
+
+def _hollow_fallback(model, plan: dict) -> None:
+    """Replace a hollow plan's wall by :func:`.scene_masses.decide`'s solid rule (scaled
+    density and stiffness), with a note saying why."""
+    wall = plan["material"].wall
+    solid = dataclasses.replace(plan["material"], wall=None)
+    material, rule, note = decide(model, plan["members"], solid, hollow=False)
+    plan["material"], plan["mass_rule"] = material, rule
+    plan["mass_note"] = f"{note}; as a hollow wall of {wall * 1e3:.3g} mm it could not be analysed"
+
+
 def _object_model(model, plan: dict, options: AnalysisOptions, on_analyse):
     """:func:`.scene_analysis.object_model`; a hollow object the analysis cannot resolve (the
     wall too thin for its size at this sample rate) is analysed again with its density and
@@ -501,11 +534,7 @@ def _object_model(model, plan: dict, options: AnalysisOptions, on_analyse):
         mm, notes = object_model(plan, options, on_analyse)
     if mm is not None:
         return mm, notes
-    wall = plan["material"].wall
-    solid = dataclasses.replace(plan["material"], wall=None)
-    material, rule, note = decide(model, plan["members"], solid, hollow=False)
-    plan["material"], plan["mass_rule"] = material, rule
-    plan["mass_note"] = f"{note}; as a hollow wall of {wall * 1e3:.3g} mm it could not be analysed"
+    _hollow_fallback(model, plan)
     return object_model(plan, options, on_analyse)
 
 
