@@ -62,7 +62,7 @@ class AudioEnvironment(dm_env.Environment):
         ``default_material`` ("aluminium"), ``full_scale_pa``, ``n_fft``, ``hop``,
         ``follow``, ``quality`` ("draft"), ``budget_modes``, ``models``, ``progress``,
         ``sim_kwargs``, ``objects``, ``sound_meshes``, ``play`` (live audio, docs/live.md),
-        ``reflections`` (default True: the floor reflects; docs/rooms.md), ``room``.
+        ``reflections`` (default True: the floor reflects; docs/rooms.md), ``room``, ``masses``.
 
     Attributes
     ----------

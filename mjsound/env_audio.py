@@ -57,7 +57,7 @@ class EnvAudio:
                  materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
                  follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
                  objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True,
-                 reflections=True, room=None, dt_source="the env's dt", play=None):
+                 reflections=True, room=None, dt_source="the env's dt", play=None, masses=None):
         if mode not in ("waveform", "spectrogram"):
             raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
         fsp = float(full_scale_pa)
@@ -86,7 +86,7 @@ class EnvAudio:
         self._options = dict(
             scene=dict(mapping=scene_materials(materials, default_material), sample_rate=self.sample_rate,
                        quality=quality, microphones=mic_arg, budget_modes=budget_modes, progress=progress,
-                       models=models, objects=objects, sound_meshes=sound_meshes),
+                       models=models, objects=objects, sound_meshes=sound_meshes, masses=masses),
             sim={"keep_events": 0, "contact_mics": contact_mics, "clicks": clicks, "reflections": reflections,
                  "room": room, **(sim_kwargs or {})},
             follow=follow if mics is None else None)
@@ -125,7 +125,7 @@ class EnvAudio:
         self.scene = build_scene(model, sc["mapping"], sc["sample_rate"], quality=sc["quality"],
                                  microphones=sc["microphones"], budget_modes=sc["budget_modes"],
                                  progress=sc["progress"], models=sc["models"], objects=sc["objects"],
-                                 sound_meshes=sc["sound_meshes"])
+                                 sound_meshes=sc["sound_meshes"], masses=sc["masses"])
         self.sim = AudioSimulator(model, data, scene=self.scene, sample_rate=self.sample_rate, progress=False,
                                   **opt["sim"])
         self._contact = self.sim.contact_channels

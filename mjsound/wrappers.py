@@ -137,6 +137,10 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     sound_meshes : dict, optional
         ``{body: geom or mesh}``: the surface a body's sound is computed from (e.g. its
         visual mesh); see :class:`mjsound.sim.SoundScene`.
+    masses : {"mujoco", "material"}, optional
+        The sound's objects weigh what MuJoCo says (``"mujoco"``, the default: a lighter
+        object becomes a hollow wall, a heavier one denser and stiffer) or what their material
+        and volume give (``"material"``); see :class:`mjsound.sim.SoundScene`.
     substeps : {"auto", "manual"}
         ``"auto"``: hook the env's stepping (above) or refuse the env; ``"manual"``: no hook,
         call ``env.sim.step(render=False)`` after every ``mj_step``.
@@ -194,13 +198,14 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         sound_meshes: dict | None = None,
         substeps: str = "auto",
         play=None,
+        masses: str | None = None,
     ):
         gym.utils.RecordConstructorArgs.__init__(
             self, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics, materials=materials,
             default_material=default_material, full_scale_pa=full_scale_pa, n_fft=n_fft, hop=hop,
             follow=follow, quality=quality, budget_modes=budget_modes, objects=objects, substeps=substeps,
             contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks, play=play,
-            reflections=reflections, room=room,
+            reflections=reflections, room=room, masses=masses,
         )
         gym.Wrapper.__init__(self, env)
         uw = env.unwrapped
@@ -233,7 +238,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                              models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
                              sound_meshes=sound_meshes, contact_mics=contact_mics,
                              contact_full_scale=contact_full_scale, clicks=clicks, dt_source=dt_source,
-                             play=play, reflections=reflections, room=room)
+                             play=play, reflections=reflections, room=room, masses=masses)
         self.audio = self.core.audio
         self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
         self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa

@@ -126,7 +126,7 @@ def test_tube_against_converged_tet10():
     dofs: 539.3, 539.3, 629.6, 629.6, 1523.6, 1523.6). Measured +2.9, -7.0, +1.3 cents (the
     shell converges there: 540.4, 626.8, 1526.3 Hz at 3 mm edges); pairs within 0.5 cent."""
     tube = trimesh.creation.annulus(0.048, 0.05, 0.15, sections=64)
-    m = analyze(tube, "steel", f_max=2000, cache=False, error_estimate=False)
+    m = analyze(tube, "steel", f_max=2000, cache=False, radiation=False, error_estimate=False)
     assert m.method == "facet" and "shell triangles" in m.info["method_choice"]
     ref = np.array([539.5, 539.5, 629.4, 629.4, 1524.4, 1524.5])
     c = cents(m.frequencies_hz[:6], ref)
@@ -143,7 +143,7 @@ def test_bowl_first_eight_modes_against_the_converged_reference(f_max):
     and the error estimate within a factor of two of the measured RMS."""
     from mjsound.report.accuracy_modal import BOWL_REFERENCE
 
-    m = analyze("bowl:0.1,0.004", "aluminium", f_max=f_max, cache=False, error_estimate=f_max > 5000)
+    m = analyze("bowl:0.1,0.004", "aluminium", f_max=f_max, cache=False, radiation=False, error_estimate=f_max > 5000)
     assert m.method == "facet" and "crease_cents" not in m.info  # a bowl has no crease
     n = min(8, int(np.sum(BOWL_REFERENCE < f_max)))
     c = cents(m.frequencies_hz[:n], BOWL_REFERENCE[:n])
@@ -169,7 +169,7 @@ def test_hollow_can_against_tet10():
     measured RMS; the mass is the wall's; pairs within 0.5 cent."""
     from mjsound.modal.surface import hollow
 
-    m = analyze("cylinder:0.04,0.12", "aluminium", wall="1mm", quality="draft", f_max=3000, cache=False)
+    m = analyze("cylinder:0.04,0.12", "aluminium", wall="1mm", quality="draft", f_max=3000, cache=False, radiation=False)
     assert m.method == "facet" and m.info["wall"] == 0.001 and m.info["crease_edges"] > 0
     solid = np.array([1481.9, 1601.9, 2472.4, 2472.4, 2793.3, 2793.3])
     c = cents(m.frequencies_hz[:6], solid)
@@ -211,7 +211,7 @@ def test_open_curved_surface_with_thickness_is_a_shell():
     from mjsound.report.accuracy_modal import BOWL_REFERENCE
 
     mid = mid_surface(load_mesh("bowl:0.1,0.004"))
-    m = analyze((mid.vertices, mid.faces), "aluminium", thickness=0.004, f_max=2000, quality="draft", cache=False,
+    m = analyze((mid.vertices, mid.faces), "aluminium", thickness=0.004, f_max=2000, quality="draft", cache=False, radiation=False,
                 error_estimate=False)
     assert m.method == "facet"
     c = cents(m.frequencies_hz[:4], BOWL_REFERENCE[:4])
@@ -228,6 +228,6 @@ def test_bowl_draft_error_estimate_within_a_factor_of_two():
 
     assert facet_error_order(16) == FACET_DRAFT_ERROR_ORDER and facet_error_order(50) == FACET_ERROR_ORDER
     assert facet_error_order(24.5) == pytest.approx(0.5 * (FACET_DRAFT_ERROR_ORDER + FACET_ERROR_ORDER))
-    m = analyze("bowl:0.1,0.004", "aluminium", quality="draft", f_max=3500, cache=False)
+    m = analyze("bowl:0.1,0.004", "aluminium", quality="draft", f_max=3500, cache=False, radiation=False)
     rms = np.sqrt(np.mean(cents(m.frequencies_hz[:8], BOWL_REFERENCE) ** 2))
     assert 0.5 * rms <= m.error_estimate_cents <= 2 * rms, (m.error_estimate_cents, rms)

@@ -23,7 +23,7 @@ def test_beam_bending_within_5_cents_at_low_and_high_f_max(f_max):
     """The 0.5 m aluminium beam's first four bending pairs against the converged 3D values:
     with the band-top wavelength rule alone the fourth pair was 47 cents sharp at f_max =
     2 kHz; the estimate stays within a factor of two of the measured error."""
-    m = analyze("box:0.5,0.01,0.01", AL, f_max=f_max, cache=False)
+    m = analyze("box:0.5,0.01,0.01", AL, f_max=f_max, cache=False, radiation=False)
     c = cents(m.frequencies_hz[:8], np.repeat(BEAM_BENDING_3D, 2))
     assert np.max(np.abs(c)) < 5.0, c
     rms = np.sqrt(np.mean(c**2))
@@ -34,7 +34,7 @@ def test_sphere_lamb_modes_within_5_cents_at_default_quality():
     """Lamb's free sphere (0T2, 0S2; 5-fold each): the voxel staircase of the curved surface
     left hex default 6.5 cents off with 3 fine voxels per cell; curved_refine brings it
     under 1.5 at the same dofs. Modes are told apart by radial motion (toroidal: none)."""
-    m = analyze(sphere_mesh(), AL, f_max=14500.0, cache=False)
+    m = analyze(sphere_mesh(), AL, f_max=14500.0, cache=False, radiation=False)
     assert m.info["refine"] == QUALITY["default"]["curved_refine"]
     ref = sphere_references(AL)
     p = m.points - m.points.mean(axis=0)
@@ -100,7 +100,7 @@ def test_a_box_keeps_the_quality_refine_with_the_same_model():
     assert hex_refine(stacked, 0.0147, None, "default") > QUALITY["default"]["refine"]
     assert hex_refine(beam, 0.0147, None, "default") == QUALITY["default"]["refine"]
     assert hex_refine(plate, 0.0136, None, "default") == 16
-    kw = dict(method="hex", f_max=3000, resolution=12, cache=False, error_estimate=False)
+    kw = dict(method="hex", f_max=3000, resolution=12, cache=False, radiation=False, error_estimate=False)
     kept = analyze("box:0.2,0.01,0.01", AL, **kw)
     raised = analyze("box:0.2,0.01,0.01", AL, refine=12, **kw)
     assert kept.info["refine"] == QUALITY["default"]["refine"] and raised.info["refine"] == 12
@@ -128,7 +128,7 @@ def test_round_rod_bending_within_5_cents_at_low_and_high_f_max(f_max):
     5 cents, the pairs within 0.5 cent of each other, and the estimate within a factor of two."""
     from mjsound.report.accuracy_modal import SHAPES, match_modes, references
 
-    m = analyze(SHAPES["rod"]["mesh"], AL, f_max=f_max, cache=False)
+    m = analyze(SHAPES["rod"]["mesh"], AL, f_max=f_max, cache=False, radiation=False)
     assert m.method == "hex" and m.info["voxel_moments"] and m.info["grid"][:2] == [3, 3]
     labels, refs = zip(*references("rod"))
     got = match_modes("rod", m.frequencies_hz, m.points, m.shapes)
@@ -158,7 +158,7 @@ def test_round_rod_draft_estimate_from_the_length_alone():
     assert r == pytest.approx(14 / 9) and p == pytest.approx(4.0)
     assert _hex_coarsening(tm, [3, 3, 14], 1.5, 1.63, True, [2, 2, 9]) == (1.5, 1.63)
     assert _hex_coarsening(tm, [2, 2, 9], 1.5, 1.63, True, [2, 2, 9]) is None
-    m = analyze(SHAPES["rod"]["mesh"], AL, quality="draft", f_max=10000.0, cache=False)
+    m = analyze(SHAPES["rod"]["mesh"], AL, quality="draft", f_max=10000.0, cache=False, radiation=False)
     labels, refs = zip(*references("rod"))
     c = cents(match_modes("rod", m.frequencies_hz, m.points, m.shapes), np.array(refs))
     rms = np.sqrt(np.nanmean(c**2))

@@ -16,7 +16,7 @@ def cents(f, ref):
 
 @pytest.fixture(scope="module")
 def beam():
-    return analyze("box:0.5,0.01,0.01", AL, cache=False)
+    return analyze("box:0.5,0.01,0.01", AL, cache=False, radiation=False)
 
 
 def test_beam_bending_and_longitudinal_within_1_percent(beam):
@@ -44,7 +44,7 @@ def test_beam_modes_are_mass_normalised_and_cover_the_band(beam):
 
 
 def test_rod_torsion_within_1_percent():
-    m = analyze("cylinder:0.01,0.5", AL, f_max=10000, cache=False, error_estimate=False)
+    m = analyze("cylinder:0.01,0.5", AL, f_max=10000, cache=False, radiation=False, error_estimate=False)
     f = m.frequencies_hz
     for ref in [3122.0, 6243.9, 9365.9]:
         near = f[np.argmin(np.abs(f - ref))]
@@ -52,7 +52,7 @@ def test_rod_torsion_within_1_percent():
 
 
 def test_scaling_laws_hold_to_1e6():
-    kw = dict(resolution=24, f_max=12000, cache=False, error_estimate=False)
+    kw = dict(resolution=24, f_max=12000, cache=False, radiation=False, error_estimate=False)
     base = analyze("box:0.2,0.03,0.02", AL, **kw).frequencies_hz
     stiff = analyze("box:0.2,0.03,0.02", "E=280e9,nu=0.33,rho=2700", f_max=24000, **{k: v for k, v in kw.items() if k != "f_max"}).frequencies_hz
     assert np.allclose(stiff[: len(base)], 2 * base, rtol=1e-6)
@@ -63,7 +63,7 @@ def test_scaling_laws_hold_to_1e6():
 
 def test_symmetric_cube_gives_symmetric_gains():
     """Picard et al. 4.1: a cube struck on any corner, normal to a face, sounds the same."""
-    m = analyze("box:0.1,0.1,0.1", "steel", f_max=60000, resolution=6, cache=False, error_estimate=False)
+    m = analyze("box:0.1,0.1,0.1", "steel", f_max=60000, resolution=6, cache=False, radiation=False, error_estimate=False)
     corners = np.array([[x, y, z] for x in (-0.05, 0.05) for y in (-0.05, 0.05) for z in (-0.05, 0.05)])
     g = m.gains(corners, np.tile([0.0, 0.0, 1.0], (8, 1)))
     # degenerate modes may rotate within their eigenspace: compare energy per frequency cluster
@@ -95,19 +95,19 @@ def test_open_and_self_intersecting_meshes_work():
     # open box (one face removed): voxel shell
     box = trimesh.creation.box(extents=[0.1, 0.08, 0.06])
     open_box = trimesh.Trimesh(box.vertices, box.faces[2:], process=False)
-    m = analyze(open_box, "steel", f_max=8000, cache=False, error_estimate=False)
+    m = analyze(open_box, "steel", f_max=8000, cache=False, radiation=False, error_estimate=False)
     assert m.n_modes > 0 and np.all(np.isfinite(m.shapes)) and m.info["watertight"] is False
     # two overlapping closed boxes in one mesh: filled as their union
     a = trimesh.creation.box(extents=[0.1, 0.02, 0.02])
     b = trimesh.creation.box(extents=[0.02, 0.1, 0.02])
     both = trimesh.util.concatenate([a, b])
-    u = analyze(both, "steel", f_max=4000, cache=False, error_estimate=False, resolution=20)
+    u = analyze(both, "steel", f_max=4000, cache=False, radiation=False, error_estimate=False, resolution=20)
     union_volume = 2 * 0.1 * 0.02 * 0.02 - 0.02**3
     assert u.mass_kg == pytest.approx(union_volume * parse_material("steel").rho, rel=0.03)
 
 
 def test_f_max_and_sample_rate_limit_the_modes():
-    m = analyze("box:0.5,0.01,0.01", AL, sample_rate=16000, cache=False, error_estimate=False)
+    m = analyze("box:0.5,0.01,0.01", AL, sample_rate=16000, cache=False, radiation=False, error_estimate=False)
     assert m.frequencies_hz.max() <= 7200 and m.info["f_max"] == 7200
     with pytest.raises(ValueError, match="Nyquist"):
         analyze("box:0.5,0.01,0.01", AL, sample_rate=16000, f_max=9000, cache=False)
@@ -124,7 +124,7 @@ def test_tiny_stiff_bead_has_no_audible_mode():
 
 
 def test_quadratic_tet_beam_within_half_percent_through_analyze():
-    m = analyze("box:0.5,0.01,0.01", AL, method="tet", cache=False, error_estimate=False)
+    m = analyze("box:0.5,0.01,0.01", AL, method="tet", cache=False, radiation=False, error_estimate=False)
     assert m.method == "tet10" and m.info["n_rigid"] == 6
     f = m.frequencies_hz
     for k, ref in enumerate([209.06, 574.7, 1122.3, 1845.7]):
@@ -140,7 +140,7 @@ def test_thin_free_square_plate_against_plate_theory():
     E, nu, rho, a, h = 200e9, 0.3, 7800.0, 0.2, 0.002
     D = E * h**3 / (12 * (1 - nu**2))
     ref = np.array([13.468, 19.596, 24.270]) / (2 * np.pi * a * a) * np.sqrt(D / (rho * h))
-    m = analyze(f"box:{a},{a},{h}", f"E={E},nu={nu},rho={rho}", f_max=3000, cache=False, error_estimate=False)
+    m = analyze(f"box:{a},{a},{h}", f"E={E},nu={nu},rho={rho}", f_max=3000, cache=False, radiation=False, error_estimate=False)
     assert m.info["grid"][2] == 1  # one layer through the thickness, no locking
     assert np.all(np.abs(m.frequencies_hz[:3] / ref - 1) < 0.01), (m.frequencies_hz[:3], ref)
 
@@ -150,14 +150,14 @@ def test_open_flat_surface_with_thickness_is_a_plate():
     (Leissa's free square plate, first mode 13.468 for nu = 0.3; steel has nu = 0.29)."""
     v = np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 0.1, 0], [0, 0.1, 0]], float)
     f = np.array([[0, 1, 2], [0, 2, 3]])
-    m = analyze((v, f), "steel", thickness=0.002, f_max=5000, cache=False, error_estimate=False)
+    m = analyze((v, f), "steel", thickness=0.002, f_max=5000, cache=False, radiation=False, error_estimate=False)
     mat = parse_material("steel")
     D = mat.E * 0.002**3 / (12 * (1 - mat.nu**2))
     ref = 13.468 / (2 * np.pi * 0.1**2) * np.sqrt(D / (mat.rho * 0.002))
     assert m.frequencies_hz[0] == pytest.approx(ref, rel=0.02)
     assert m.mass_kg == pytest.approx(0.1 * 0.1 * 0.002 * mat.rho, rel=0.05)
     # no thickness: one voxel layer, still an answer (no ZeroDivisionError)
-    assert analyze((v, f), "steel", f_max=5000, cache=False, error_estimate=False).n_modes > 0
+    assert analyze((v, f), "steel", f_max=5000, cache=False, radiation=False, error_estimate=False).n_modes > 0
 
 
 def test_heavily_damped_rubber_is_not_meshed_for_20_khz():

@@ -144,6 +144,18 @@ def test_materials_star_and_checked_keys_in_the_wrapper():
         wrapped("HalfCheetah-v5", materials={"tosro": "steel"})
 
 
+def test_masses_option_reaches_the_scene():
+    # default: the sound's objects weigh MuJoCo's masses; "material": each keeps its material's
+    mujoco_env = wrapped("HalfCheetah-v5", progress=False)
+    kept = wrapped("HalfCheetah-v5", progress=False, masses="material")
+    rules = {s.mass_rule for s in mujoco_env.scene.sounding}
+    assert rules and "kept" not in rules and {s.mass_rule for s in kept.scene.sounding} == {"kept"}
+    for e in (mujoco_env, kept):
+        e.close()
+    with pytest.raises(ValueError, match="masses='solid'"):
+        wrapped("HalfCheetah-v5", progress=False, masses="solid")
+
+
 def test_audio_impacts_count_audible_impacts_only():
     """Only the torso has modes. Without clicks the feet hitting the floor (geoms with no modes)
     are not heard and not counted; with clicks (the default) every moving foot clicks, so every

@@ -19,18 +19,21 @@ __all__ = ["warmup", "kernels_cached", "kernel_cache_dir", "notice_first_compile
 _WARMED = [False]
 
 _XML = """<mujoco><option timestep="0.002"/>
-  <custom><text name="mjsound:ball" data="steel"/><text name="mjsound:box" data="oak"/></custom>
+  <custom><text name="mjsound:ball" data="steel"/><text name="mjsound:box" data="oak"/>
+    <text name="mjsound:arm" data="aluminium"/></custom>
   <worldbody><geom name="floor" type="plane" size="2 2 .1"/>
     <body name="ball" pos="0 0 0.05"><freejoint/><geom name="ball" type="sphere" size="0.02"/></body>
     <body name="box" pos="0.3 0 0.03"><freejoint/><geom name="box" type="box" size="0.04 0.03 0.03"/></body>
-  </worldbody></mujoco>"""
+    <body name="arm" pos="-0.5 0 0.3"><joint name="hinge" type="hinge" axis="0 0 1" armature="0.01"/>
+      <geom name="arm" type="box" size="0.05 0.01 0.01"/></body>
+  </worldbody><actuator><velocity name="motor" joint="hinge" kv="0.02"/></actuator></mujoco>"""
 
 
 def warmup(verbose: bool = True, once: bool = False) -> float:
     """Compile (or load from the cache) every kernel of the per-step and render paths by
     running a tiny two-body scene for 0.1 s: advance (the kernel stepping), single steps, a replayed step,
-    impacts, a sliding and rolling stream (rendered in one call and in stages), clicks,
-    forcing sources and listeners following a body. Returns the seconds it took; with ``once``, 0.0 when this process has
+    impacts, a sliding and rolling stream (rendered in one call and in stages), clicks, a motor's
+    drive tones, forcing sources and listeners following a body. Returns the seconds it took; with ``once``, 0.0 when this process has
     warmed up already."""
     if once and _WARMED[0]:
         return 0.0
@@ -49,11 +52,13 @@ def warmup(verbose: bool = True, once: bool = False) -> float:
     # modes below 0.45 fs: its stream sounds, so the blocks while it rolls take render_streams)
     data.qvel[8] = 0.8
     data.qvel[2] = -1.0
-    models = {"ball": stub_model("sphere:0.02", "steel", 4, 3000.0), "box": stub_model("box:0.08,0.06,0.06", "oak", 4, 700.0)}
+    data.ctrl[0] = 3.0  # the arm's motor turns it: actuator drive tones (docs/actuators.md)
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 3000.0), "box": stub_model("box:0.08,0.06,0.06", "oak", 4, 700.0),
+              "arm": stub_model("box:0.1,0.02,0.02", "aluminium", 4, 2000.0)}
     with warnings.catch_warnings():  # (the stub models' masses are not the bodies')
         warnings.simplefilter("ignore")
         scene = SoundScene.from_model(model, models=models, progress=False)
-    sim = AudioSimulator(model, data, scene=scene, sample_rate=16000)
+    sim = AudioSimulator(model, data, scene=scene, sample_rate=16000, actuators="servo")
     sim.run(0.05)
     for _ in range(10):
         mujoco.mj_step(model, data)
