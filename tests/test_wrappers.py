@@ -137,23 +137,23 @@ def test_materials_star_and_checked_keys_in_the_wrapper():
     assert scene_materials({"x": "oak"}, "steel") == {"x": "oak", "*": "steel"}
     assert scene_materials({"*": "glass"}, "steel") == {"*": "glass"}  # the mapping's own default wins
     assert scene_materials({"x": "oak"}, None) == {"x": "oak"}
-    env = wrapped("HalfCheetah-v5", materials={"*": "steel"}, default_material=None)
+    env = wrapped("Hopper-v5", materials={"*": "steel"}, default_material=None)
     assert env.scene.sounding and {s.material.name for s in env.scene.sounding} == {"steel"}
     env.close()
     with pytest.raises(ValueError, match=r"no geom or body named 'tosro'.*closest: 'torso'"):
-        wrapped("HalfCheetah-v5", materials={"tosro": "steel"})
+        wrapped("Hopper-v5", materials={"tosro": "steel"})
 
 
 def test_masses_option_reaches_the_scene():
     # default: the sound's objects weigh MuJoCo's masses; "material": each keeps its material's
-    mujoco_env = wrapped("HalfCheetah-v5", progress=False)
-    kept = wrapped("HalfCheetah-v5", progress=False, masses="material")
+    mujoco_env = wrapped("Hopper-v5", progress=False)
+    kept = wrapped("Hopper-v5", progress=False, masses="material")
     rules = {s.mass_rule for s in mujoco_env.scene.sounding}
     assert rules and "kept" not in rules and {s.mass_rule for s in kept.scene.sounding} == {"kept"}
     for e in (mujoco_env, kept):
         e.close()
     with pytest.raises(ValueError, match="masses='solid'"):
-        wrapped("HalfCheetah-v5", progress=False, masses="solid")
+        wrapped("Hopper-v5", progress=False, masses="solid")
 
 
 def test_audio_impacts_count_audible_impacts_only():
