@@ -174,3 +174,19 @@ def test_clusters_end_when_levels_interleave_in_ka():
     assert len(groups) == 3 and sorted(np.concatenate(groups).tolist()) == list(range(40))
     assert all(len(set(level[g])) == 1 for g in groups)
     assert len(_clusters(ka, np.zeros(40, int), 0.1, 4)) <= 4
+
+
+@pytest.mark.parametrize("spread", [0.0, 0.02, 0.5, 3.0, 40.0])  # k r: one k, a cluster, wide ones
+def test_shifted_far_fields_match_the_phase_applied_per_mode(spread):
+    from mjsound.modal.radiation import shifted_far_fields
+
+    rng = np.random.default_rng(1)
+    nd, n, g, kc = 40, 60, 7, 20.0
+    Ep, Eq = (rng.normal(size=(nd, n)) + 1j * rng.normal(size=(nd, n)) for _ in range(2))
+    p, q = (rng.normal(size=(n, g)) + 1j * rng.normal(size=(n, g)) for _ in range(2))
+    proj = rng.uniform(-0.1, 0.1, size=(nd, n))
+    k = kc + np.linspace(-1, 1, g) * spread / 0.1
+    ref = np.stack([(Ep * np.exp(-1j * (ki - kc) * proj)) @ p[:, i] * (ki / kc)
+                    + (Eq * np.exp(-1j * (ki - kc) * proj)) @ q[:, i] for i, ki in enumerate(k)], axis=1)
+    out = shifted_far_fields(Ep, Eq, proj, p, q, k, kc)
+    assert np.abs(out - ref).max() <= 1e-12 * np.abs(ref).max()
