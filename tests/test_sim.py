@@ -850,3 +850,31 @@ def test_contact_frames_keep_their_values_while_the_reader_reads_on():
     for k, v in kept.items():
         np.testing.assert_array_equal(getattr(first, k), v)
     assert not any(np.shares_memory(getattr(first, k), a) for k in kept for a in reader.buffers.quantities)
+
+
+def test_an_impact_gives_its_modes_at_most_the_energy_the_collision_takes():
+    """A steel ball dropped onto the floor from 0.3 m: the step kernel's impact row carries the
+    pair's restitution (steel's 0.6, the floor has none), and the energy bound it gets is the
+    energy the collision takes from the approach, m v^2 (1 - e^2) / 2 = |J| v (1 - e) / 2,
+    not the impulse's whole work |J| v / 2 (which exceeds even the kinetic energy m v^2 / 2)."""
+    from mjsound.jit import call_inner
+    from mjsound.sim.drive import impact_sides
+
+    h = 0.3
+    models = {"ball": stub_model("sphere:0.02", "steel", 4, 9000.0)}
+    model, data, sim = make_sim(drop_xml(h=h), models)
+    impacts = None
+    while impacts is None and data.time < 0.5:
+        mujoco.mj_step(model, data)
+        impacts, _ = sim.reader.events_fast(data)  # (the scene's reader: it knows the materials)
+    assert impacts is not None and len(impacts) == 1
+    e = get_material("steel").restitution
+    m, v = float(model.body_mass[1]), float(np.sqrt(2 * G * h))
+    im = impacts[0]
+    assert im["restitution"] == pytest.approx(e, rel=1e-12)
+    assert im["speed"] == pytest.approx(v, rel=0.02)
+    assert im["impulse"] == pytest.approx(m * (1 + e) * im["speed"], rel=0.02)
+    obj, P, J, tau, budget, n = call_inner(impact_sides, sim._drive_state(sim.reader.state()), impacts, 1)
+    assert n == 1  # (the ball sounds, the floor does not)
+    assert budget[0] == pytest.approx(0.5 * im["impulse"] * im["speed"] * (1 - e), rel=1e-12)
+    assert budget[0] == pytest.approx(0.5 * m * im["speed"] ** 2 * (1 - e * e), rel=0.02)

@@ -88,7 +88,8 @@ def test_linearity_and_superposition():
 
 
 def test_impact_energy_bound_scales_to_the_budget_and_leaves_the_rest():
-    """A given approach speed bounds the vibration energy by |J| v / 2: an impact whose modes
+    """A given approach speed bounds the vibration energy by what the collision takes from the
+    approach, |J| v (1 - e) / 2 (steel struck by a rigid partner: e = 0.6): an impact whose modes
     would take more is scaled to exactly that energy, one within it is rendered unchanged."""
     model = many_modes(30)
     p, J, tau = model.points[5], np.array([0.02, -0.01, 0.03]), 4e-5
@@ -104,10 +105,27 @@ def test_impact_energy_bound_scales_to_the_budget_and_leaves_the_rest():
     v = model.shapes[5].T @ J * half_sine_spectrum(wd, tau)
     energy = 0.5 * float(np.sum(np.abs(v) ** 2))
     free = render(None)
-    speed = 0.1 * energy / (0.5 * np.linalg.norm(J))  # a budget of a tenth of it
+    e = model.material.restitution
+    assert e == pytest.approx(0.6)
+    speed = 0.1 * energy / (0.5 * np.linalg.norm(J) * (1 - e))  # a budget of a tenth of it
     capped = render(speed)
     assert np.abs(capped - np.sqrt(0.1) * free).max() < 1e-6 * np.abs(free).max()  # (float32 output)
-    np.testing.assert_array_equal(render(1.01 * energy / (0.5 * np.linalg.norm(J))), free)
+    np.testing.assert_array_equal(render(1.01 * energy / (0.5 * np.linalg.norm(J) * (1 - e))), free)
+    # the whole impulse's work |J| v / 2 is (1 + e) / (1 - e) = 4 times that: no longer the bound
+    bounded = render(energy / (0.5 * np.linalg.norm(J)))
+    assert np.abs(bounded - np.sqrt(1 - e) * free).max() < 1e-6 * np.abs(free).max()
+
+
+def test_lost_energy_is_the_approach_energy_the_restitution_removes():
+    """|J| v (1 - e) / 2 = m* v^2 (1 - e^2) / 2 for J = m* (1 + e) v; no speed: no bound."""
+    from mjsound.synth.impact_energy import lost_energy
+
+    m, v = 3.0, 2.0
+    for e in (0.0, 0.3, 0.55, 1.0):
+        assert lost_energy(m * (1 + e) * v, v, e) == pytest.approx(0.5 * m * v * v * (1 - e * e), rel=1e-12)
+    assert lost_energy(-6.0, 2.0, 0.0) == pytest.approx(6.0)  # (the impulse's sign does not matter)
+    assert lost_energy(6.0, 2.0, float("nan")) == pytest.approx(6.0)  # (unknown e: the plastic hit)
+    assert lost_energy(6.0, 0.0, 0.5) == np.inf and lost_energy(6.0, float("nan"), 0.5) == np.inf
 
 
 def test_nodal_direction_excites_nothing():

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from ..synth.constants import MAX_AMPLITUDE
+from ..synth.impact_energy import lost_energy
 from ..synth.kernels import commit_queued, impacts_to_queue
 from ..synth.pulse import contact_time, effective, hertz_coef, shell_contact_time
 from ..synth.streams import ring_need, stream_drive
@@ -92,8 +93,10 @@ def impact_sides(drive, impacts, k):
     side the synthesizer object index, world point [m], impulse on that side [N s], Hertz pulse
     length [s] (struck geom ``g``, other geom ``o``: ``hertz_coef(effective(m_g, M_o),
     effective(R_g, R_o), c_g + C_o)``, the struck fields and the other's of ``drive.sound``) and
-    the most vibration energy the impact can give it, ``|J| v / 2`` [J] (``v`` the approach
-    speed; ``inf`` without one; see :func:`mjsound.synth.kernels.impacts_to_queue`)."""
+    the most vibration energy the impact can give it, the energy the collision takes from the
+    approach, ``|J| v (1 - e) / 2`` [J] (``v`` the approach speed, ``e`` the restitution of the
+    impulse ``J = m* (1 + e) v``; ``inf`` without a speed; see
+    :func:`mjsound.synth.kernels.impacts_to_queue`)."""
     sound = drive.sound
     obj = np.empty(2 * k, np.int64)
     P = np.empty((2 * k, 3))
@@ -119,7 +122,7 @@ def impact_sides(drive, impacts, k):
                 P[n, q] = im.point[q]
                 J[n, q] = a * im.normal[q]
             tau[n] = _with_shells(contact_time(c, im.speed), s, o, im.speed)
-            budget[n] = 0.5 * abs(im.impulse * im.speed) if im.speed > 0 else np.inf
+            budget[n] = lost_energy(im.impulse, im.speed, im.restitution)
             n += 1
     return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n
 

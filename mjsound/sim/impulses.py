@@ -220,6 +220,7 @@ def event_impulses(reader, buf, n_onset, jn, minv_jt):
     geoms, bodies, hits, ons = reader.geoms, reader.bodies, buf.hits, buf.onsets
     k = ons[n_onset].first
     lam = np.zeros(k)
+    e_hit = np.zeros(k)  # (each hit's restitution: its event's)
     stats = np.zeros((n_onset, 4))
     for q in range(n_onset):
         a, b = ons[q].first, ons[q + 1].first
@@ -233,6 +234,7 @@ def event_impulses(reader, buf, n_onset, jn, minv_jt):
                                 min(bodies[b1].root_mass, bodies[b2].root_mass), prm.max_impulse)
         for r in range(a, b):
             lam[r] = lq[r - a]
+            e_hit[r] = e
         stats[q, 0] = e
         stats[q, 1] = v.max()
         stats[q, 2] = lq.sum()
@@ -249,6 +251,7 @@ def event_impulses(reader, buf, n_onset, jn, minv_jt):
                 im.normal[c] = h.normal[c]
             im.impulse = lam[r]
             im.speed = h.speed
+            im.restitution = e_hit[r]
             n += 1
     return n, stats
 

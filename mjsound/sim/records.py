@@ -96,9 +96,10 @@ HIT = np.dtype([("pair", i8), ("g1", i8), ("g2", i8), ("point", f8, (3,)), ("nor
 ONSET = np.dtype([("slot", i8), ("first", i8)])
 
 #: An impact at one contact point: impulse [N s] on geom2 along the normal (geom1 gets the
-#: opposite), approach speed [m/s].
+#: opposite), approach speed [m/s], the pair's restitution (the impulse's ``e``; it bounds the
+#: modes' energy, :func:`mjsound.sim.drive.impact_sides`).
 IMPACT = np.dtype([("g1", i8), ("g2", i8), ("point", f8, (3,)), ("normal", f8, (3,)), ("impulse", f8),
-                   ("speed", f8)])
+                   ("speed", f8), ("restitution", f8)])
 
 #: An impact event's record (made into :class:`mjsound.sim.contacts.ImpactRecord` by
 #: ``ContactReader.add_records``): onset time [s], geoms, largest approach speed, predicted

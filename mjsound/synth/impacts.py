@@ -15,6 +15,7 @@ import numpy as np
 
 from . import kernels
 from .constants import MAX_AMPLITUDE
+from .impact_energy import lost_energy
 from .objects import finite_array
 from .pulse import compliance, contact_time, effective, hertz_coef
 
@@ -48,8 +49,9 @@ class ImpactMethods:
         speed : float, optional
             Normal approach speed [m/s]; default ``|J| / (m* (1 + e))`` with m* the effective
             mass and e the restitution (the smaller of the two materials'). Given, it also bounds
-            the vibration energy the impact gives the object by ``|J| speed / 2`` (the energy
-            bound of :func:`.kernels.impacts_to_queue`, which the per-step driver always applies).
+            the vibration energy the impact gives the object by ``|J| speed (1 - e) / 2``, the
+            energy the collision takes from the approach (:mod:`.impact_energy`; the energy bound
+            of :func:`.kernels.impacts_to_queue`, which the per-step driver always applies).
         radius_m : float, optional
             This object's radius of curvature at the contact [m]; default half its size.
 
@@ -101,7 +103,12 @@ class ImpactMethods:
                 if math.isnan(R1) or R1 <= 0:
                     raise ValueError(f"radius_m={radius_m!r} must be a positive radius in metres")
             tau = self._hertz_tau(ob, J, other_material, m2, R2, v, radius_m)
-        budget = np.full(k, np.inf) if v is None else 0.5 * np.sqrt(np.einsum("kc,kc->k", J, J)) * v
+        if v is None:
+            budget = np.full(k, np.inf)
+        else:  # (the energy the collision takes from the approach, .impact_energy)
+            e = self._restitution(ob, other_material)
+            budget = np.array([lost_energy(j, vi, e) for j, vi in zip(np.sqrt(np.einsum("kc,kc->k", J, J)).tolist(),
+                                                                       v.tolist())])
         if len(ob.keep) == 0 or k == 0:
             return
         self._impact_rows(np.full(k, ob.index, np.int64), P, J, t, tau, budget)
@@ -118,10 +125,16 @@ class ImpactMethods:
         """``(coef, e)``: :func:`.pulse.hertz_coefficient` of ``ob`` against the other body
         (mass ``m2``, radius ``R2``; ``radius_m`` None: half the object's size) and the
         restitution of the pair."""
-        mat1 = ob.model.material
         m1, R1, c1 = self._struck_terms(ob, radius_m)
-        e = mat1.restitution if other_material is None else min(mat1.restitution, other_material.restitution)
+        e = self._restitution(ob, other_material)
         return hertz_coef(effective(m1, m2), effective(R1, R2), c1 + compliance(other_material)), e
+
+    @staticmethod
+    def _restitution(ob, other_material) -> float:
+        """The restitution of ``ob`` struck by ``other_material`` (None: a rigid partner): the
+        smaller of the two materials'."""
+        e = ob.model.material.restitution
+        return e if other_material is None else min(e, other_material.restitution)
 
     @staticmethod
     def _struck_terms(ob, radius_m):

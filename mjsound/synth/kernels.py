@@ -394,9 +394,9 @@ def impacts_to_queue(synth, obj, P, J, t, tau, budget):
     ``E = sum_m |v_m|^2 / 2``. A point impulse on a thin wall, an edge or a corner can make
     ``E`` far larger than the impact has (the local mobility of a point grows without bound
     as the mesh refines; a 0.3 mm can on its rim: 600 times the collision's kinetic energy,
-    ``scripts/impact_energy.py``). No impact can give more than the work of the contact
-    force, ``|J| v_n / 2`` for an approach speed ``v_n`` (the kinetic energy of the relative
-    motion, for a plastic hit), so when ``E > budget[i]`` every amplitude of the impact is
+    ``scripts/impact_energy.py``). No impact can give more than the energy the collision takes
+    from the approach, ``|J| v_n (1 - e) / 2`` for an approach speed ``v_n`` and restitution
+    ``e`` (:mod:`.impact_energy`), so when ``E > budget[i]`` every amplitude of the impact is
     scaled by ``sqrt(budget[i] / E)``. ``budget[i] = inf`` (an impulse given without a speed)
     leaves it unbounded.
     """
