@@ -22,7 +22,8 @@ Cases:
   gains in the wrapped process is the time it loses to mjsound's use of the caches);
 * ``demo``: the demo scene's 3 s, over and over (shares of the whole process).
 
-Usage: python scripts/profile_native.py [--case ant|demo] [--seconds 4] [--top 20] [--rounds 2]
+Usage: python scripts/profile_native.py [--case ant|demo] [--seconds 4] [--top 20] [--rounds 2] [--free-field]
+(``--free-field``: the wrapped Ant-v5 with ``reflections=False``, to compare with the default floor).
 Needs ``perf`` and ``/proc/sys/kernel/perf_event_paranoid`` <= 2 (a process's own samples).
 """
 
@@ -60,7 +61,7 @@ if case == "ant":
     from mjsound.wrappers import AudioObservation
     env = gym.make("Ant-v5")
     if wrapped:
-        env = AudioObservation(env, sample_rate=16000)
+        env = AudioObservation(env, sample_rate=16000, reflections=os.environ.get("MJSOUND_PROFILE_FREE_FIELD") != "1")
     rng = np.random.default_rng(0)
     acts = rng.uniform(-1, 1, (2000, env.action_space.shape[0]))
     env.reset(seed=0)
@@ -216,7 +217,10 @@ def main(argv=None) -> int:
     p.add_argument("--seconds", type=float, default=4.0, help="sampling time per process")
     p.add_argument("--top", type=int, default=20, help="numba kernels listed")
     p.add_argument("--rounds", type=int, default=2, help="ant: processes per variant, alternated")
+    p.add_argument("--free-field", action="store_true", help="ant: the wrapped env with reflections=False")
     args = p.parse_args(argv)
+    if args.free_field:  # (read by the child)
+        os.environ["MJSOUND_PROFILE_FREE_FIELD"] = "1"
     if shutil.which("perf") is None:
         raise SystemExit("profile_native: needs Linux perf on PATH (linux-tools / linux-perf)")
     with tempfile.TemporaryDirectory(prefix="mjsound-numba-") as cache:

@@ -217,6 +217,30 @@ def test_fold_adds_each_image_times_its_factor_into_its_microphone():
     assert np.array_equal(out[2], block[4])
 
 
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_fold_kernel_is_the_plain_sum_image_by_image(dtype):
+    """fold_rows (one call per block) against the plain numpy sums, bit for bit: a room's
+    images (several per microphone, in order), factors rounded to the block's dtype, and the
+    contact rows moved up."""
+    from mjsound.sim.images import ImageSet
+
+    rng = np.random.default_rng(3)
+    n_air, parent, n_contact = 2, np.array([0, 1, 0, 0, 1]), 2
+    gains = rng.uniform(0.2, 1.0, parent.size)
+    block = rng.standard_normal((n_air + parent.size + n_contact, 48)).astype(dtype)
+    ref = block.copy()
+    for i, p in enumerate(parent):
+        ref[p] += ref[n_air + i] * dtype(gains[i])
+    ref = np.concatenate([ref[:n_air], ref[n_air + parent.size:]])
+    im = ImageSet(parent, np.zeros((parent.size, 3, 4)), np.ones((parent.size, 6)), gains, list("abcde"))
+    out = fold(block.copy(), n_air, im)
+    assert out.dtype == dtype and out.shape == ref.shape
+    assert np.array_equal(out, ref)
+    half = fold(block.copy(), n_air, im, gains=0.5 * gains)  # (the factors given)
+    assert np.array_equal(half[n_air:], ref[n_air:])
+    assert np.array_equal(half[1], block[1] + block[3] * dtype(0.5 * gains[1]) + block[6] * dtype(0.5 * gains[4]))
+
 # ---------------------------------------------------------------- clicks
 BALL_XML = """<mujoco><option timestep="0.001"/>
 <custom><text name="mjsound:ball" data="steel"/></custom>
