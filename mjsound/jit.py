@@ -60,9 +60,10 @@ KERNEL_GROUPS = {
               "modal/midsurface.py", "modal/node_mass.py", "modal/pencil.py", "modal/quadratic_forms.py",
               "modal/surface.py", "modal/voxelize.py"),
     "sim": ("audio_window.py", "io.py", "jit.py", "sim/click_kernels.py", "sim/drive.py", "sim/fused.py",
-            "sim/impulses.py", "sim/pairs.py", "sim/records.py", "sim/step.py", "synth/bandlimited.py",
+            "sim/images.py", "sim/impulses.py", "sim/pairs.py", "sim/records.py", "sim/step.py", "sim/surfaces.py",
+            "synth/bandlimited.py",
             "synth/bank_loops.py", "synth/constants.py", "synth/directivity.py", "synth/dispatch.py",
-            "synth/drive_tones.py", "synth/interrupt.py", "synth/kernels.py", "synth/packing.py", "synth/pulse.py", "synth/queue.py",
+            "synth/drive_tones.py", "synth/impact_energy.py", "synth/interrupt.py", "synth/kernels.py", "synth/packing.py", "synth/pulse.py", "synth/queue.py",
             "synth/records.py", "synth/sorting.py", "synth/streams.py"),
 }
 
