@@ -1,11 +1,18 @@
 #!/usr/bin/env python
-"""Step-time cost of actuator noise (benchmark, not a test): gymnasium's Ant-v5 wrapped in
-``AudioObservation`` with actuators off against the same with a preset on all 8 actuators
+"""Step-time cost of actuator noise (benchmark, not a test): a gymnasium env (default Ant-v5,
+8 hinge actuators; or a gymnasium-robotics one, e.g. FetchPickAndPlace-v4, whose arm moves by
+mocap and whose 2 gripper fingers are slide actuators) wrapped in ``AudioObservation`` with
+actuators off against the same with a preset on every actuator
 (``sim_kwargs={"actuators": PRESET}``), CPU time per ``env.step`` (``time.process_time``) on
 the same seeded random actions, in interleaved rounds (off, on, off, ...) of ``--steps`` steps;
 ``ratio`` = median over rounds of on / off. Goal (issue 38): <= 1.10.
 
     python scripts/bench_actuators.py --rounds 6 --steps 100 --preset qdd
+    python scripts/bench_actuators.py --env FetchPickAndPlace-v4 --preset servo --sample-rate 48000
+
+(At the wrapper's default 16 kHz, Fetch's gripper links have no audible mode, so its
+gripper's drives are silent and cost nothing; at 48 kHz they ring. ``--materials
+GEOM=MATERIAL,...`` gives geoms materials, in both envs.)
 """
 
 import argparse
@@ -18,15 +25,32 @@ import numpy as np
 from mjsound.wrappers import AudioObservation
 
 
+def make(name):
+    """``gym.make(name)``; a gymnasium-robotics env registers that package first (and its
+    mujoco 4 patch: :func:`mjsound.compat.patch_gymnasium_robotics`)."""
+    if name not in gym.registry:
+        import gymnasium_robotics
+
+        from mjsound.compat import patch_gymnasium_robotics
+
+        patch_gymnasium_robotics()
+        gym.register_envs(gymnasium_robotics)
+    return gym.make(name)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--env", default="Ant-v5")
     ap.add_argument("--preset", default="qdd")
     ap.add_argument("--rounds", type=int, default=6)
     ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--sample-rate", type=int, default=16000, help="AudioObservation's sample rate [Hz]")
+    ap.add_argument("--materials", default="", help="GEOM=MATERIAL,... for both envs (sim_kwargs materials)")
     args = ap.parse_args()
-    envs = {"off": AudioObservation(gym.make(args.env)),
-            "on": AudioObservation(gym.make(args.env), sim_kwargs={"actuators": args.preset})}
+    kw = {"materials": dict(kv.split("=", 1) for kv in args.materials.split(","))} if args.materials else {}
+    sr = args.sample_rate
+    envs = {"off": AudioObservation(make(args.env), sample_rate=sr, sim_kwargs=dict(kw)),
+            "on": AudioObservation(make(args.env), sample_rate=sr, sim_kwargs={**kw, "actuators": args.preset})}
     rng = np.random.default_rng(0)
     space = envs["off"].action_space
     acts = rng.uniform(space.low, space.high, (args.steps, space.shape[0]))
@@ -45,8 +69,10 @@ def main():
                     env.reset(seed=0)
             times[k].append((time.process_time() - t) / len(acts))
     off, on = np.array(times["off"]), np.array(times["on"])
-    print(json.dumps({"env": args.env, "preset": args.preset, "off_ms": 1e3 * float(np.median(off)),
-                      "on_ms": 1e3 * float(np.median(on)), "ratio": float(np.median(on / off))}))
+    print(json.dumps({"env": args.env, "preset": args.preset, "actuators": int(envs["on"].unwrapped.model.nu),
+                      "sample_rate": sr, "materials": args.materials,
+                      "off_ms": 1e3 * float(np.median(off)), "on_ms": 1e3 * float(np.median(on)),
+                      "ratio": float(np.median(on / off))}))
 
 
 if __name__ == "__main__":

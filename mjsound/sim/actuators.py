@@ -20,9 +20,12 @@ data="servo"/>`` (``NAME`` an actuator's name or ``*`` for all) or in Python,
 
 The force acts at the joint's anchor (``data.xanchor``) on the joint's body and, equal and
 opposite, on its parent, across the axis (a hinge: along ``axis x e``, ``e`` the world
-axis least aligned with the joint's; a slide: along the axis), each side through a
-persistent stream of the synthesizer (the sliding contacts' machinery): air microphones
-hear the links ring, a contact microphone on a driven link hears it directly.
+axis least aligned with the joint's; a slide: along the axis). Each driven body with a
+sounding geom gets one persistent stream of the synthesizer (the sliding contacts'
+machinery) carrying the sum of the forces on it (a link between two joints: both drives),
+at the anchor and along the direction of its strongest drive
+(:func:`mjsound.synth.drive_tones.streams_write`): air microphones hear the links ring, a
+contact microphone on a driven link hears it directly.
 See ``docs/actuators.md`` for the presets' numbers and where they come from.
 """
 
@@ -183,17 +186,33 @@ class ActuatorSound:
         self.broadband = np.array([p.broadband for p in presets])
         self.rng = np.array([0x5EED0000 + int(i) for i in self.ids], np.int64)
         self.lp = np.zeros(J)
-        # the two bodies' sounding geoms (the joint's body, its parent): the object each excites
+        # the driven bodies (the joint's body, its parent) that have a sounding geom: one
+        # stream each, on its first sounding geom, carrying the sum of the drives on it
         body = m.jnt_bodyid[self.joint]
         obj = sim._sound["obj"]
-        self.geoms = np.full((J, 2), -1, np.int64)
+        sides = {}
         for j in range(J):
-            for side, b in enumerate((body[j], m.body_parentid[body[j]])):
+            for side, b in enumerate((int(body[j]), int(m.body_parentid[body[j]]))):
                 g = np.flatnonzero((m.geom_bodyid == b) & (obj >= 0))
                 if len(g):
-                    self.geoms[j, side] = g[0]
-        self.sign = np.tile([1.0, -1.0], J)
-        self._sidx = np.full(2 * J, -1, np.int64)
+                    sides.setdefault(b, (int(g[0]), []))[1].append(2 * j + side)
+        heard = {r // 2 for _, rows in sides.values() for r in rows}
+        if len(heard) < J:
+            import warnings
+
+            from ..user_frame import user_stacklevel
+
+            silent = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(self.ids[j]))
+                      for j in range(J) if j not in heard]
+            warnings.warn(f"mjsound: actuators {silent} drive no sounding geom (neither the joint's body nor its "
+                          "parent has one with an audible mode): they are silent; give those bodies' geoms a "
+                          "material (materials=..., MJCF 'mjsound:GEOM') or a higher sample_rate to hear them", RuntimeWarning, stacklevel=user_stacklevel())
+        self.bodies = np.array(sorted(sides), np.int64)
+        self.body_geom = np.array([sides[b][0] for b in self.bodies.tolist()], np.int64)
+        self.body_ptr = np.zeros(len(self.bodies) + 1, np.int64)
+        self.body_ptr[1:] = np.cumsum([len(sides[b][1]) for b in self.bodies.tolist()])
+        self.body_rows = np.array([r for b in self.bodies.tolist() for r in sides[b][1]], np.int64)
+        self._sidx = np.full(len(self.bodies), -1, np.int64)
         self._epoch = None
         self._last = None  # (rotor speed, force scale) at the end of the last block
 
@@ -204,50 +223,38 @@ class ActuatorSound:
     def _streams(self, synth):
         if self._epoch != synth.streams_epoch:
             names = self._sim._names
-            for r in range(len(self._sidx)):
-                g = self.geoms[r // 2, r % 2]
-                self._sidx[r] = -1 if g < 0 else synth.stream(("actuator", int(self.ids[r // 2]), r % 2), names[g])
+            for i, (b, g) in enumerate(zip(self.bodies.tolist(), self.body_geom.tolist())):
+                self._sidx[i] = synth.stream(("actuator", b), names[g])
             self._epoch = synth.streams_epoch
         return self._sidx
 
     def drive(self, n0: int, n1: int) -> None:
         """Drive the streams on the clock's samples ``[n0, n1)`` from the actuators' state now."""
         L = n1 - n0
-        if L <= 0:
+        if L <= 0 or not len(self.bodies):  # (no driven body has a sounding geom: nothing to hear)
             return
         sim = self._sim
         d = sim.data
         qd = d.qvel[self.dof]
         w = qd * self.ratio
         a = np.abs(d.actuator_force[self.ids] * self.gear) * self.inv_radius * np.minimum(1.0, np.abs(qd) / GATE_RAD_S)
-        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(a))):
+        if not math.isfinite(w.sum() + a.sum()):
             w = np.where(np.isfinite(w), w, 0.0)
             a = np.where(np.isfinite(a) & np.isfinite(w), a, 0.0)
         w0, a0 = (w, a) if self._last is None else self._last
         self._last = (w, a)
-        if not (a.any() or a0.any()):
+        if not (a.any() or a0.any()):  # (every joint still: nothing to drive; the phases wait)
             return
         synth = sim.synth
         F = np.empty((len(self.ids), L))
-        drive_tones(np.stack((w0, w), 1), np.stack((a0, a), 1), self.comp_off, self.order, self.amp, self.phase, self.broadband, self.rng,
-                    self.lp, float(synth.sample_rate), F)
-        P = d.xanchor[self.joint]
-        ax = d.xaxis[self.joint]
-        D = np.where(self.slide[:, None], ax, _across(ax))
+        drive_tones(w0, w, a0, a, self.comp_off, self.order, self.amp, self.phase, self.broadband, self.rng, self.lp,
+                    float(synth.sample_rate), F)
         sidx = self._streams(synth)
         k0 = n0 - int(sim.driver.clock.rec[0]["origin"])
         regain = int(sim._drive_prm[0]["regain"])
         while True:
-            need = streams_write(synth._streams.state, synth._consts, sidx, self.sign, k0, F, P, D, regain)
+            need = streams_write(synth._streams.state, synth._consts, sidx, self.body_ptr, self.body_rows, k0, F, a,
+                                 d.xanchor, d.xaxis, self.joint, self.slide, regain)
             if need == 0:
                 break
             synth.grow_stream_ring(need)
-
-
-def _across(axis):
-    """Unit vectors across each row of ``axis`` (J, 3): ``axis x e``, ``e`` the world axis least
-    aligned with it."""
-    e = np.zeros_like(axis)
-    e[np.arange(len(axis)), np.argmin(np.abs(axis), axis=1)] = 1.0
-    c = np.cross(axis, e)
-    return c / np.maximum(np.linalg.norm(c, axis=1, keepdims=True), 1e-12)

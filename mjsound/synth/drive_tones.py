@@ -7,17 +7,26 @@ A driven joint's vibration force at sample ``k`` of a block is
 with ``a[k]`` the force scale [N] (transmitted torque over the drive's radius, times the
 speed gate; :mod:`mjsound.sim.actuators`), interpolated linearly from ``a0`` to ``a1`` over
 the block; ``phi_c`` the phase of tonal component ``c`` at ``order_c`` times the rotor's
-rate: ``phi_c[k+1] = phi_c[k] + order_c w[k] / fs`` with the rotor speed ``w[k]`` [rad/s]
-linear from ``w0`` to ``w1`` (phases carry over blocks: the tones are continuous while the
-speed changes); a component above ``0.45 fs`` is left out (no aliasing); ``y`` unit-variance
-noise low-passed at the first tonal component's frequency (the broadband part, relative
-level ``b``). The phasor of each component turns by a rotation recomputed every
-:data:`HOLD` samples (the frequency is held that long, 1/3 ms at 48 kHz) and renormalised
-there.
+angle: ``phi_c[k+1] = phi_c[k] + d_c[k]``, ``d_c[k] = order_c w[k] / fs`` with the signed
+rotor speed ``w[k] = w0 + (w1 - w0) k / L`` [rad/s] (phases carry over blocks: the tones
+are continuous while the speed changes, and through a reversal); a component's samples
+whose frequency ``|d_c| fs / 2 pi`` is above ``0.45 fs`` are left out (no aliasing); ``y``
+unit-variance noise low-passed at the first tonal component's frequency (the broadband
+part, relative level ``b``).
 
-Streams: each signal enters the synthesizer as a persistent stream (:mod:`.stream_table`,
-the sliding contacts' machinery): its ring holds the force samples, its world point and
-direction set the gains (refreshed every ``regain`` samples, :func:`.streams.stream_gains`).
+No sine per sample: each component is a recursive oscillator, the phasor
+``z[k+1] = z[k] r[k]`` turned by ``r[k] = e^{j d_c[k]}``, itself turned by the constant
+``e^{j (d_c[k+1] - d_c[k])}`` (a linear chirp), run as four interleaved recursions
+(:func:`tone_add`); the phase is set exactly from
+``phi_c[0]`` at each block's start and stored exactly at its end (``phi_c[L] = phi_c[0] +
+L d_c[0] + (L (L - 1) / 2) (d_c[1] - d_c[0])``), so rounding never accumulates over blocks.
+
+Streams: one persistent stream per driven body (:mod:`.stream_table`, the sliding contacts'
+machinery) carries the sum of the drive forces on that body (an actuator pushes its joint's
+body and, equal and opposite, the parent; a link between two joints gets both): its ring
+holds the force samples, its world point and direction (the strongest drive's) set the
+gains (refreshed every ``regain`` samples, :func:`.streams.stream_gains`). One stream per
+body instead of one per (actuator, side) renders fewer forcing rows.
 """
 
 from __future__ import annotations
@@ -29,67 +38,127 @@ import numpy as np
 from ..jit import njit
 from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix, ring_need
 
-__all__ = ["HOLD", "drive_tones", "streams_write"]
-
-#: Samples a tonal component's frequency is held before its rotation is recomputed.
-HOLD = 16
+__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "streams_write"]
 
 
 @njit(cache=True)
-def drive_tones(w, a, comp_off, order, amp, phase, broadband, rng, lp, fs, out):
+def audible_span(s0, ds, limit, L):
+    """Samples ``[lo, hi)`` of ``0 <= k < L`` whose phase increment ``|s0 + ds k|`` [rad] is
+    below ``limit`` (a linear frequency sweep stays under the cut-off on one interval)."""
+    if ds == 0.0:
+        return (0, L) if abs(s0) < limit else (0, 0)
+    ka = (-limit - s0) / ds
+    kb = (limit - s0) / ds
+    if ka > kb:
+        ka, kb = kb, ka
+    lo = 0 if ka < 0.0 else min(L, np.int64(math.floor(ka)) + 1)
+    hi = L if kb > L else max(0, np.int64(math.ceil(kb)))
+    return (lo, hi) if hi > lo else (0, 0)
+
+
+@njit(cache=True, inline="always")
+def tone_add(out, A, ph, s0, ds, lo, hi):
+    """``out[k] += A sin(phi_k)`` for ``lo <= k < hi``, ``phi_k = ph + s0 k + ds k (k - 1) / 2``
+    [rad] (a linear chirp), by recursion: four interleaved oscillators (samples ``4 m + i``),
+    each phasor ``z_i`` turned per step by ``q_i = e^{j (phi_{k+4} - phi_k)}``, itself turned
+    by ``e^{j 16 ds}``: independent recursions, so they overlap in the processor."""
+    e1 = complex(math.cos(ds), math.sin(ds))
+    r = complex(math.cos(s0), math.sin(s0))  # e^{j d_0}, d_k = s0 + ds k
+    z0 = complex(math.cos(ph), math.sin(ph))
+    q0 = r  # (becomes R_0 = e^{j (d_0 + d_1 + d_2 + d_3)})
+    z1 = z0 * r
+    r *= e1
+    q0 *= r
+    z2 = z1 * r
+    r *= e1
+    q0 *= r
+    z3 = z2 * r
+    r *= e1
+    q0 *= r
+    # q_i = e^{j (4 s0 + ds (4 i + 6))}: q_{i+1} = q_i e^{j 4 ds}
+    e4 = e1 * e1
+    e4 = e4 * e4
+    q1 = q0 * e4
+    q2 = q1 * e4
+    q3 = q2 * e4
+    e16 = e4 * e4
+    e16 = e16 * e16
+    L = out.shape[0]
+    k = 0
+    while k + 4 <= L:
+        if lo <= k and k + 4 <= hi:
+            out[k] += A * z0.imag
+            out[k + 1] += A * z1.imag
+            out[k + 2] += A * z2.imag
+            out[k + 3] += A * z3.imag
+        else:
+            for i in range(4):
+                if lo <= k + i and k + i < hi:
+                    out[k + i] += A * (z0.imag if i == 0 else z1.imag if i == 1 else z2.imag if i == 2 else z3.imag)
+        z0 *= q0
+        z1 *= q1
+        z2 *= q2
+        z3 *= q3
+        q0 *= e16
+        q1 *= e16
+        q2 *= e16
+        q3 *= e16
+        k += 4
+    for i in range(L - k):
+        if lo <= k + i and k + i < hi:
+            out[k + i] += A * (z0.imag if i == 0 else z1.imag if i == 1 else z2.imag)
+
+
+@njit(cache=True)
+def drive_tones(w0, w1, a0, a1, comp_off, order, amp, phase, broadband, rng, lp, fs, out):
     """Fill ``out[j, :]`` with actuator ``j``'s force signal (see the module's formula).
 
     Parameters
     ----------
-    w : (J, 2) float64, rotor speed at the block's start and end [rad/s]
-    a : (J, 2) float64, force scale at the block's start and end [N]
+    w0, w1 : (J,) float64, rotor speed at the block's start and end [rad/s] (signed)
+    a0, a1 : (J,) float64, force scale at the block's start and end [N]
     comp_off : (J + 1,) int64, actuator ``j``'s components ``comp_off[j]:comp_off[j+1]``
     order, amp : (C,) float64, multiple of the rotor's rate and relative amplitude per component
-    phase : (C,) float64, each component's phase [rad] (updated: the block's end)
+    phase : (C,) float64, each component's phase [rad] at the block's start (updated: its end)
     broadband : (J,) float64, relative level ``b`` of the broadband noise
     rng : (J,) int64, per actuator the noise generator's splitmix64 state (updated)
     lp : (J,) float64, per actuator the noise low-pass's output (updated)
     fs : float, sample rate [Hz]
     out : (J, L) float64, the force [N] (written)
+
+    Example
+    -------
+    >>> out = np.empty((1, 480))
+    >>> drive_tones(np.array([100.0]), np.array([100.0]), np.ones(1), np.ones(1), np.array([0, 1]),
+    ...             np.array([10.0]), np.array([0.05]), np.zeros(1), np.zeros(1), np.zeros(1, np.int64),
+    ...             np.zeros(1), 48000.0, out)  # 0.05 sin(2 pi 159.2 Hz t)
     """
     J, L = out.shape
-    w0, w1, a0, a1 = w[:, 0], w[:, 1], a[:, 0], a[:, 1]
-    nyq = 0.45 * fs
+    limit = 2.0 * math.pi * 0.45  # [rad / sample]: 0.45 fs
     two_pi = 2.0 * math.pi
     for j in range(J):
         for k in range(L):
             out[j, k] = 0.0
+        silent = a0[j] == 0.0 and a1[j] == 0.0
+        dw = (w1[j] - w0[j]) / L
+        for c in range(comp_off[j], comp_off[j + 1]):
+            s0 = order[c] * w0[j] / fs
+            ds = order[c] * dw / fs
+            ph = phase[c]
+            phase[c] = (ph + s0 * L + ds * (0.5 * L * (L - 1))) % two_pi  # (exact: the rotor turns when silent too)
+            if silent:
+                continue
+            lo, hi = audible_span(s0, ds, limit, L)
+            if hi > lo:
+                tone_add(out[j], amp[c], ph, s0, ds, lo, hi)
+    for j in range(J):
         if a0[j] == 0.0 and a1[j] == 0.0:
             continue
         da = (a1[j] - a0[j]) / L
-        dw = (w1[j] - w0[j]) / L
-        for c in range(comp_off[j], comp_off[j + 1]):
-            ph = phase[c]
-            cr = math.cos(ph)
-            ci = math.sin(ph)
-            A = amp[c]
-            k = 0
-            while k < L:
-                w = abs(w0[j] + dw * (k + 0.5 * HOLD)) * order[c]  # [rad/s], held for HOLD samples
-                n = min(HOLD, L - k)
-                step = w / fs
-                if w / two_pi < nyq:
-                    rr = math.cos(step)
-                    ri = math.sin(step)
-                    for q in range(k, k + n):
-                        out[j, q] += A * (a0[j] + da * q) * ci
-                        t = cr * rr - ci * ri
-                        ci = cr * ri + ci * rr
-                        cr = t
-                ph = (ph + n * step) % two_pi
-                cr = math.cos(ph)  # (renormalised: no drift of the phasor's length)
-                ci = math.sin(ph)
-                k += n
-            phase[c] = ph
         b = broadband[j]
         if b > 0.0:
             c0 = comp_off[j]
-            fc = min(abs(0.5 * (w0[j] + w1[j])) * (order[c0] if comp_off[j + 1] > c0 else 1.0) / two_pi, nyq)
+            fc = min(abs(0.5 * (w0[j] + w1[j])) * (order[c0] if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
             alpha = 1.0 - math.exp(-two_pi * fc / fs)
             state = np.uint64(rng[j])
             y = lp[j]
@@ -98,45 +167,99 @@ def drive_tones(w, a, comp_off, order, amp, phase, broadband, rng, lp, fs, out):
                 x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
                      + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
                 y = alpha * (x * _SQRT3) + (1.0 - alpha) * y
-                out[j, q] += b * (a0[j] + da * q) * y
+                out[j, q] = (a0[j] + da * q) * (out[j, q] + b * y)
             rng[j] = np.int64(state)
             lp[j] = y
+        else:
+            for q in range(L):
+                out[j, q] *= a0[j] + da * q
+
+
+@njit(cache=True, inline="always")
+def drive_direction(axis, slide, out):
+    """The direction [unit] a joint's drive force acts along: a slide's ``axis``; a hinge's
+    ``axis x e`` normalised, ``e`` the world axis least aligned with ``axis`` (the first of
+    equals)."""
+    if slide:
+        for c in range(3):
+            out[c] = axis[c]
+        return
+    e = 0
+    for c in range(1, 3):
+        if abs(axis[c]) < abs(axis[e]):
+            e = c
+    # axis x unit(e)
+    x = axis[(e + 1) % 3]
+    y = axis[(e + 2) % 3]
+    v = np.zeros(3)
+    v[(e + 1) % 3] = y
+    v[(e + 2) % 3] = -x
+    nrm = math.sqrt(x * x + y * y)
+    if nrm < 1e-12:
+        nrm = 1e-12
+    for c in range(3):
+        out[c] = v[c] / nrm
 
 
 @njit(cache=True)
-def streams_write(streams, consts, sidx, sign, k0, F, P, D, regain):
-    """Drive stream ``sidx[r]`` (-1: none) on synth samples ``[k0, k0 + L)`` with the force
-    ``sign[r] * F[j(r)]`` [N] at world point ``P[j(r)]`` along unit ``D[j(r)]``, ``j(r) = r // 2``
-    (two sides per actuator: its body and its parent, equal and opposite). An all-zero signal
-    is not written (the stream falls silent after its last samples). Returns 0, or the ring
-    length needed first (nothing written then)."""
+def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, joint, slide, regain):
+    """Drive body stream ``sidx[b]`` (-1: none) on synth samples ``[k0, k0 + L)`` with the sum
+    of the drive forces on body ``b``: rows ``r = rows[ptr[b]:ptr[b + 1]]``, actuator
+    ``j = r // 2`` on its side ``r % 2`` (0: the joint's body, force ``+F[j]``; 1: its parent,
+    ``-F[j]``, equal and opposite). The sum acts at the anchor ``anchor[joint[j*]]`` of the
+    strongest acting actuator ``j*`` (largest force scale ``a``) along its direction
+    (:func:`drive_direction` of ``axis[joint[j*]]``, ``slide[j*]``) times its side's sign.
+    A body whose forces are all zero is not written (the stream falls silent after its last
+    samples). Returns 0, or the ring length needed first (nothing written then).
+
+    Parameters
+    ----------
+    streams, consts : the synthesizer's stream table state and constants
+    sidx : (B,) int64, each body's stream
+    ptr : (B + 1,) int64, rows : (R,) int64, the actuator sides on each body
+    k0 : int, first synth sample
+    F : (J, L) float64, the actuators' force signals [N] (:func:`drive_tones`)
+    a : (J,) float64, their force scales now [N] (picks the strongest)
+    anchor, axis : (n_joints, 3) float64, MuJoCo's ``data.xanchor``, ``data.xaxis``
+    joint : (J,) int64, each actuator's joint; slide : (J,) bool, whether it slides
+    regain : int, samples between the gains' refreshes
+    """
     L = F.shape[1]
     k1 = k0 + L
     cap = streams.ring.shape[1]
-    for r in range(sidx.shape[0]):
-        s = sidx[r]
+    for b in range(sidx.shape[0]):
+        s = sidx[b]
         if s >= 0:
             need = ring_need(streams, consts, s, k1)
             if need > cap:
                 return need
     ring = streams.ring
     mask = cap - 1
-    for r in range(sidx.shape[0]):
-        s = sidx[r]
+    nrm = np.empty(3)
+    v = np.empty(L)
+    for b in range(sidx.shape[0]):
+        s = sidx[b]
         if s < 0:
             continue
-        j = r // 2
-        live = False
-        for q in range(L):
-            if F[j, q] != 0.0:
-                live = True
-                break
-        if not live:
+        best = -1
+        for i in range(ptr[b], ptr[b + 1]):
+            j = rows[i] // 2
+            live = False
+            for q in range(L):
+                if F[j, q] != 0.0:
+                    live = True
+                    break
+            if live and (best < 0 or a[j] > a[rows[best] // 2]):
+                best = i
+        if best < 0:
             continue
+        jb = rows[best] // 2
+        sg = 1.0 if rows[best] % 2 == 0 else -1.0
         st = streams.table[s]
+        drive_direction(axis[joint[jb]], slide[jb], nrm)
         for c in range(3):
-            st.p[c] = P[j, c]
-            st.n[c] = sign[r] * D[j, c]
+            st.p[c] = anchor[joint[jb], c]
+            st.n[c] = sg * nrm[c]
         g = st.gupd
         if k0 >= g + regain or k0 < g:
             st.gupd = k0
@@ -144,10 +267,26 @@ def streams_write(streams, consts, sidx, sign, k0, F, P, D, regain):
         k = st.gen
         if k < k1 - cap:
             k = k1 - cap
-        sg = sign[r]
-        while k < k1:
-            ring[s, k & mask] = sg * F[j, k - k0] if k >= k0 else 0.0
+        while k < k0:
+            ring[s, k & mask] = 0.0
             k += 1
+        # the sum, signed so that the strongest drive pushes along +nrm, then into the ring
+        # (two contiguous runs, around its wrap)
+        for i in range(ptr[b], ptr[b + 1]):
+            j = rows[i] // 2
+            f = sg if rows[i] % 2 == 0 else -sg
+            if i == ptr[b]:
+                for q in range(L):
+                    v[q] = f * F[j, q]
+            else:
+                for q in range(L):
+                    v[q] += f * F[j, q]
+        r0 = k0 & mask
+        n0 = min(L, cap - r0)
+        for q in range(n0):
+            ring[s, r0 + q] = v[q]
+        for q in range(n0, L):
+            ring[s, q - n0] = v[q]
         st.k0 = k0
         st.k1 = k1
         st.amp = 1.0
