@@ -133,3 +133,43 @@ def test_configuration_errors_name_the_input():
     assert actuator_config(mujoco.MjModel.from_xml_string(tendon), "none") == {}
     assert actuator_config(m) == {}  # off unless a preset is named
     assert actuator_config(m, "qdd") == {0: PRESETS["qdd"]}
+
+
+def test_the_parent_of_a_driven_joint_hears_its_reaction_and_a_link_sums_its_drives():
+    """A chain base -> upper (hinge j1) -> fore (hinge j2), fixed base: driving j2 alone, the
+    upper link (j2's parent) hears the reaction and the base (parent of the undriven j1) hears
+    nothing; driving both (other speeds: other lines), the upper link's one stream carries both
+    drives: louder than j1's alone."""
+    xml = """<mujoco><option timestep="0.001"/>
+<custom><text name="mjsound:base" data="steel"/><text name="mjsound:upper" data="aluminium"/>
+ <text name="mjsound:fore" data="aluminium"/></custom>
+<worldbody>
+ <body name="base" pos="0 0 0.5"><geom name="base" type="box" size=".1 .1 .05"/><site name="s_base" pos="0 0 .05"/>
+  <body name="upper" pos="0 0 0.1"><joint name="j1" type="hinge" axis="0 0 1" damping="0.05"/>
+   <geom name="upper" type="box" size=".2 .02 .02" pos=".2 0 0"/><site name="s_upper" pos=".2 0 .02"/>
+   <body name="fore" pos=".4 0 0.05"><joint name="j2" type="hinge" axis="0 0 1" damping="0.05"/>
+    <geom name="fore" type="box" size=".15 .015 .015" pos=".15 0 0"/></body></body></body>
+</worldbody>
+<actuator><velocity name="m1" joint="j1" kv="5"/><velocity name="m2" joint="j2" kv="5"/></actuator></mujoco>"""
+
+    def hear(actuators, ctrl, bodies):
+        m = mujoco.MjModel.from_xml_string(xml)
+        d = mujoco.MjData(m)
+        sim = AudioSimulator(m, d, microphones=[[0.5, 0.5, 0.8]], contact_mics=["s_upper", "s_base"],
+                             progress=False, sample_rate=FS, quality="draft", actuators=actuators)
+        out = []
+        for _ in range(400):
+            d.ctrl[:] = ctrl
+            mujoco.mj_step(m, d)
+            out.append(sim.step())
+        assert sim.actuators.bodies.tolist() == [m.body(b).id for b in bodies]  # (one stream per driven body)
+        return np.concatenate(out, axis=1)[:, -int(0.2 * FS):].astype(float)
+
+    only2 = hear({"m2": ONE_TONE}, [0.0, 2.0], ["upper", "fore"])
+    assert np.abs(only2[1]).max() > 1e-4  # upper: j2's reaction
+    assert np.abs(only2[2]).max() == 0.0  # base: j1 not driven
+    both = hear({"m1": ONE_TONE, "m2": ONE_TONE}, [2.0, 3.0], ["base", "upper", "fore"])
+    assert np.abs(both[2]).max() > 0  # base: j1's reaction now
+    only1 = hear({"m1": ONE_TONE}, [2.0, 0.0], ["base", "upper"])
+    rms = [np.sqrt(np.mean(x[1] ** 2)) for x in (only1, both)]
+    assert rms[1] > 1.2 * rms[0]

@@ -61,7 +61,8 @@ def test_a_component_sweeping_over_0_45_fs_is_cut_there():
 
 
 def test_audible_span_is_the_interval_under_the_cut():
-    for s0, ds, L in ((0.5, 0.001, 4000), (3.0, -0.001, 4000), (-2.0, 0.0005, 9000), (1.0, 0.0, 10), (3.0, 0.0, 10)):
+    for s0, ds, L in ((0.5, 0.001, 4000), (3.0, -0.001, 4000), (-2.0, 0.0005, 9000), (1.0, 0.0, 10), (3.0, 0.0, 10),
+                        (1.0, 1e-300, 50), (3.0, -1e-300, 50), (2.8274, 1e-300, 50)):
         k = np.arange(L)
         inside = np.flatnonzero(np.abs(s0 + ds * k) < 2 * math.pi * 0.45)
         lo, hi = audible_span(s0, ds, 2 * math.pi * 0.45, L)

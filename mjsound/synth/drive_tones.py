@@ -51,8 +51,8 @@ def audible_span(s0, ds, limit, L):
     kb = (limit - s0) / ds
     if ka > kb:
         ka, kb = kb, ka
-    lo = 0 if ka < 0.0 else min(L, np.int64(math.floor(ka)) + 1)
-    hi = L if kb > L else max(0, np.int64(math.ceil(kb)))
+    lo = 0 if ka < 0.0 else (L if ka >= L else np.int64(math.floor(ka)) + 1)  # (no overflow for a tiny ds)
+    hi = L if kb > L else (0 if kb <= 0.0 else np.int64(math.ceil(kb)))
     return (lo, hi) if hi > lo else (0, 0)
 
 
