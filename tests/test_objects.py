@@ -86,7 +86,7 @@ def test_a_hit_on_any_geom_of_the_body_rings_the_one_object():
     models = {"table": stub_model((V, F), "steel", 6, 700.0)}
     scene = SoundScene.from_model(model, materials={"table": "steel"}, models=models, progress=False)
     sim = AudioSimulator(model, scene=scene, sample_rate=16000)
-    assert sim._geom_obj[leg] == sim._geom_obj[top] >= 0  # both geoms excite the same object
+    assert sim.geom_objects[leg] == sim.geom_objects[top] >= 0  # both geoms excite the same object
     y = sim.run(0.4)
     hits = [r for r in sim.impacts if top in (r.geom1, r.geom2)]
     assert hits and not any(leg in (r.geom1, r.geom2) for r in sim.impacts)

@@ -189,7 +189,7 @@ class ActuatorSound:
         # the driven bodies (the joint's body, its parent) that have a sounding geom: one
         # stream each, on its first sounding geom, carrying the sum of the drives on it
         body = m.jnt_bodyid[self.joint]
-        obj = sim._sound["obj"]
+        obj = sim.geom_objects
         sides = {}
         for j in range(J):
             for side, b in enumerate((int(body[j]), int(m.body_parentid[body[j]]))):
@@ -222,7 +222,7 @@ class ActuatorSound:
 
     def _streams(self, synth):
         if self._epoch != synth.streams_epoch:
-            names = self._sim._names
+            names = self._sim.object_names
             for i, (b, g) in enumerate(zip(self.bodies.tolist(), self.body_geom.tolist())):
                 self._sidx[i] = synth.stream(("actuator", b), names[g])
             self._epoch = synth.streams_epoch
@@ -251,9 +251,10 @@ class ActuatorSound:
                     float(synth.sample_rate), F)
         sidx = self._streams(synth)
         k0 = n0 - int(sim.driver.clock.rec[0]["origin"])
-        regain = int(sim._drive_prm[0]["regain"])
+        regain = sim.regain_samples
         while True:
-            need = streams_write(synth._streams.state, synth._consts, sidx, self.body_ptr, self.body_rows, k0, F, a,
+            state, consts = synth.stream_tables()
+            need = streams_write(state, consts, sidx, self.body_ptr, self.body_rows, k0, F, a,
                                  d.xanchor, d.xaxis, self.joint, self.slide, regain)
             if need == 0:
                 break

@@ -370,9 +370,19 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self.driver.on_block = fn
 
     @property
-    def _geom_obj(self) -> np.ndarray:
+    def geom_objects(self) -> np.ndarray:
         """Synthesizer object index each geom excites (-1: silent), (ngeom,) int64."""
         return self._sound["obj"]
+
+    @property
+    def object_names(self) -> dict:
+        """``{geom id: name of the sounding object it excites}`` for the sounding geoms."""
+        return self._names
+
+    @property
+    def regain_samples(self) -> int:
+        """Samples a sustained stream is driven ahead of the clock (its regain block)."""
+        return int(self._drive_prm[0]["regain"])
 
     # ------------------------------------------------------------------ the kernel's inputs
     def _drive_state(self, reader_state) -> DriveState:

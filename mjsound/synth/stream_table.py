@@ -205,6 +205,12 @@ class StreamMethods:
         """Stream rings of at least ``need`` samples."""
         self._streams.grow_ring(need)
 
+    def stream_tables(self):
+        """``(state, consts)``: the streams' state table and the synthesizer's constants record,
+        what a kernel that writes into streams takes (the actuators'
+        :func:`mjsound.synth.drive_tones.streams_write`)."""
+        return self._streams.state, self._consts
+
     @property
     def n_streams(self) -> int:
         """Persistent streams in use."""
