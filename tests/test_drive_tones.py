@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from mjsound.synth.drive_tones import audible_span, drive_direction, drive_tones
+from mjsound.synth.drive_tones import NOISE, TONE, audible_span, drive_direction, drive_tones
 
 FS = 16000.0
 
@@ -27,10 +27,13 @@ def reference(w0, w1, a0, a1, orders, amps, phase, L):
 
 
 def run(w0, w1, a0, a1, orders, amps, phase, L):
+    """The kernel on one actuator's components; ``phase`` updated in place, as the kernel's."""
     out = np.empty((1, L))
+    tones = np.zeros(len(orders), TONE)
+    tones["order"], tones["amp"], tones["phase"] = orders, amps, phase
     drive_tones(np.array([w0]), np.array([w1]), np.array([a0]), np.array([a1]), np.array([0, len(orders)]),
-                np.array(orders, float), np.array(amps, float), phase, np.zeros(1), np.zeros(1, np.int64), np.zeros(1),
-                FS, out)
+                tones, np.zeros(1, NOISE), FS, out)
+    phase[:] = tones["phase"]
     return out[0]
 
 
@@ -73,8 +76,9 @@ def test_audible_span_is_the_interval_under_the_cut():
 def test_broadband_is_linear_in_the_force_scale_and_a_still_joint_is_silent():
     def noise(a):
         out = np.empty((1, 500))
-        drive_tones(np.array([60.0]), np.array([60.0]), np.array([a]), np.array([a]), np.array([0, 0]), np.zeros(0),
-                    np.zeros(0), np.zeros(0), np.array([0.01]), np.array([7], np.int64), np.zeros(1), FS, out)
+        noise = np.array([(0.01, 7, 0.0)], NOISE)
+        drive_tones(np.array([60.0]), np.array([60.0]), np.array([a]), np.array([a]), np.array([0, 0]),
+                    np.zeros(0, TONE), noise, FS, out)
         return out[0]
 
     one = noise(1.0)

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..jit import njit  # noqa: F401  (kernels live in synth.drive_tones)
-from ..synth.drive_tones import drive_tones, streams_write
+from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
 __all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "ActuatorSound", "actuator_config"]
 
@@ -178,14 +178,16 @@ class ActuatorSound:
         self.ratio = np.array([p.reduction * (2 * math.pi / p.lead if s else 1.0) for p, s in zip(presets, slide)])
         self.inv_radius = np.array([1.0 if s else 1.0 / p.radius for p, s in zip(presets, slide)])
         self.slide = slide
+        self.drives = np.zeros(J, DRIVE)
+        self.drives["joint"], self.drives["slide"] = self.joint, slide
         self.comp_off = np.zeros(J + 1, np.int64)
         self.comp_off[1:] = np.cumsum([len(p.tones) for p in presets])
-        self.order = np.array([o for p in presets for o, _ in p.tones], float)
-        self.amp = np.array([a for p in presets for _, a in p.tones], float)
-        self.phase = np.zeros(len(self.order))
-        self.broadband = np.array([p.broadband for p in presets])
-        self.rng = np.array([0x5EED0000 + int(i) for i in self.ids], np.int64)
-        self.lp = np.zeros(J)
+        self.tones = np.zeros(int(self.comp_off[-1]), TONE)
+        self.tones["order"] = [o for p in presets for o, _ in p.tones]
+        self.tones["amp"] = [a for p in presets for _, a in p.tones]
+        self.noise = np.zeros(J, NOISE)
+        self.noise["broadband"] = [p.broadband for p in presets]
+        self.noise["rng"] = [0x5EED0000 + int(i) for i in self.ids]
         # the driven bodies (the joint's body, its parent) that have a sounding geom: one
         # stream each, on its first sounding geom, carrying the sum of the drives on it
         body = m.jnt_bodyid[self.joint]
@@ -247,15 +249,14 @@ class ActuatorSound:
             return
         synth = sim.synth
         F = np.empty((len(self.ids), L))
-        drive_tones(w0, w, a0, a, self.comp_off, self.order, self.amp, self.phase, self.broadband, self.rng, self.lp,
-                    float(synth.sample_rate), F)
+        drive_tones(w0, w, a0, a, self.comp_off, self.tones, self.noise, float(synth.sample_rate), F)
         sidx = self._streams(synth)
         k0 = n0 - int(sim.driver.clock.rec[0]["origin"])
         regain = sim.regain_samples
         while True:
             state, consts = synth.stream_tables()
             need = streams_write(state, consts, sidx, self.body_ptr, self.body_rows, k0, F, a,
-                                 d.xanchor, d.xaxis, self.joint, self.slide, regain)
+                                 d.xanchor, d.xaxis, self.drives, regain)
             if need == 0:
                 break
             synth.grow_stream_ring(need)

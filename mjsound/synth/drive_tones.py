@@ -38,7 +38,17 @@ import numpy as np
 from ..jit import njit
 from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix, ring_need
 
-__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "streams_write"]
+__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "streams_write", "DRIVE", "TONE", "NOISE"]
+
+#: A tonal component of an actuator's force: its multiple of the rotor's rate, its amplitude
+#: relative to the force scale and its phase [rad] (carried from block to block).
+TONE = np.dtype([("order", np.float64), ("amp", np.float64), ("phase", np.float64)])
+#: An actuator's broadband noise: its level relative to the force scale, the generator's
+#: splitmix64 state and the low-pass's last output (both carried from block to block).
+NOISE = np.dtype([("broadband", np.float64), ("rng", np.int64), ("lp", np.float64)])
+#: An actuator's transmission as the stream writer reads it: its joint's id and whether
+#: that joint slides (else it is a hinge).
+DRIVE = np.dtype([("joint", np.int64), ("slide", np.bool_)])
 
 
 @njit(cache=True)
@@ -110,7 +120,7 @@ def tone_add(out, A, ph, s0, ds, lo, hi):
 
 
 @njit(cache=True)
-def drive_tones(w0, w1, a0, a1, comp_off, order, amp, phase, broadband, rng, lp, fs, out):
+def drive_tones(w0, w1, a0, a1, comp_off, tones, noise, fs, out):
     """Fill ``out[j, :]`` with actuator ``j``'s force signal (see the module's formula).
 
     Parameters
@@ -118,20 +128,21 @@ def drive_tones(w0, w1, a0, a1, comp_off, order, amp, phase, broadband, rng, lp,
     w0, w1 : (J,) float64, rotor speed at the block's start and end [rad/s] (signed)
     a0, a1 : (J,) float64, force scale at the block's start and end [N]
     comp_off : (J + 1,) int64, actuator ``j``'s components ``comp_off[j]:comp_off[j+1]``
-    order, amp : (C,) float64, multiple of the rotor's rate and relative amplitude per component
-    phase : (C,) float64, each component's phase [rad] at the block's start (updated: its end)
-    broadband : (J,) float64, relative level ``b`` of the broadband noise
-    rng : (J,) int64, per actuator the noise generator's splitmix64 state (updated)
-    lp : (J,) float64, per actuator the noise low-pass's output (updated)
+    tones : (C,) :data:`TONE` records, per component: ``order`` (multiple of the rotor's
+        rate), ``amp`` (amplitude relative to the force scale), ``phase`` [rad] at the block's
+        start (updated: its end)
+    noise : (J,) :data:`NOISE` records, per actuator: ``broadband`` (relative level ``b`` of
+        the broadband noise), ``rng`` (the generator's splitmix64 state) and ``lp`` (the
+        low-pass's output), the last two updated
     fs : float, sample rate [Hz]
     out : (J, L) float64, the force [N] (written)
 
     Example
     -------
     >>> out = np.empty((1, 480))
+    >>> tones = np.array([(10.0, 0.05, 0.0)], TONE)
     >>> drive_tones(np.array([100.0]), np.array([100.0]), np.ones(1), np.ones(1), np.array([0, 1]),
-    ...             np.array([10.0]), np.array([0.05]), np.zeros(1), np.zeros(1), np.zeros(1, np.int64),
-    ...             np.zeros(1), 48000.0, out)  # 0.05 sin(2 pi 159.2 Hz t)
+    ...             tones, np.zeros(1, NOISE), 48000.0, out)  # 0.05 sin(2 pi 159.2 Hz t)
     """
     J, L = out.shape
     limit = 2.0 * math.pi * 0.45  # [rad / sample]: 0.45 fs
@@ -142,34 +153,34 @@ def drive_tones(w0, w1, a0, a1, comp_off, order, amp, phase, broadband, rng, lp,
         silent = a0[j] == 0.0 and a1[j] == 0.0
         dw = (w1[j] - w0[j]) / L
         for c in range(comp_off[j], comp_off[j + 1]):
-            s0 = order[c] * w0[j] / fs
-            ds = order[c] * dw / fs
-            ph = phase[c]
-            phase[c] = (ph + s0 * L + ds * (0.5 * L * (L - 1))) % two_pi  # (exact: the rotor turns when silent too)
+            s0 = tones[c].order * w0[j] / fs
+            ds = tones[c].order * dw / fs
+            ph = tones[c].phase
+            tones[c].phase = (ph + s0 * L + ds * (0.5 * L * (L - 1))) % two_pi  # (exact: the rotor turns when silent too)
             if silent:
                 continue
             lo, hi = audible_span(s0, ds, limit, L)
             if hi > lo:
-                tone_add(out[j], amp[c], ph, s0, ds, lo, hi)
+                tone_add(out[j], tones[c].amp, ph, s0, ds, lo, hi)
     for j in range(J):
         if a0[j] == 0.0 and a1[j] == 0.0:
             continue
         da = (a1[j] - a0[j]) / L
-        b = broadband[j]
+        b = noise[j].broadband
         if b > 0.0:
             c0 = comp_off[j]
-            fc = min(abs(0.5 * (w0[j] + w1[j])) * (order[c0] if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+            fc = min(abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
             alpha = 1.0 - math.exp(-two_pi * fc / fs)
-            state = np.uint64(rng[j])
-            y = lp[j]
+            state = np.uint64(noise[j].rng)
+            y = noise[j].lp
             for q in range(L):
                 state, z = _splitmix(state)
                 x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
                      + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
                 y = alpha * (x * _SQRT3) + (1.0 - alpha) * y
                 out[j, q] = (a0[j] + da * q) * (out[j, q] + b * y)
-            rng[j] = np.int64(state)
-            lp[j] = y
+            noise[j].rng = np.int64(state)
+            noise[j].lp = y
         else:
             for q in range(L):
                 out[j, q] *= a0[j] + da * q
@@ -202,13 +213,13 @@ def drive_direction(axis, slide, out):
 
 
 @njit(cache=True)
-def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, joint, slide, regain):
+def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, drives, regain):
     """Drive body stream ``sidx[b]`` (-1: none) on synth samples ``[k0, k0 + L)`` with the sum
     of the drive forces on body ``b``: rows ``r = rows[ptr[b]:ptr[b + 1]]``, actuator
     ``j = r // 2`` on its side ``r % 2`` (0: the joint's body, force ``+F[j]``; 1: its parent,
     ``-F[j]``, equal and opposite). The sum acts at the anchor ``anchor[joint[j*]]`` of the
     strongest acting actuator ``j*`` (largest force scale ``a``) along its direction
-    (:func:`drive_direction` of ``axis[joint[j*]]``, ``slide[j*]``) times its side's sign.
+    (:func:`drive_direction` of ``axis[joint[j*]]``, ``drives[j*].slide``) times its side's sign.
     A body whose forces are all zero is not written (the stream falls silent after its last
     samples). Returns 0, or the ring length needed first (nothing written then).
 
@@ -221,7 +232,7 @@ def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, join
     F : (J, L) float64, the actuators' force signals [N] (:func:`drive_tones`)
     a : (J,) float64, their force scales now [N] (picks the strongest)
     anchor, axis : (n_joints, 3) float64, MuJoCo's ``data.xanchor``, ``data.xaxis``
-    joint : (J,) int64, each actuator's joint; slide : (J,) bool, whether it slides
+    drives : (J,) :data:`DRIVE` records, each actuator's ``joint`` and ``slide`` (whether it slides)
     regain : int, samples between the gains' refreshes
     """
     L = F.shape[1]
@@ -256,9 +267,10 @@ def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, join
         jb = rows[best] // 2
         sg = 1.0 if rows[best] % 2 == 0 else -1.0
         st = streams.table[s]
-        drive_direction(axis[joint[jb]], slide[jb], nrm)
+        jt = drives[jb].joint
+        drive_direction(axis[jt], drives[jb].slide, nrm)
         for c in range(3):
-            st.p[c] = anchor[joint[jb], c]
+            st.p[c] = anchor[jt, c]
             st.n[c] = sg * nrm[c]
         g = st.gupd
         if k0 >= g + regain or k0 < g:
