@@ -125,22 +125,22 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
     h_need = SPEED_OF_SOUND / (f_max * settings["epw"])
     levels, hs = [], []
     h = size / 6.0
-    counts = {}
+    meshes = {}  # h -> level_mesh(outer, h), each made once
     for _ in range(6):  # a first level over n_max (a fine mesh the clustering could not coarsen): coarser
-        counts[h] = len(level_mesh(outer, h)[1])
-        if counts[h] <= settings["n_max"]:
+        meshes[h] = level_mesh(outer, h)
+        if len(meshes[h][1]) <= settings["n_max"]:
             break
         h *= np.sqrt(2.0)
     else:
         # no size gets under n_max: the fewest elements any reached (coarsening may give up at a
         # large h and return the surface as given, finer than a smaller h's level)
-        h = min(counts, key=counts.get)
-    if counts[h] > RADIATION_MAX_ELEMENTS:
+        h = min(meshes, key=lambda size: len(meshes[size][1]))
+    if len(meshes[h][1]) > RADIATION_MAX_ELEMENTS:
         raise RadiationMeshTooFine(
-            f"the outer surface coarsens to no fewer than {counts[h]} boundary elements "
+            f"the outer surface coarsens to no fewer than {len(meshes[h][1])} boundary elements "
             f"(most {RADIATION_MAX_ELEMENTS})")
     while True:
-        vv, ff = level_mesh(outer, h)
+        vv, ff = meshes[h] if h in meshes else level_mesh(outer, h)
         if levels and len(ff) > settings["n_max"]:
             break
         levels.append(BemMesh(vv, ff))

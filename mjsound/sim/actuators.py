@@ -36,7 +36,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..jit import njit  # noqa: F401  (kernels live in synth.drive_tones)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
 __all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "ActuatorSound", "actuator_config"]
@@ -177,7 +176,6 @@ class ActuatorSound:
         presets = [config[i] for i in self.ids.tolist()]
         self.ratio = np.array([p.reduction * (2 * math.pi / p.lead if s else 1.0) for p, s in zip(presets, slide)])
         self.inv_radius = np.array([1.0 if s else 1.0 / p.radius for p, s in zip(presets, slide)])
-        self.slide = slide
         self.drives = np.zeros(J, DRIVE)
         self.drives["joint"], self.drives["slide"] = self.joint, slide
         self.comp_off = np.zeros(J + 1, np.int64)
@@ -215,6 +213,7 @@ class ActuatorSound:
         self.body_ptr[1:] = np.cumsum([len(sides[b][1]) for b in self.bodies.tolist()])
         self.body_rows = np.array([r for b in self.bodies.tolist() for r in sides[b][1]], np.int64)
         self._sidx = np.full(len(self.bodies), -1, np.int64)
+        self._force = np.empty((J, 0))  # (the force signals' buffer, kept while blocks keep their length)
         self._epoch = None
         self._last = None  # (rotor speed, force scale) at the end of the last block
 
@@ -248,7 +247,9 @@ class ActuatorSound:
         if not (a.any() or a0.any()):  # (every joint still: nothing to drive; the phases wait)
             return
         synth = sim.synth
-        F = np.empty((len(self.ids), L))
+        if self._force.shape[1] != L:
+            self._force = np.empty((len(self.ids), L))
+        F = self._force
         drive_tones(w0, w, a0, a, self.comp_off, self.tones, self.noise, float(synth.sample_rate), F)
         sidx = self._streams(synth)
         k0 = n0 - int(sim.driver.clock.rec[0]["origin"])
