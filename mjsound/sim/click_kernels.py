@@ -145,7 +145,9 @@ def _body_pulses(cm, b, J, point, cap, tau, time_s, pose, mics, rows, dv, n):
             dip[i] = Ri[i, 0] * loc[0] + Ri[i, 1] * loc[1] + Ri[i, 2] * loc[2]
         a = bd.a_eq
         c = prm.c
-        for m in range(n_air):
+        air = cm.air
+        for q in range(n_air):  # (each microphone, then its images: .records.CLICK_AIR)
+            m = air[q].mic
             rx = mics[m, 0] - com[0]
             ry = mics[m, 1] - com[1]
             rz = mics[m, 2] - com[2]
@@ -153,6 +155,9 @@ def _body_pulses(cm, b, J, point, cap, tau, time_s, pose, mics, rows, dv, n):
             h = dist if dist > 0 else 1.0  # a microphone at the centre hears nothing
             r = dist if dist > a else a
             k = ((rx / h) * dip[0] + (ry / h) * dip[1] + (rz / h) * dip[2]) / (4.0 * math.pi)
+            gain = air[q].gain
+            if gain != 1.0:  # (an image: the floor's reflection of the click)
+                k *= gain
             row = rows[n]
             row.time_s = time_s + (r - a) / c
             row.tau_s = tau
@@ -160,7 +165,8 @@ def _body_pulses(cm, b, J, point, cap, tau, time_s, pose, mics, rows, dv, n):
             row.b1 = k / (r * c)
             row.d1 = a / c
             row.d2 = a * a / (2.0 * c * c)
-            row.channel = m
+            row.channel = air[q].channel
+            row.joins = air[q].joins
             dv[n] = dv_norm
             n += 1
     sites = cm.sites
@@ -204,6 +210,7 @@ def _body_pulses(cm, b, J, point, cap, tau, time_s, pose, mics, rows, dv, n):
             row.d1 = 0.0
             row.d2 = 0.0
             row.channel = n_air + s
+            row.joins = 0
             dv[n] = dv_site
             n += 1
     return n

@@ -66,7 +66,7 @@ from ..synth.pulse import compliance, contact_time, shell_compliance
 from ..synth.records import TRACK, TrackState
 from .bodies import geom_shape_axes, geom_volume_area, quat_mat
 from .click_kernels import impact_pulses, pulse_rows_needed
-from .records import CLICK_BODY, CLICK_GEOM, CLICK_PARAMS, CLICK_SITE, IMPACT, PULSE_COUNTS, ClickModel, PulseState
+from .records import CLICK_AIR, CLICK_BODY, CLICK_GEOM, CLICK_PARAMS, CLICK_SITE, IMPACT, PULSE_COUNTS, ClickModel, PulseState
 
 __all__ = ["ImpactPulses", "UNKNOWN_MATERIAL", "SHELL_MAX_WALL_RATIO", "shell_compliances",
            "geom_volume_area", "bounded_axes"]
@@ -196,8 +196,40 @@ def silent_pulse_state() -> PulseState:
     :class:`ImpactPulses`' state, for a drive in which nothing makes pulses)."""
     z = np.zeros
     track = TrackState(z(1, TRACK), z((0, 1)), z(0, np.complex128), z(0), z(0, np.complex128))
-    return PulseState(ClickModel(z(1, CLICK_PARAMS), z(0, CLICK_BODY), z(0, CLICK_GEOM), z(0, CLICK_SITE)),
+    return PulseState(ClickModel(z(1, CLICK_PARAMS), z(0, CLICK_BODY), z(0, CLICK_GEOM), z(0, CLICK_SITE),
+                                 z(0, CLICK_AIR)),
                       z(0, PULSE_DTYPE), z(0), z(1, PULSE_COUNTS), track)
+
+
+def click_rows(n_air: int, images=None) -> np.ndarray:
+    """The :data:`.records.CLICK_AIR` rows of ``n_air`` air rows whose last ``len(images)`` are
+    the image microphones ``images`` (:class:`.images.ImageSet`, None: none): each microphone
+    followed by its images, which go to its channel with their click reflection factor and
+    join its pulse's window.
+
+    Examples
+    --------
+    >>> from mjsound.sim.images import ImageSet
+    >>> im = ImageSet(np.array([0]), np.zeros((1, 3, 4)), np.ones((1, 6)), np.array([0.5]), ["floor"])
+    >>> click_rows(2, im)[["mic", "channel", "gain", "joins"]].tolist()
+    [(0, 0, 1.0, 0), (1, 0, 0.5, 1)]
+    """
+    k = 0 if images is None else len(images)
+    a = int(n_air) - k
+    if a < 0:
+        raise ValueError(f"click_rows: {k} image microphones but only {n_air} air rows")
+    out = np.zeros(int(n_air), CLICK_AIR)
+    r = 0
+    for m in range(a):
+        out[r] = (m, m, 1.0, 0)
+        r += 1
+        for i in range(k):
+            if int(images.parent[i]) == m:
+                out[r] = (a + i, m, float(images.click[i]), 1)
+                r += 1
+    if r != n_air:
+        raise ValueError("click_rows: an image microphone's parent is not one of the air microphones")
+    return out
 
 
 class ImpactPulses:
@@ -222,10 +254,15 @@ class ImpactPulses:
         [m/s].
     active : bool
         False: a stand-in that never has anything pending (a scene whose impacts make no pulses).
+    images : mjsound.sim.images.ImageSet, optional
+        The last ``len(images)`` air rows are image microphones (:mod:`.images`): a click's
+        pulse there goes straight into the parent's channel, times the click's reflection
+        factor, rendered in the window of the parent's pulse (one inverse FFT for a click and
+        its images, :func:`mjsound.synth.bandlimited.pulse_group`); their own channels get none.
     """
 
     def __init__(self, model, geom_material, geom_radius, n_air, contact_sites, sample_rate, *, clicks=True,
-                 speed_of_sound=accel_noise.SPEED_OF_SOUND, active=True):
+                 speed_of_sound=accel_noise.SPEED_OF_SOUND, active=True, images=None):
         m = model
         self.model = m
         self.active = bool(active)
@@ -287,7 +324,7 @@ class ImpactPulses:
         prm = np.zeros(1, CLICK_PARAMS)
         prm[0]["clicks"], prm[0]["n_air"], prm[0]["c"] = int(self.clicks), self.n_air, self.c
         prm[0]["unknown_compliance"] = compliance(get_material(UNKNOWN_MATERIAL))
-        self._model = ClickModel(prm, bodies, geoms, sites)
+        self._model = ClickModel(prm, bodies, geoms, sites, click_rows(self.n_air, images))
         self._state = PulseState(self._model, np.zeros(0, PULSE_DTYPE), np.zeros(0), np.zeros(1, PULSE_COUNTS),
                                  self.track.state)
         self._waiting = self._state.counts["n"]  # (a plain int64 view: read after every kernel call)

@@ -21,7 +21,7 @@ from ..synth.records import RenderTarget, SynthState, TrackState
 
 __all__ = ["CLOCK", "MJ", "READER_PARAMS", "READER_COUNTS", "PAIR", "GEOM", "BODY", "PAIR_ROW", "HIT", "ONSET",
            "IMPACT", "RECORD", "LOG", "MISSING", "SOUND", "DRIVE_PARAMS", "RUN", "NOT_RENDERED", "CLICK_PARAMS",
-           "CLICK_BODY", "CLICK_SITE", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState", "KernelState",
+           "CLICK_BODY", "CLICK_SITE", "CLICK_AIR", "CLICK_GEOM", "PULSE_COUNTS", "ReaderState", "StepBuffers", "DataViews", "DriveState", "KernelState",
            "ClickModel", "PulseState", "record", "ContactQuantities", "PairGroups", "PairSteps", "contact_quantities_of",
            "pair_scratch"]
 
@@ -194,6 +194,13 @@ PULSE_COUNTS = np.dtype([("n", i8)])
 #: body frame.
 CLICK_SITE = np.dtype([("body", i8), ("pos", f8, (3,)), ("axis", f8, (3,))])
 
+#: The air rows a click is heard at, in the order its pulses are made (owner: ImpactPulses):
+#: the row's position among the microphones the kernel is given, the output channel the pulse
+#: goes to and its gain (an image microphone's: its parent's channel and the click's
+#: reflection factor, :mod:`mjsound.sim.images`; else its own and 1), and whether it joins the
+#: window of the pulse made before it (:data:`mjsound.synth.bandlimited.PULSE_DTYPE`).
+CLICK_AIR = np.dtype([("mic", i8), ("channel", i8), ("gain", f8), ("joins", i8)])
+
 
 def record(dtype: np.dtype, **values) -> np.ndarray:
     """A one-element array of ``dtype`` (a scalar record numba updates in place), zeroed and
@@ -345,6 +352,7 @@ class ClickModel(NamedTuple):
     bodies: np.ndarray  # (nbody,) CLICK_BODY
     geoms: np.ndarray  # (ngeom,) CLICK_GEOM
     sites: np.ndarray  # (contact microphones,) CLICK_SITE
+    air: np.ndarray  # (n_air,) CLICK_AIR
 
 
 class PulseState(NamedTuple):

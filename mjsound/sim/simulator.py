@@ -231,7 +231,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         prm[0]["regain"] = max(1, int(round(self.sustained_block_s * self.sample_rate)))
         prm[0]["sustained"] = int(self.sustained)
         self.pulses = ImpactPulses(model, scene.geom_material, self._radius, self.n_air + n_img, self._contact_sites,
-                                    self.sample_rate, clicks=clicks, active=makes_pulses)
+                                    self.sample_rate, clicks=clicks, active=makes_pulses, images=self.images)
         # a thin hollow shell's wall bends under the contact: the modes get the clicks' pulse length
         # (struck: an object analysed as a hollow wall only; a solid's modes keep Hertz's time)
         shells = self.pulses.state.model.geoms["shell_compliance"]

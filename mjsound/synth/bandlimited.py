@@ -30,9 +30,9 @@ energy) and the transfer's ringing after ``RING_TIME_CONSTANTS`` of its slowest 
 arrival's ``e^{-j w_k t}``, are each the previous bin's times a constant rotation, recomputed
 exactly every :data:`RESEED` bins (:func:`render_pulse`).
 
-Cost is per pulse only (one FFT of 64 to about a thousand points per pulse and channel: a
-hollow body's milliseconds-long contact, :mod:`.pulse`, makes the long ones); a render with no
-pulses pending touches nothing (:class:`PulseTrack`). The low-pass is non-causal: the
+Cost is per pulse only (one FFT of 64 to about a thousand points per pulse and channel, one
+for a click and its images, :func:`pulse_group`; a hollow body's long contact, :mod:`.pulse`,
+makes the long ones); a render with no pulses pending touches nothing (:class:`PulseTrack`). The low-pass is non-causal: the
 at most ``LEAD`` samples of its pre-ringing that fall before audio already handed out are
 dropped (a pulse on a sample boundary loses about 4 % of its energy, -0.2 dB).
 """
@@ -50,14 +50,18 @@ from .pulse import half_sine_rotated
 from .records import TRACK, TrackState
 
 __all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES", "RESEED",
-           "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "render_pulse", "mix_pulse",
+           "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "group_window", "render_pulse",
+           "pulse_group", "render_group", "GROUP_GROWTH", "mix_pulse",
            "pulse_extent", "add_pulses", "take_into_block", "PulseTrack"]
 
 #: One pulse at one output channel: arrival time [s], pulse length [s], velocity change times
 #: transfer numerator ``b0`` [channel unit / (m/s)] and ``b1`` [channel unit s / (m/s)],
-#: transfer denominator ``d1`` [s] and ``d2`` [s^2], and the output channel.
+#: transfer denominator ``d1`` [s] and ``d2`` [s^2], the output channel, and ``joins``: non-zero
+#: asks that the pulse be rendered in the window of the row before it (an image microphone's
+#: click, :func:`pulse_group`; honoured only where the two are the same pulse at the same
+#: channel).
 PULSE_DTYPE = np.dtype([("time_s", np.float64), ("tau_s", np.float64), ("b0", np.float64), ("b1", np.float64),
-                        ("d1", np.float64), ("d2", np.float64), ("channel", np.int64)])
+                        ("d1", np.float64), ("d2", np.float64), ("channel", np.int64), ("joins", np.int64)])
 
 #: Samples of the window before the arrival sample (the low-pass's pre-ringing).
 LEAD = 32
@@ -171,11 +175,18 @@ def pulse_window(tau, d1, d2, fs):
     """Window length ``N`` [samples] (a power of two) for a pulse, or 0 when it would exceed
     :data:`MAX_PULSE_SAMPLES` (a pulse longer than about a second at the sample rate, or a
     transfer that does not decay)."""
+    return group_window(tau, d1, d2, fs, 0)
+
+
+@njit_inner(cache=True)
+def group_window(tau, d1, d2, fs, spread):
+    """:func:`pulse_window` for copies of a pulse arriving over ``spread`` samples (the last
+    one's arrival sample minus the first one's)."""
     tc = _slowest_time_constant(d1, d2)
     body = (tau + RING_TIME_CONSTANTS * tc) * fs
     if not body < MAX_PULSE_SAMPLES:
         return 0
-    need = LEAD + int(math.ceil(body)) + TAIL + 2
+    need = LEAD + int(math.ceil(body)) + TAIL + 2 + spread
     n = 64
     while n < need:
         n *= 2
@@ -252,6 +263,100 @@ def render_pulse(pulse, dv, fs, work, out, table):
     return first, n
 
 
+#: A pulse joins the window of the rows before it (:func:`pulse_group`) only while the window
+#: stays at most this many times the first row's own.
+GROUP_GROWTH = 2
+
+
+@njit_inner(cache=True)
+def _joinable(pulses, dv, i, j, fs):
+    """Whether row ``j`` asks to join row ``i``'s window and is the same pulse (length,
+    transfer denominator, velocity change) at the same channel, with usable fields."""
+    p = pulses[i]
+    q = pulses[j]
+    return (q.joins != 0 and q.channel == p.channel and q.tau_s == p.tau_s and q.d1 == p.d1 and q.d2 == p.d2
+            and dv[j] == dv[i] and _usable(q, fs))
+
+
+@njit_inner(cache=True)
+def pulse_group(pulses, dv, i, n, fs):
+    """``(end, first, window)``: the rows ``i .. end - 1`` rendered in one window of ``window``
+    samples from sample ``first`` (:func:`render_group`): row ``i`` and the rows after it that
+    join it (:func:`_joinable`) while that window stays within :data:`GROUP_GROWTH` times row
+    ``i``'s own; ``window = 0`` (``end = i + 1``): row ``i`` renders alone (:func:`render_pulse`).
+
+    Copies of one pulse along different paths (a click and its images in the floor,
+    :mod:`mjsound.sim.images`) differ only in arrival and numerator; their sum's spectrum is
+    ``A(w) G(w) / (1 + d1 s + d2 s^2) sum_k (b0_k + b1_k s) e^{-s t_k}``: one inverse FFT."""
+    p = pulses[i]
+    if i + 1 >= n or pulses[i + 1].joins == 0 or not (np.isfinite(dv[i]) and _usable(p, fs)):
+        return i + 1, 0, 0
+    base = pulse_window(p.tau_s, p.d1, p.d2, fs)
+    if base == 0:
+        return i + 1, 0, 0
+    lo = int(math.floor(p.time_s * fs))
+    hi = lo
+    window = base
+    end = i + 1
+    while end < n and _joinable(pulses, dv, i, end, fs):
+        k = int(math.floor(pulses[end].time_s * fs))
+        w = group_window(p.tau_s, p.d1, p.d2, fs, max(hi, k) - min(lo, k))
+        if w == 0 or w > GROUP_GROWTH * base:
+            break
+        lo = min(lo, k)
+        hi = max(hi, k)
+        window = w
+        end += 1
+    if end == i + 1:
+        return end, 0, 0
+    return end, lo - LEAD, window
+
+
+@njit(cache=True)
+def render_group(pulses, i, end, dv, fs, first, n, work, out, table):
+    """Band-limited samples of the sum of the pulses ``pulses[i:end]`` (one :func:`pulse_group`,
+    scaled by ``dv[i]``) in the window of ``n`` samples from absolute sample ``first``:
+    :func:`render_pulse`'s spectrum with the numerators and arrivals summed per bin, one inverse
+    FFT. Fills ``out[:n]``."""
+    p = pulses[i]
+    k_rows = end - i
+    tau = p.tau_s
+    w1 = 2.0 * math.pi * fs / n
+    shift = np.empty(k_rows)
+    arrival = np.empty(k_rows, np.complex128)
+    step_arrival = np.empty(k_rows, np.complex128)
+    for r in range(k_rows):
+        shift[r] = pulses[i + r].time_s - first / fs
+        step_arrival[r] = np.exp(-1j * w1 * shift[r])
+    step_end = np.exp(-1j * w1 * tau)
+    end_phase = 1.0 + 0.0j
+    work[:n] = 0.0
+    for k in range(n // 2 + 1):
+        if k % RESEED == 0:
+            end_phase = np.exp(-1j * (k * w1) * tau)
+            for r in range(k_rows):
+                arrival[r] = np.exp(-1j * (k * w1) * shift[r])
+        g = lowpass(k / n)
+        if g != 0.0:
+            w = k * w1
+            s = 1j * w
+            num = 0.0 + 0.0j
+            for r in range(k_rows):
+                q = pulses[i + r]
+                num += (q.b0 + q.b1 * s) * arrival[r]
+            v = dv[i] * half_sine_rotated(w * tau, end_phase) * num / (1.0 + p.d1 * s + p.d2 * s * s)
+            v = v * g * fs
+            work[k] = v
+            if 0 < k < n // 2:
+                work[n - k] = v.conjugate()
+        end_phase *= step_end
+        for r in range(k_rows):
+            arrival[r] *= step_arrival[r]
+    fft_with(work[:n], table, True)
+    for j in range(n):
+        out[j] = work[j].real
+
+
 @njit_inner(cache=True)
 def mix_pulse(acc, start, channel, first, samples):
     """Add ``samples`` (absolute sample ``first`` onwards) into row ``channel`` of the ring
@@ -276,12 +381,17 @@ def pulse_extent(pulses, dv, n, fs):
     finite velocity change ``dv`` and a window that fits (:func:`pulse_window`; others count 0)."""
     n_max = 0
     last = -(2**62)
-    for i in range(n):
-        p = pulses[i]
-        w = pulse_window(p.tau_s, p.d1, p.d2, fs) if np.isfinite(dv[i]) and _usable(p, fs) else 0
+    i = 0
+    while i < n:
+        end, first, w = pulse_group(pulses, dv, i, n, fs)
+        if w == 0:
+            p = pulses[i]
+            w = pulse_window(p.tau_s, p.d1, p.d2, fs) if np.isfinite(dv[i]) and _usable(p, fs) else 0
+            first = int(math.floor(p.time_s * fs)) - LEAD
         if w > 0:
             n_max = max(n_max, w)
-            last = max(last, int(math.floor(p.time_s * fs)) - LEAD + w - 1)
+            last = max(last, first + w - 1)
+        i = end
     return n_max, last
 
 
@@ -305,17 +415,22 @@ def add_pulses(track, pulses, dv, n):
     dropped = 0
     lo = 2**62
     hi = -(2**62)
-    for i in range(n):
-        if not np.isfinite(dv[i]):
+    i = 0
+    while i < n:
+        nxt, first, m = pulse_group(pulses, dv, i, n, fs)
+        if m > 0:  # (copies of one pulse: one window)
+            render_group(pulses, i, nxt, dv, fs, first, m, track.work, track.out, track.table)
+        elif not np.isfinite(dv[i]):
             dropped += 1
+        else:
+            first, m = render_pulse(pulses[i], dv[i], fs, track.work, track.out, track.table)
+            if m == 0:
+                dropped += 1
+        ch = pulses[i].channel
+        i = nxt
+        if m == 0 or first + m <= start:
             continue
-        first, m = render_pulse(pulses[i], dv[i], fs, track.work, track.out, track.table)
-        if m == 0:
-            dropped += 1
-            continue
-        if first + m <= start:
-            continue
-        end = mix_pulse(track.acc, start, pulses[i].channel, first, track.out[:m])
+        end = mix_pulse(track.acc, start, ch, first, track.out[:m])
         if end > start:
             lo = min(lo, max(first, start))
             hi = max(hi, end)
