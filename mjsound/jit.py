@@ -64,7 +64,7 @@ KERNEL_GROUPS = {
             "synth/bandlimited.py",
             "synth/bank_loops.py", "synth/constants.py", "synth/directivity.py", "synth/dispatch.py",
             "synth/drive_tones.py", "synth/impact_energy.py", "synth/interrupt.py", "synth/kernels.py", "synth/packing.py", "synth/pulse.py", "synth/queue.py",
-            "synth/records.py", "synth/sorting.py", "synth/streams.py"),
+            "synth/records.py", "synth/reverb.py", "synth/sorting.py", "synth/streams.py"),
 }
 
 njit = numba.njit

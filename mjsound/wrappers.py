@@ -95,7 +95,8 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         field); ``{plane name: surface or None}`` sets their surfaces. See
         :class:`mjsound.sim.AudioSimulator` and ``docs/rooms.md``.
     room : mjsound.sim.rooms.Room, optional
-        A room around the scene whose walls reflect instead.
+        A room around the scene whose walls reflect instead, with its late reverberant tail
+        (``Room(..., tail=False)``: the walls' images only).
     materials : dict, optional
         ``{key: material}``, key a geom name, ``geom<ID>`` / id of an unnamed geom, a body name
         or ``"*"`` (the default for all others); see :class:`mjsound.sim.SoundScene`. An

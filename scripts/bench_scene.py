@@ -22,9 +22,13 @@ clicks) of each round's own ratios and differences:
   and what turning them on costs per step [us] (the demo scene has a contact microphone);
 * ``step_ratio_reflections_off`` and ``reflections_us_per_step``: the same audio run in free
   field (``reflections=False``: the floor does not reflect, docs/rooms.md), in the same rounds,
-  and what the floor's image microphones cost per step [us].
+  and what the floor's image microphones cost per step [us];
+* with ``--room SPEC`` (an ``mjsound-room`` text, docs/rooms.md), ``step_ratio_room`` and
+  ``room_us_per_step``: the same audio run in that room (its images and late tail) against
+  the default run, and ``tail_us_per_step``: the room with its tail against the room without
+  (``tail=off``), in the same rounds.
 
-Usage: python scripts/bench_scene.py [SCENE.xml] [--duration 3] [--rounds 3] [--json]
+Usage: python scripts/bench_scene.py [SCENE.xml] [--duration 3] [--rounds 3] [--room SPEC] [--json]
 """
 
 from __future__ import annotations
@@ -51,6 +55,8 @@ def main(argv=None) -> int:
     p.add_argument("--sample-rate", type=int, default=48000)
     p.add_argument("--quality", default="default")
     p.add_argument("--rounds", type=int, default=7, help="interleaved rounds (medians over rounds reported)")
+    p.add_argument("--room", default=None, help="also run in this room (an mjsound-room text, e.g. "
+                   "\"lo=-2 -2 0; hi=2 2 2.5; walls=plaster; floor=wood\"), with and without its tail")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     args = p.parse_args(argv)
     path = args.scene or find_demo_scene()
@@ -78,6 +84,15 @@ def main(argv=None) -> int:
     reset()
     sim_free = AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate, reflections=False)
     sim_free.run(0.05)
+    rooms = []  # (the room with its tail, without)
+    if args.room:
+        from mjsound.sim.rooms import room_from_text
+
+        for spec in (args.room, args.room + "; tail=off"):
+            reset()
+            rooms.append(AudioSimulator(model, data, scene=scene, sample_rate=args.sample_rate,
+                                        room=room_from_text(spec)))
+            rooms[-1].run(0.05)
     from mjsound.sim.contacts import ContactReader
     from mjsound.sim.driver import StepDriver
 
@@ -88,6 +103,7 @@ def main(argv=None) -> int:
         raise SystemExit("bench_scene: the step kernel cannot call mj_step here (MuJoCo's C functions not found)")
     every = sim.steps_per_render
     t_phys_all, t_audio_all, t_read_all, t_off_all, t_free_all = [], [], [], [], []
+    t_rooms = [[] for _ in rooms]
     for _ in range(args.rounds):
         reset()
         t0 = time.process_time()
@@ -116,6 +132,12 @@ def main(argv=None) -> int:
         t0 = time.process_time()
         sim_free.run(args.duration)
         t_free_all.append(time.process_time() - t0)
+        for sim_room, times in zip(rooms, t_rooms):
+            reset()
+            sim_room.reset()
+            t0 = time.process_time()
+            sim_room.run(args.duration)
+            times.append(time.process_time() - t0)
     # per-round differences and ratios, then their medians: a round's passes run back to back,
     # so the machine's drifting load hits them alike (a median of each pass apart does not pair them)
     t_phys_all, t_audio_all, t_read_all, t_off_all, t_free_all = map(
@@ -150,6 +172,13 @@ def main(argv=None) -> int:
         "events": st["events"],
         "peak_pa": float(np.abs(audio[: sim.n_air]).max()) if audio.size else 0.0,  # (air channels)
     }
+    if rooms:
+        t_room, t_room_off = map(np.array, t_rooms)
+        out.update({"room": args.room, "room_images": len(rooms[0].images),
+                    "step_ratio_room": float(np.median(t_room / t_phys_all)),
+                    "step_ratio_room_tail_off": float(np.median(t_room_off / t_phys_all)),
+                    "room_us_per_step": per_step(t_room - t_audio_all),
+                    "tail_us_per_step": per_step(t_room - t_room_off)})
     if args.json:
         print(json.dumps(out))
     else:

@@ -114,6 +114,9 @@ class StepDriver:
     images : ImageSet, optional
         Image microphones (:mod:`.images`): the synthesizer's image rows are folded into their
         microphones' channels in every block (None or empty: none).
+    tail : LateTail, optional
+        A room's late reverberant tail (:mod:`.room_tail`): added into the air rows of every
+        block, from its image rows, before they are folded.
     keep_events : int
         :attr:`event_log` keeps the first this many events.
     use_c : bool
@@ -136,7 +139,7 @@ class StepDriver:
 
     def __init__(self, model, data, reader, sample_rate: int, *, synth=None, pulses=None, drive_state=None,
                  make_streams=None, amplitude_error=None, reset_sound=None, n_channels: int = 0,
-                 images=None, n_air: int = 0, keep_events: int = 0, use_c: bool = True, owner=None):
+                 images=None, n_air: int = 0, tail=None, keep_events: int = 0, use_c: bool = True, owner=None):
         import mujoco
 
         self._mj = mujoco
@@ -151,6 +154,7 @@ class StepDriver:
         self.n_channels = int(n_channels)
         self._images = images if images is not None and len(images) else None
         self._n_air = int(n_air)
+        self._tail = tail
         self.keep_events = int(keep_events)
         self._use_c = use_c
         self.run = np.zeros(1, RUN)
@@ -324,6 +328,8 @@ class StepDriver:
             block = synth.kernel_block(block, code == RENDERED)
         if not f["pulses_mixed"][0]:  # (the kernel mixes the pulse track into a float32 block itself)
             block = self.pulses.mix(block)
+        if self._tail is not None:  # (a room's late tail, fed by the image rows: before the fold)
+            self._tail.apply(block)
         if self._images is not None:  # (image microphones' rows into their channels, .images)
             block = fold(block, self._n_air, self._images)
         if not keep:
@@ -531,6 +537,8 @@ class StepDriver:
         else:
             tc = _time.perf_counter()
             block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
+            if self._tail is not None:
+                self._tail.apply(block)
             if self._images is not None:
                 block = fold(block, self._n_air, self._images)  # (image rows into their microphones' channels)
             self.seconds_synth += _time.perf_counter() - tc

@@ -13,7 +13,7 @@ whose path crosses the wall at ``hi`` ``ceil(n / 2)`` times and the wall at ``lo
 ``1 <= |n_x| + |n_y| + |n_z| <= order`` are kept (6 for order 1, 24 for 2, 62 for 3); each is
 heard through the product of the reflection factors of the walls it crosses (per octave
 band). The early reflections are exact (up to the surfaces' model); the late reverberation
-is what the kept order leaves out.
+the kept order leaves out is the room's tail (:mod:`.room_tail`, ``tail=True``).
 
 Reverberation time of the box (``V`` volume, ``S_i`` wall areas, ``alpha_i`` absorption,
 ``S`` total area, ``alpha_bar = sum S_i alpha_i / S``): Sabine ``T = 0.161 V / sum S_i
@@ -22,7 +22,7 @@ by its ``rt60`` gets the uniform absorption whose Eyring time it is.
 
 MJCF: ``<custom><text name="mjsound-room" data="lo=-3 -3 0; hi=3 3 2.5; walls=plaster;
 floor=carpet; order=2"/></custom>`` (keys: ``lo``, ``hi``, ``walls``, one per wall name of
-:data:`WALLS`, ``rt60``, ``order``).
+:data:`WALLS`, ``rt60``, ``order``, ``tail`` = on / off).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import numpy as np
 from .images import ImageSet, no_images, plane_images, scene_surfaces
 from .surfaces import BANDS_HZ, get_surface
 
-__all__ = ["Room", "WALLS", "ROOM_TEXT", "room_from_text", "scene_images", "set_image_responses"]
+__all__ = ["Room", "WALLS", "ROOM_TEXT", "room_from_text", "scene_room", "scene_images", "set_image_responses"]
 
 #: Wall names, in the order of the walls' arrays: the low and high wall along x, y, z.
 WALLS = ("x-", "x+", "y-", "y+", "floor", "ceiling")
@@ -60,6 +60,10 @@ class Room:
         whose Eyring time it is (the same in every band).
     order : int
         Highest image order kept (>= 1; images per microphone: 6, 24, 62, 128 for 1 .. 4).
+    tail : bool
+        Add the late reverberant tail (default True): a feedback delay network decaying at
+        the room's Eyring time per band, fed by the images (:mod:`.room_tail`). False: the
+        images only.
 
     Examples
     --------
@@ -68,7 +72,7 @@ class Room:
     0.85
     """
 
-    def __init__(self, lo, hi, walls="plaster", rt60: float | None = None, order: int = 1):
+    def __init__(self, lo, hi, walls="plaster", rt60: float | None = None, order: int = 1, tail: bool = True):
         lo = np.asarray(lo, np.float64).reshape(-1)
         hi = np.asarray(hi, np.float64).reshape(-1)
         if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)) \
@@ -76,9 +80,14 @@ class Room:
             raise ValueError(f"Room: give corners lo={lo.tolist()} < hi={hi.tolist()} as finite (x, y, z) in metres")
         if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= int(order) <= 8:
             raise ValueError(f"Room: order={order!r} must be an integer image order from 1 to 8")
-        self.lo, self.hi, self.order, self.rt60_s = lo, hi, int(order), None
+        if not isinstance(tail, (bool, np.bool_)):
+            raise ValueError(f"Room: tail={tail!r} must be True (the late reverberant tail) or False")
+        self.lo, self.hi, self.order, self.rt60_s, self.tail = lo, hi, int(order), None, bool(tail)
         if rt60 is not None:
-            t = float(rt60)
+            try:
+                t = float(rt60)
+            except (TypeError, ValueError):
+                t = float("nan")
             V, S = self.volume, float(self.areas.sum())
             a = 1.0 - math.exp(-SABINE * V / (S * t)) if math.isfinite(t) and t > 0 else float("nan")
             if not 0 < a < 1:
@@ -98,7 +107,7 @@ class Room:
 
     def __repr__(self) -> str:
         walls = f"rt60={self.rt60_s!r}" if self.rt60_s is not None else f"walls={self.walls!r}"
-        return f"Room(lo={self.lo.tolist()}, hi={self.hi.tolist()}, {walls}, order={self.order})"
+        return f"Room(lo={self.lo.tolist()}, hi={self.hi.tolist()}, {walls}, order={self.order}, tail={self.tail})"
 
     @property
     def size(self) -> np.ndarray:
@@ -128,6 +137,14 @@ class Room:
     def contains(self, x) -> bool:
         x = np.asarray(x, np.float64).reshape(3)
         return bool(np.all(x > self.lo) and np.all(x < self.hi))
+
+    def late_tail(self, images: ImageSet, mics, sample_rate: float, source=None):
+        """The room's late tail (:func:`.room_tail.room_tail`) for the air microphones ``mics``
+        (A, 3) [m] and their images, sources at ``source`` (3,) [m]; None when :attr:`tail`
+        is False."""
+        from .room_tail import room_tail
+
+        return room_tail(self, images, mics, sample_rate, source) if self.tail else None
 
     def images(self, mics) -> ImageSet:
         """The images of the air microphones ``mics`` (A, 3) [m] up to :attr:`order`.
@@ -172,7 +189,8 @@ class Room:
 
 def room_from_text(text: str) -> Room:
     """A :class:`Room` from MJCF custom text ``"lo=-3 -3 0; hi=3 3 2.5; walls=plaster;
-    floor=carpet; order=2"`` (or ``rt60=0.4`` in place of walls).
+    floor=carpet; order=2"`` (or ``rt60=0.4`` in place of walls; ``tail=off`` leaves out the
+    late tail).
 
     Raises
     ------
@@ -205,24 +223,36 @@ def room_from_text(text: str) -> Room:
             return s
 
     walls = {k: surf(v) for k, v in kv.items() if k in WALLS or k == "walls"}
+    tail = kv.get("tail", "on").lower()
+    if tail not in ("on", "off", "true", "false", "1", "0"):
+        raise ValueError(f"MJCF text '{ROOM_TEXT}': tail={tail!r}; give tail=on or tail=off")
     return Room(vec(kv["lo"]), vec(kv["hi"]), walls=walls or "plaster",
-                rt60=float(kv["rt60"]) if "rt60" in kv else None, order=int(kv.get("order", 1)))
+                rt60=float(kv["rt60"]) if "rt60" in kv else None, order=int(kv.get("order", 1)),
+                tail=tail in ("on", "true", "1"))
 
 
-def scene_images(model, data, scene, mics, reflections=True, room=None) -> ImageSet:
-    """The image microphones of a scene: a room's (``room``, or the model's ``mjsound-room``
-    text when ``room`` is None and ``reflections`` is not False), else those of the planes
-    that reflect (:func:`.images.scene_surfaces`)."""
+def scene_room(model, reflections=True, room=None) -> Room | None:
+    """The scene's room: ``room``, or the model's ``mjsound-room`` text when ``room`` is None
+    and ``reflections`` is not False; None for none."""
     from .objects import custom_texts
 
     if reflections is False:
-        return no_images()
+        return None
     if room is None:
         text = custom_texts(model, "").get(ROOM_TEXT)
         room = room_from_text(text) if text is not None else None
+    if room is not None and not isinstance(room, Room):
+        raise ValueError(f"room={room!r}: give a mjsound Room (mjsound.sim.rooms.Room) or None")
+    return room
+
+
+def scene_images(model, data, scene, mics, reflections=True, room=None) -> ImageSet:
+    """The image microphones of a scene: a room's (:func:`scene_room`), else those of the
+    planes that reflect (:func:`.images.scene_surfaces`)."""
+    if reflections is False:
+        return no_images()
+    room = scene_room(model, reflections, room)
     if room is not None:
-        if not isinstance(room, Room):
-            raise ValueError(f"room={room!r}: give a mjsound Room (mjsound.sim.rooms.Room) or None")
         return room.images(mics)
     return plane_images(model, data, scene_surfaces(model, scene.geom_material, reflections), mics)
 

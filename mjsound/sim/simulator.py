@@ -42,7 +42,7 @@ from .records import DRIVE_PARAMS, SOUND, DriveState
 from .reports import SimulatorReports
 from .scene import SoundScene, geom_contact_radius
 from .first_compile import notice_first_compile
-from .rooms import scene_images, set_image_responses
+from .rooms import scene_images, scene_room, set_image_responses
 from ..user_frame import user_stacklevel
 
 __all__ = ["AudioSimulator", "SampleClock"]
@@ -90,7 +90,8 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         coefficient or six per octave band; None: that plane does not reflect).
     room : Room, optional
         A room around the scene (:class:`.rooms.Room`): its walls reflect (images up to its
-        ``order``) instead of the scene's planes.
+        ``order``) instead of the scene's planes, and its late reverberant tail follows
+        (:attr:`tail`; ``Room(..., tail=False)``: none).
     actuators : str | dict, optional
         Actuator noise (:mod:`.actuators`, ``docs/actuators.md``): a preset for every
         actuator (``"servo"``, ``"harmonic"``, ``"qdd"``, ``"none"``) or ``{actuator name:
@@ -185,9 +186,12 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         self._contact_sites, self.n_air, self.channel_names, self.contact_channels = channel_layout(model, scene, contact_mics)
         self.n_channels = len(self.channel_names)  # the air microphones, then the contact microphones
         self.synth = None
+        #: the room's late reverberant tail (:class:`mjsound.synth.reverb.LateTail`), or None
+        self.tail = None
         if not np.any(np.asarray(self.data.geom_xmat)):
             mujoco.mj_kinematics(model, self.data)  # poses for add_object (state is unchanged)
         air = np.asarray(scene.mic_positions, np.float64).reshape(-1, 3)
+        room = scene_room(model, reflections, room)
         self.images = scene_images(model, self.data, scene, air, reflections, room)
         n_img = len(self.images)
         self._row_channel, self._row_affine = self.images.rows(self.n_air, self.n_channels)
@@ -214,6 +218,10 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                                       rotation=np.array(self.data.geom_xmat[s.geom_id]).reshape(3, 3))
             attach_contact_mics(self.synth, scene, model, self.data, self._contact_sites)
             set_image_responses(self.synth, self.n_air, self.images)
+            if room is not None:  # (calibrated for sources where the sounding objects are now)
+                where = [self.data.geom_xpos[s.geom_id] for s in scene.sounding]
+                self.tail = room.late_tail(self.images, air, self.sample_rate,
+                                           np.mean(where, axis=0) if where else None)
             self.synth.on_regain = self._sync_poses
             for g, s in self._sounding.items():
                 idx = self.synth.object_index(s.name)
@@ -258,7 +266,8 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
                                  pulses=self.pulses, drive_state=self._drive_state if self.synth is not None else None,
                                  make_streams=self._make_streams, amplitude_error=self._amplitude_error,
                                  reset_sound=self._reset_sound, n_channels=self.n_channels, images=self.images,
-                                 n_air=self.n_air, keep_events=self.keep_events, use_c=use_c, owner=self)
+                                 n_air=self.n_air, tail=self.tail, keep_events=self.keep_events, use_c=use_c,
+                                 owner=self)
         self.actuators = None
         if self.synth is not None:
             from .actuators import ActuatorSound, actuator_config
@@ -282,6 +291,8 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
         """Silence the synthesizer and the pulses, microphones to where they are, forget the
         contact state when asked (the driver's resets)."""
         self.pulses.reset(0)
+        if self.tail is not None:
+            self.tail.reset()
         if self.synth is not None:
             self.synth.reset()
             if self._follow is not None:
