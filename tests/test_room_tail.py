@@ -114,7 +114,9 @@ def test_bad_reverberation_times_and_gains_are_refused():
     with pytest.raises(ValueError, match="band_gain"):
         LateTail(**{**ok, "band_gain": [1, 1, 0, 1, 1, 1]})
     with pytest.raises(ValueError, match="send_row"):
-        LateTail(**{**ok, "send_row": [0]})  # (an output's own row)
+        LateTail(**{**ok, "send_row": [-1]})
+    with pytest.raises(ValueError, match="rows"):
+        LateTail(**{**ok, "send_row": [3]}).apply(np.zeros((2, 10)))  # (no row 3 in the block)
     for bad in (0.0, -1.0, float("nan"), "long"):
         with pytest.raises(ValueError, match="rt60"):
             Room((0, 0, 0), (5, 4, 3), rt60=bad)
@@ -152,16 +154,17 @@ def _struck(room, reflections=True, dt=0.001, seconds=1.5):
     return sim, sim.run(seconds)[0].astype(np.float64)
 
 
-WALLS = {"walls": "plywood", "floor": "carpet", "ceiling": "gypsum_board"}
+WALLS = {"walls": "window", "floor": "carpet"}
 
 
 def test_a_shoebox_decays_at_its_eyring_time_with_the_statistical_late_energy():
-    """A 5 x 4 x 3 m room (plywood walls, carpet, gypsum ceiling; Eyring 0.40 .. 0.69 s), images
-    to order 2 and the tail: in every octave band T30 of the rendered response is within 10 %
-    of Eyring's time (T20 too from 500 Hz up, above the room's Schroeder frequency 2000
-    sqrt(T / V) = 210 Hz, where a room's decay is statistical); the energy after 80 ms is the
-    statistical late energy, ``E_1 4 pi c / V int_t exp(-t / tau) dt`` with E_1 the direct
-    sound's energy at 1 m (within 2 dB in each band from 500 Hz up, 1 dB on their mean)."""
+    """A 5 x 4 x 3 m room (window-glass walls and ceiling, a carpet floor; Eyring 0.31 .. 0.55
+    s), images to order 2 and the tail: in every octave band T30 of the rendered response is
+    within 10 % of Eyring's time (T20 too from 1 kHz up; below, the early reflections' few
+    strong paths shape the first 25 dB); the energy after 80 ms is the statistical late energy
+    ``E_1 4 pi c / V int_t exp(-t / tau) dt``, E_1 the direct sound's energy at 1 m (within
+    2 dB in each band from 250 Hz up, above the room's Schroeder frequency 2000 sqrt(T / V) =
+    about 180 Hz, where a room's field is statistical; 1 dB on their mean)."""
     room = Room(LO, HI, walls=WALLS, order=2)
     sim, p = _struck(room)
     _, free = _struck(None, reflections=False)
@@ -172,8 +175,9 @@ def test_a_shoebox_decays_at_its_eyring_time_with_the_statistical_late_energy():
     for k, band in enumerate(BANDS):
         e = _band_energy(p, band, FS)
         assert _decay_time(e, FS, -5, -35) == pytest.approx(T[k], rel=0.10), band
-        if band >= 500:
+        if band >= 1000:
             assert _decay_time(e, FS, -5, -25) == pytest.approx(T[k], rel=0.10), band
+        if band >= 250:
             e1 = _band_energy(free, band, FS).sum() * r * r
             tau = T[k] / (6 * math.log(10))
             want = e1 * late_energy_rate(room) * tau * math.exp(-0.08 / tau)
@@ -189,7 +193,7 @@ def test_tail_off_is_the_images_alone_and_on_adds_only_after_the_mixing_time():
     on_sim, on = _struck(Room(LO, HI, walls=WALLS, order=1), seconds=0.3)
     assert off_sim.tail is None and on_sim.tail is not None
     plan = on_sim.tail.plan
-    r_first = np.linalg.norm(on_sim.images.positions([MIC]) - SRC, axis=1).min()
+    r_first = np.linalg.norm(MIC - SRC)  # (the direct sound: the first sound the tail is fed)
     first = int(np.ceil((TE + r_first / C) * FS)) + int(plan.tap_delay.min() + plan.line_len.min()) - 1
     assert np.array_equal(on[:first], off[:first])
     assert np.sum((on - off)[first:] ** 2) > 0.5 * np.sum(off[first:] ** 2)

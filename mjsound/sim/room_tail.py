@@ -25,16 +25,24 @@ microphones); the tail supplies, from the arrival of the first image left out
 image lattice's points per time bin (rendered against all): a few input taps make the
 tail's onset that staircase.
 
-Input: the network is fed with every image microphone's row, weighted by ``r_i /
-sqrt(I)`` (``r_i`` the image's distance from the sources, ``I`` the images of all
-microphones): each image row times ``r_i`` is the source's sound at 1 m in the image's
-direction, so the input carries the source's energy at 1 m averaged over the images'
-directions, whatever the distance from the source to the microphone (a room's reverberant
-level does not depend on it; the direct sound does), arriving at ``t_i = r_i / c`` after
-the emission. ``r_i`` is taken from where the scene's sounding objects are when the
-simulator is made (their centroid): a source that moves far from there, or a microphone
-that moves, keeps the tail's calibration of the start. An image row's modes carry ``R_b /
-R_click`` of its walls (:mod:`.images`): the input's gain per band divides that out.
+Input: the network is fed with what each air microphone hears directly and early, every
+path through its own input (:class:`.LateTail`: orthogonal input vectors, so the copies'
+tails add incoherently instead of comb-filtering each other): microphone ``a``'s own row
+(the direct sound, and every click with its images: the clicks' images go straight to
+their microphone, :mod:`.clicks`) and each of its image rows times its click reflection
+``R_i,click`` (the row's modes carry ``R_i,b / R_i,click``, :mod:`.images`), all weighted by
+``w_a``. For a source at ``S`` (distance ``r_a`` to the microphone, ``r_i`` to image ``i``)
+whose direct sound has the energy ``E_1`` at 1 m, the input then has the energy ``E_1 q_b``,
+
+.. math::
+
+    q_b = \sum_a w_a^2 P_{a,b}, \qquad P_{a,b} = \frac{1}{r_a^2} + \sum_{i \in a}
+    \frac{R_{i,b}^2}{r_i^2},
+
+arriving at ``t = r / c`` after the emission (``w_a = (A P_{a,1k})^{-1/2}``: ``q_b`` is about
+1). ``S`` is where the scene's sounding objects are when the simulator is made (their
+centroid): a source that moves toward a microphone raises its tail with its direct sound
+(by up to ``r_a^2 / r^2``), and a microphone that moves keeps the calibration of its start.
 
 With the network's impulse energy ``Phi`` (:meth:`.LateTail.impulse_energy`), the taps
 ``(d_k, a_k)`` and the images' arrivals, the input's gain per band is
@@ -42,7 +50,8 @@ With the network's impulse energy ``Phi`` (:meth:`.LateTail.impulse_energy`), th
 .. math::
 
     G_b^2 = \\frac{4 \\pi c}{V f_s\\, \\Phi\\, q_b \\sum_k a_k^2 e^{d_k / (f_s \\tau_b)}\\,
-    \\overline{e^{t_i / \\tau_b}}}, \\qquad q_b = \\overline{(R_{i,b} / R_{i,\\mathrm{click}})^2}.
+    M_b}, \\qquad M_b = \\frac{1}{q_b} \\sum_a w_a^2 \\Big(\\frac{e^{r_a / (c \\tau_b)}}{r_a^2} +
+    \\sum_{i \\in a} \\frac{R_{i,b}^2\\, e^{r_i / (c \\tau_b)}}{r_i^2}\\Big).
 
 One network serves every air microphone of the room (its late field is one diffuse field):
 each microphone hears it through its own output vector (rows of a Hadamard matrix:
@@ -139,10 +148,18 @@ def room_tail(room, images, mics, fs: float, source=None) -> LateTail:
     source = mics.mean(axis=0) if source is None else np.asarray(source, np.float64).reshape(3)
     if not np.all(np.isfinite(source)):
         raise ValueError(f"room_tail: source={source.tolist()} must be a finite point [m]")
-    r = np.linalg.norm(images.positions(mics) - source, axis=1)  # (I,) [m]
-    t_i = r / c
-    weight = r / math.sqrt(I)
-    q = np.mean((images.reflection / images.click[:, None]) ** 2, axis=0)  # (6,)
+    r_mic = np.maximum(np.linalg.norm(mics - source, axis=1), 0.01)  # (A,) [m]
+    r_img = np.linalg.norm(images.positions(mics) - source, axis=1)  # (I,) [m]
+    R2 = images.reflection ** 2  # (I, 6)
+    P = 1.0 / r_mic[:, None] ** 2 + np.array([(R2[images.parent == a] / r_img[images.parent == a, None] ** 2).sum(0)
+                                              for a in range(A)])  # (A, 6)
+    w = 1.0 / np.sqrt(A * P[:, 3])  # (the 1 kHz band's)
+    q = (w[:, None] ** 2 * P).sum(0)
+    rows = np.concatenate([np.arange(A), A + np.arange(I)])
+    order = np.argsort(np.concatenate([np.arange(A), images.parent]), kind="stable")  # (each microphone, then its images)
+    weight = np.concatenate([w, w[images.parent] * images.click])[order]
+    rows = rows[order]
+    t_first = float(r_mic.min()) / c
     # delay lines: the room's mean free path, long enough for a modal overlap a room's tones can
     # ring in (sum of lengths ~ T/4: the spacing of a room response's maxima, 4/T, Schroeder),
     # short enough not to flutter
@@ -153,12 +170,13 @@ def room_tail(room, images, mics, fs: float, source=None) -> LateTail:
     m_min = int(lengths.min())
     keep = share > 0
     T_k, share = T_k[keep], share[keep]
-    d_k = np.maximum(0, np.round(fs * (T_k - t_i.min())).astype(np.int64) - m_min)
+    d_k = np.maximum(0, np.round(fs * (T_k - t_first)).astype(np.int64) - m_min)
     tau_ref = float(np.interp(1000.0, BANDS_HZ, tau))
     a2 = share * np.exp(-d_k / (fs * tau_ref))  # (the staircase's steps, at 1 kHz's decay)
     F = np.array([np.sum(a2 * np.exp(d_k / (fs * tb))) for tb in tau])
-    M = np.array([np.mean(np.exp(t_i / tb)) for tb in tau])
+    M = np.array([((w ** 2 / r_mic ** 2) * np.exp(r_mic / (c * tb))).sum()
+                  + (w[images.parent] ** 2 * R2[:, k] / r_img ** 2 * np.exp(r_img / (c * tb))).sum()
+                  for k, tb in enumerate(tau)]) / q
     phi = 1.0 / float(lengths.sum())  # (|c| = 1, one line per send row: LateTail.impulse_energy)
     G2 = late_energy_rate(room) / (fs * phi * q * F * M)
-    return LateTail(fs, BANDS_HZ, T, np.sqrt(G2), np.ones(A), mean_delay, (d_k, np.sqrt(a2)),
-                    A + np.arange(I), weight)
+    return LateTail(fs, BANDS_HZ, T, np.sqrt(G2), np.ones(A), mean_delay, (d_k, np.sqrt(a2)), rows, weight)

@@ -217,7 +217,8 @@ class LateTail:
     taps : ((K,) delays [samples], (K,) gains)
         The input's taps.
     send_row, send_weight : (I,) array_like
-        Block rows fed into the network (rows >= A) and their weights. Row ``j`` enters the
+        Block rows fed into the network and their weights (each block's send rows are read
+        whole before the outputs are added: an output's own row may be one). Row ``j`` enters the
         lines through column ``j mod L`` of ``H_L / sqrt(L)`` (with a random sign): orthogonal
         input vectors, so copies of one sound in several rows (a source's images) ring through
         different paths of the network and their tails add as incoherent sums do, not as the
@@ -280,14 +281,15 @@ class LateTail:
             raise ValueError("LateTail: taps must be (delays >= 0 [samples], finite gains) of equal length")
         send_row = np.asarray(send_row, np.int64).reshape(-1)
         send_weight = np.asarray(send_weight, np.float64).reshape(-1)
-        if send_row.shape != send_weight.shape or np.any(send_row < A) or not np.all(np.isfinite(send_weight)):
-            raise ValueError(f"LateTail: send_row and send_weight must be equally long, the rows >= {A} (not an "
-                             "output's), the weights finite")
+        if send_row.shape != send_weight.shape or np.any(send_row < 0) or not np.all(np.isfinite(send_weight)):
+            raise ValueError("LateTail: send_row and send_weight must be equally long, the rows >= 0, the weights "
+                             "finite")
         send_line = np.arange(send_row.size, dtype=np.int64) % L
         send_weight = send_weight * rng.choice([-1.0, 1.0], send_row.size)
         self.plan = TailPlan(line_len, line_off, line_g, line_eq, out_gain, out_eq, g * out_scale, tap_delay,
                              tap_gain, send_row, send_line, send_weight)
         self._depth = int(tap_delay.max(initial=0)) + 1
+        self._max_row = max(A - 1, int(send_row.max(initial=0)))
         self._entries = {}  # (the kernel's compiled entry point per block type: no typing per call)
         self.state = None
         self.reset()
@@ -307,6 +309,9 @@ class LateTail:
     def apply(self, block: np.ndarray) -> np.ndarray:
         """Add the tail's next ``block.shape[1]`` samples into rows ``0 .. A-1`` of ``block``
         (in place; returns it). ``block``: (rows, n) float32 or float64."""
+        if block.ndim != 2 or block.shape[0] <= self._max_row:
+            raise ValueError(f"LateTail.apply: a (rows, n) block with at least {self._max_row + 1} rows (the outputs "
+                             f"and the send rows), got shape {block.shape}")
         if block.shape[1]:
             key = state_typeof(block)
             entry = self._entries.get(key)
@@ -353,7 +358,7 @@ def render_tail(plan, state, block):
     state : TailState
         Updated in place.
     block : (rows, n) float32 or float64
-        Read (the send rows) and written (rows ``0 .. A-1``; the send rows are others).
+        Read (the send rows, all ``n`` samples first) and written (rows ``0 .. A-1``).
     """
     L = N_LINES
     S = plan.line_eq.shape[0]
