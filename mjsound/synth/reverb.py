@@ -277,8 +277,12 @@ class LateTail:
         g, out_eq = fit_graphic_eq(bands, 20 * np.log10(band_gain), fs)
         tap_delay = np.asarray(taps[0], np.int64).reshape(-1)
         tap_gain = np.asarray(taps[1], np.float64).reshape(-1)
-        if tap_delay.shape != tap_gain.shape or np.any(tap_delay < 0) or not np.all(np.isfinite(tap_gain)):
-            raise ValueError("LateTail: taps must be (delays >= 0 [samples], finite gains) of equal length")
+        if tap_delay.shape != tap_gain.shape or not tap_delay.size or np.any(tap_delay < 0) \
+                or not np.all(np.isfinite(tap_gain)):
+            raise ValueError("LateTail: taps must be (delays >= 0 [samples], finite gains) of equal length, at "
+                             "least one")
+        tap_delay, where = np.unique(tap_delay, return_inverse=True)  # (taps of one delay summed)
+        tap_gain = np.bincount(where.reshape(-1), tap_gain, tap_delay.size)
         send_row = np.asarray(send_row, np.int64).reshape(-1)
         send_weight = np.asarray(send_weight, np.float64).reshape(-1)
         if send_row.shape != send_weight.shape or np.any(send_row < 0) or not np.all(np.isfinite(send_weight)):
@@ -366,11 +370,13 @@ def render_tail(plan, state, block):
     K = plan.tap_delay.shape[0]
     D = state.send_buf.shape[1]
     n = block.shape[1]
-    x = np.zeros((n, L))
+    x = np.zeros((L, n))
     for j in range(plan.send_row.shape[0]):
         r, i, w = plan.send_row[j], plan.send_line[j], plan.send_weight[j]
+        xi = x[i]
         for s in range(n):
-            x[s, i] += w * block[r, s]
+            xi[s] += w * block[r, s]
+    direct = K == 1 and plan.tap_delay[0] == 0  # (one tap, no delay: no ring needed)
     v = np.empty(L)
     u = np.empty(L)
     buf, pos, off, length = state.send_buf, state.line_pos, plan.line_off, plan.line_len
@@ -379,16 +385,20 @@ def render_tail(plan, state, block):
     scale = 1.0 / math.sqrt(L)
     p_in = state.send_pos[0]
     for s in range(n):
-        for i in range(L):
-            buf[i, p_in] = x[s, i]
-            u[i] = 0.0
-        for k in range(K):
-            q = p_in - plan.tap_delay[k]
-            q = q + D if q < 0 else q
-            a_k = plan.tap_gain[k]
+        if direct:
             for i in range(L):
-                u[i] += a_k * buf[i, q]
-        p_in = p_in + 1 if p_in + 1 < D else 0
+                u[i] = plan.tap_gain[0] * x[i, s]
+        else:
+            for i in range(L):
+                buf[i, p_in] = x[i, s]
+                u[i] = 0.0
+            for k in range(K):
+                q = p_in - plan.tap_delay[k]
+                q = q + D if q < 0 else q
+                a_k = plan.tap_gain[k]
+                for i in range(L):
+                    u[i] += a_k * buf[i, q]
+            p_in = p_in + 1 if p_in + 1 < D else 0
         for i in range(L):
             v[i] = state.lines[off[i] + pos[i]] * g[i]
         for st in range(S):  # the lines' shelf st, transposed direct form II
