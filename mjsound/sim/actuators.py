@@ -36,15 +36,28 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..synth.dispatch import EntryPoint
+from ..synth.drive_broadband import broadband_modes, broadband_write, gains_copy
+from ..synth.drive_lines import (Actuators, BodyGains, DriveRead, LineWeights, drive_read, line_weights, lines_block,
+                                 lines_render)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
+from ..synth.streams import streams_gains
 
-__all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "ActuatorSound", "actuator_config"]
+__all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "DRIVE_BLOCK_S", "RENDERINGS",
+           "ActuatorSound", "actuator_config"]
 
 #: MJCF custom text prefix naming an actuator's preset.
 ACTUATOR_TEXT_PREFIX = "mjsound-actuator:"
 #: Joint speed [rad/s or m/s] at and above which the drive sounds at full level (below: in
 #: proportion; 0: silent).
 GATE_RAD_S = 0.05
+#: The drives are read at most this often [s] (and before every render): the rotor speed and
+#: force scale are linear between two reads.
+DRIVE_BLOCK_S = 0.05
+#: How the drives are heard: ``"lines"`` (default) from the driven links' transfer functions
+#: (:mod:`mjsound.synth.drive_lines`: steady state, no mode run per sample), ``"modal"`` the
+#: exact response of the links' modes (:mod:`mjsound.synth.drive_tones`, the reference).
+RENDERINGS = ("lines", "modal")
 
 
 @dataclass(frozen=True)
@@ -160,10 +173,16 @@ class ActuatorSound:
         The simulator (its model, data, synthesizer, geoms' objects).
     config : dict
         ``{actuator id: ActuatorPreset}`` (:func:`actuator_config`).
+    rendering : str
+        One of :data:`RENDERINGS`. ``"lines"`` needs the simulator's pulse track (a scene with
+        clicks or contact microphones); without one the modal rendering is used.
     """
 
-    def __init__(self, sim, config: dict):
+    def __init__(self, sim, config: dict, rendering: str = "lines"):
         import mujoco
+
+        if rendering not in RENDERINGS:
+            raise ValueError(f"actuator rendering {rendering!r}: give one of {RENDERINGS}")
 
         m = sim.model
         self._sim = sim
@@ -216,10 +235,36 @@ class ActuatorSound:
         self._force = np.empty((J, 0))  # (the force signals' buffer, kept while blocks keep their length)
         self._epoch = None
         self._last = None  # (rotor speed, force scale) at the end of the last block
+        self._done = None  # (absolute sample the drives were rendered up to; its synth origin)
+        self._origin = None
+        self.cadence = max(1, int(round(DRIVE_BLOCK_S * sim.sample_rate)))
+        self.rendering = rendering if sim.pulses.active else "modal"
+        M = sim.synth.n_channels
+        C = len(self.tones)
+        z = np.zeros
+        self._act = Actuators(self.comp_off, self.tones, self.noise, self.drives, self.body_ptr, self.body_rows,
+                              self._sidx, z(len(self.bodies)), z(J, np.bool_), z(J), z(J), z(J), z(J))
+        #: the lines' weights; ``exact``: whether each actuator's broadband part goes through
+        #: the modes now (its resonant response matters: :mod:`mjsound.synth.drive_broadband`);
+        #: ``power``: that resonant power and everything the actuator makes heard, per unit
+        #: force scale (summed over the microphones), at the last block
+        self.weights = LineWeights(z((C, M), np.complex128), z((C, M), np.complex128), z((J, M)), z((J, M)),
+                                   z(M, np.int64), z(J, np.bool_), z((J, 2)))
+        self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, float(GATE_RAD_S))
+        self._bg = None  # (the bodies' gains: _body_gains)
+        self.lines_rendered = 0  # (lines the last block rendered: the cost's count)
+        self.modes_kept = 0  # (modes running for the broadband parts at the last block)
+        # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python)
+        self._calls = {"block": EntryPoint(lines_block), "gains": EntryPoint(streams_gains),
+                       "weights": EntryPoint(line_weights), "render": EntryPoint(lines_render),
+                       "broadband": EntryPoint(broadband_write), "copy": EntryPoint(gains_copy),
+                       "modes": EntryPoint(broadband_modes), "read": EntryPoint(drive_read)}
+        self._regain, self._fs = sim.regain_samples, float(sim.sample_rate)
 
     def reset(self) -> None:
         """Forget the last block's speeds (the next block starts from its own)."""
         self._last = None
+        self._done = None
 
     def _streams(self, synth):
         if self._epoch != synth.streams_epoch:
@@ -229,35 +274,95 @@ class ActuatorSound:
             self._epoch = synth.streams_epoch
         return self._sidx
 
-    def drive(self, n0: int, n1: int) -> None:
-        """Drive the streams on the clock's samples ``[n0, n1)`` from the actuators' state now."""
-        L = n1 - n0
-        if L <= 0 or not len(self.bodies):  # (no driven body has a sounding geom: nothing to hear)
-            return
+    def drive(self, n0: int, n1: int, final: bool = True) -> None:
+        """The drives on the clock's samples up to ``n1`` (the steps ``[n0, n1)`` are about to
+        be read), from the actuators' state now, linear from the last read. Unless ``final``
+        (the samples are rendered next), a call less than :data:`DRIVE_BLOCK_S` after the last
+        read waits for a later one."""
         sim = self._sim
-        d = sim.data
-        qd = d.qvel[self.dof]
-        w = qd * self.ratio
-        a = np.abs(d.actuator_force[self.ids] * self.gear) * self.inv_radius * np.minimum(1.0, np.abs(qd) / GATE_RAD_S)
-        if not math.isfinite(w.sum() + a.sum()):
-            w = np.where(np.isfinite(w), w, 0.0)
-            a = np.where(np.isfinite(a) & np.isfinite(w), a, 0.0)
-        w0, a0 = (w, a) if self._last is None else self._last
-        self._last = (w, a)
-        if not (a.any() or a0.any()):  # (every joint still: nothing to drive; the phases wait)
+        origin = int(sim.driver.clock.rec[0]["origin"])
+        done = self._done
+        if done is None or done > n0 or origin != self._origin or done < origin:
+            done = self._done = n0  # (the first call, or the clock went back or restarted)
+            self._origin = origin
+            self._last = None
+        if n1 - done <= 0 or (not final and n1 - done < self.cadence):
             return
+        self._done = n1
+        L = n1 - done
+        if not len(self.bodies):  # (no driven body has a sounding geom: nothing to hear)
+            return
+        d = sim.data
+        fresh = self._last is None
+        self._last = True
+        act = self._act
+        if not self._calls["read"]((self._rd, act), d.qvel, d.actuator_force, fresh):
+            return  # (every joint still: nothing to drive; the phases wait)
         synth = sim.synth
+        k0 = done - origin
+        if self.rendering == "modal":
+            self._drive_modal(synth, d, k0, L)
+        else:
+            self._drive_lines(synth, d, k0, L, fresh)
+
+    def _body_gains(self, state) -> BodyGains:
+        """The bodies' gains and what is made of them, shaped as the stream table's gains."""
+        nb, (_, M, nmax) = len(self.bodies), state.gr.shape
+        bg = self._bg
+        if bg is None or bg.gr.shape != (nb, M, nmax) or bg.gr.dtype != state.gr.dtype:
+            z = np.zeros
+            bg = self._bg = BodyGains(z((nb, M, nmax), state.gr.dtype), z((nb, M, nmax), state.gr.dtype),
+                                      z((nb, M, nmax)), z((nb, nmax)), z((nb, nmax), np.bool_),
+                                      np.full((nb, M, 3), np.nan), z((nb, M, nmax), np.complex128))
+        return bg
+
+    def _drive_modal(self, synth, d, k0, L) -> None:
+        """The exact rendering: force signals into the bodies' streams, through their modes."""
+        act = self._act
         if self._force.shape[1] != L:
             self._force = np.empty((len(self.ids), L))
         F = self._force
-        drive_tones(w0, w, a0, a, self.comp_off, self.tones, self.noise, float(synth.sample_rate), F)
+        drive_tones(act.w0, act.w1, act.a0, act.a1, self.comp_off, self.tones, self.noise, self._fs, F)
         sidx = self._streams(synth)
-        k0 = n0 - int(sim.driver.clock.rec[0]["origin"])
-        regain = sim.regain_samples
         while True:
             state, consts = synth.stream_tables()
-            need = streams_write(state, consts, sidx, self.body_ptr, self.body_rows, k0, F, a,
-                                 d.xanchor, d.xaxis, self.drives, regain)
+            need = streams_write(state, consts, sidx, self.body_ptr, self.body_rows, k0, F, act.a1,
+                                 d.xanchor, d.xaxis, self.drives, self._regain)
             if need == 0:
                 break
             synth.grow_stream_ring(need)
+
+    def _drive_lines(self, synth, d, k0, L, fresh) -> None:
+        """The lines' rendering (:mod:`mjsound.synth.drive_lines`) into the pulse track; the
+        broadband parts that ring the modes through the bodies' streams
+        (:mod:`mjsound.synth.drive_broadband`)."""
+        self._streams(synth)
+        state, _ = synth.stream_tables()
+        call, act, lw = self._calls, self._act, self.weights
+        if call["block"]((state, act), k0, d.xanchor, d.xaxis, self._regain):
+            if synth.on_regain is not None and not synth.poses_current:
+                synth.on_regain()  # (the poses and microphones now)
+            call["gains"]((synth.kernel_state(),))
+            state, _ = synth.stream_tables()
+            call["copy"]((state, act, self._body_gains(state)))
+        bg = self._bg
+        dmax = call["weights"]((synth.kernel_state(), synth._bank.direction, act, lw, bg), self._fs)
+        exact = lw.exact.any()
+        self.modes_kept = call["modes"]((state, act, lw, bg)) if exact else 0
+        if fresh:
+            lw.W0[:] = lw.W1
+            lw.B0[:] = lw.B1
+        track = self._sim.pulses.track
+        last = k0 + L + dmax
+        if last - track.start > track.state.acc.shape[1]:
+            track._grow(0, last)
+        self.lines_rendered = call["render"]((track.state, act, lw), k0, L, self._fs)
+        if exact:
+            if self._force.shape[1] != L:
+                self._force = np.empty((len(self.ids), L))
+            while True:
+                st, consts = synth.stream_tables()
+                need = call["broadband"]((st, consts, act, lw), k0, self._fs, self._force)
+                if need == 0:
+                    break
+                synth.grow_stream_ring(need)

@@ -166,8 +166,9 @@ class StepDriver:
         self._silent_synth = None if synth is not None else silent_synth_state()
         self._silent_target = None if synth is not None else silent_render_target()
         self.on_block = None
-        #: optional ``before_steps(n0, n1)`` called with the samples of the steps about to be
-        #: read (not on a replay): actuator noise drives its streams there (:mod:`.actuators`)
+        #: optional ``before_steps(n0, n1, final)`` called with the samples of the steps about to
+        #: be read (not on a replay; ``final``: the call renders them), and with ``(n, n, True)``
+        #: before a render of the samples up to ``n``: actuator noise drives there (:mod:`.actuators`)
         self.before_steps = None
         self._held = []  # blocks rendered before an automatic reset, returned by the next render
         self.bind(model, data)
@@ -251,7 +252,7 @@ class StepDriver:
             if k0 + nstep > clock.k_max_int64:
                 return self._python_steps(nstep, render, keep, stepped)
             if self.before_steps is not None:
-                self.before_steps(n0, n1)
+                self.before_steps(n0, n1, render or keep)
         else:
             k0, n0, n1 = clock.k, times[2], times[3]
         pending = self._pending
@@ -535,6 +536,8 @@ class StepDriver:
         if self.synth is None:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:
+            if self.before_steps is not None:
+                self.before_steps(n0 + n, n0 + n, True)
             tc = _time.perf_counter()
             block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
             if self._tail is not None:

@@ -94,6 +94,8 @@ def tone_add(out, A, ph, s0, ds, lo, hi):
     e16 = e4 * e4
     e16 = e16 * e16
     L = out.shape[0]
+    if hi < L:  # (nothing to add past the cut-off: stop there)
+        L = hi
     k = 0
     while k + 4 <= L:
         if lo <= k and k + 4 <= hi:
@@ -199,17 +201,15 @@ def drive_direction(axis, slide, out):
     for c in range(1, 3):
         if abs(axis[c]) < abs(axis[e]):
             e = c
-    # axis x unit(e)
+    # axis x unit(e): (axis[e+1], axis[e+2]) -> components e+1 = axis[e+2], e+2 = -axis[e+1]
     x = axis[(e + 1) % 3]
     y = axis[(e + 2) % 3]
-    v = np.zeros(3)
-    v[(e + 1) % 3] = y
-    v[(e + 2) % 3] = -x
     nrm = math.sqrt(x * x + y * y)
     if nrm < 1e-12:
         nrm = 1e-12
-    for c in range(3):
-        out[c] = v[c] / nrm
+    out[e] = 0.0
+    out[(e + 1) % 3] = y / nrm
+    out[(e + 2) % 3] = -x / nrm
 
 
 @njit(cache=True)

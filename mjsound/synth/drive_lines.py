@@ -1,0 +1,568 @@
+"""Drive-train lines rendered from the links' transfer functions, without running their modes.
+
+The exact rendering (:mod:`.drive_tones`) feeds each driven body's force through the body's
+modes sample by sample: a mode of pole ``p`` driven by a force ``F`` with gain ``g`` (one
+microphone's :func:`.streams.stream_gains`) is heard as ``y[s] = Im sum_{k <= s} g F[k]
+p^(s - k)`` (:func:`.bank_loops.bank_forced`). A tonal component ``F[k] = sin(phi_k)``,
+``phi_{k+1} - phi_k = theta``, has the steady-state response
+
+    y[s] = Im(W e^{j phi_s}),   W = (H(theta) - conj(H(-theta))) / 2j,
+    H(theta) = sum_i g_i / (1 - p_i e^{-j theta})
+
+(the response to ``e^{j phi}`` is ``H(theta) e^{j phi}``; that to ``e^{-j phi}``,
+``H(-theta) e^{-j phi}``). So a line costs one complex weight per microphone, summed over the
+modes of the bodies it acts on once per block, and then per sample one phasor step and two
+multiply-adds per microphone: the cost is the number of lines, not lines times modes.
+
+Per actuator ``j``, block ``[n0, n0 + L)``, component ``c`` (order ``o_c``, amplitude
+``A_c``), microphone ``m``:
+
+- ``theta`` follows the rotor speed, linear over the block (a chirp, as :mod:`.drive_tones`),
+  and the phase is set exactly at the block's start and stored exactly at its end;
+- ``W_{c,m}`` is summed over the (up to two) driven bodies the actuator pushes, each with
+  its stream's gains and sign (the body's force is the sum of its drives along the strongest
+  one's direction: :func:`.drive_tones.streams_write`), at ``theta`` of the block's end; over
+  the block the line is ``Im(V_k e^{j phi_k})`` with ``V`` linear from the last block's
+  ``a A W`` to this one's (``a``: the force scale);
+- the broadband part ``a b y`` (``y`` the unit noise low-passed at the first component's
+  frequency ``f_c``) is heard through the bodies' static response ``Im H(0)``, the part of
+  the modes' response below their resonances (the noise's power at a mode ``f_i`` is
+  ``(f_c / f_i)^2`` of its power below ``f_c``); it is generated every ``R = fs / (16 f_c)``
+  samples and interpolated linearly;
+- a microphone hears every body of the scene with one delay ``D_m`` (the least of the
+  driven bodies' delays); a body's delay beyond it, ``dD``, is the phase
+  ``e^{-j theta dD}`` of its lines (exact for a steady speed);
+- the output (pressure at an air or image microphone, acceleration at a contact one) is
+  added into the pulse track's ring (:class:`.bandlimited.PulseTrack`), which every rendered
+  block takes in.
+
+**What it leaves out** (the exact rendering has them): a mode's transient when a component's
+frequency or level changes faster than the mode settles (``d_i`` [1/s]; a line sweeping
+through a resonance of bandwidth ``d_i`` within ``1 / d_i``), the ring-out after a drive
+stops, the broadband noise's resonant part, a delay spread over the driven bodies beyond a
+phase, and the radiation pattern (each mode is heard with its RMS over directions).
+``tests/test_drive_lines.py`` bounds the difference against the exact rendering.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..jit import njit
+from .bank_loops import FAST
+from .directivity import _factor, real_sh
+from .drive_broadband import RESONANT_OFF, RESONANT_ON
+from .drive_tones import audible_span, drive_direction
+from .records import AIR
+from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix
+
+__all__ = ["Actuators", "LineWeights", "BodyGains", "DriveRead", "drive_read", "bodies_point", "line_weights",
+           "lines_render", "lines_block"]
+
+
+class Actuators(NamedTuple):
+    """The sounding actuators as the kernels read them (owner: :class:`mjsound.sim.actuators.
+    ActuatorSound`, made once; its arrays are updated in place)."""
+
+    comp_off: np.ndarray  # (J + 1,) int64: actuator j's components comp_off[j]:comp_off[j + 1]
+    tones: np.ndarray  # (C,) drive_tones.TONE
+    noise: np.ndarray  # (J,) drive_tones.NOISE
+    drives: np.ndarray  # (J,) drive_tones.DRIVE
+    ptr: np.ndarray  # (B + 1,) int64: the actuator sides on driven body b, rows[ptr[b]:ptr[b + 1]]
+    rows: np.ndarray  # (R,) int64: 2 j + side (0: the joint's body, 1: its parent)
+    sidx: np.ndarray  # (B,) int64: each driven body's stream (-1: none)
+    sign: np.ndarray  # (B,) float64: the strongest drive's side sign on the body (0: none acts)
+    acting: np.ndarray  # (J,) bool: the actuator drives in this block
+    w0: np.ndarray  # (J,) rotor speed [rad/s] at the block's start
+    w1: np.ndarray  # (J,) ... at its end (now)
+    a0: np.ndarray  # (J,) force scale [N] at the block's start
+    a1: np.ndarray  # (J,) ... at its end
+
+
+class LineWeights(NamedTuple):
+    """Each block's weights (owner: ``ActuatorSound``; :func:`line_weights` writes the ends,
+    :func:`lines_render` moves them to the starts)."""
+
+    W0: np.ndarray  # (C, M) complex128: each component's weight at each microphone, block start
+    W1: np.ndarray  # (C, M) ... block end
+    B0: np.ndarray  # (J, M) float64: each actuator's static broadband gain, block start
+    B1: np.ndarray  # (J, M) ... block end
+    Dm: np.ndarray  # (M,) int64: each microphone's delay [samples]
+    exact: np.ndarray  # (J,) bool: the broadband part goes through the modes (.drive_broadband)
+    power: np.ndarray  # (J, 2) float64: its resonant power and everything heard, per unit force scale
+
+
+class BodyGains(NamedTuple):
+    """The driven bodies' streams' gains as computed and what is made of them (owner:
+    ``ActuatorSound``, shaped as the stream table's gains)."""
+
+    gr: np.ndarray  # (B, M, nmax) the stream's per-mode gains, real part (its dtype)
+    gi: np.ndarray  # (B, M, nmax) ..., imaginary part
+    static: np.ndarray  # (B, M, nmax) float64: each mode's static response Im g / (1 - p)
+    resonant: np.ndarray  # (B, nmax) float64: each mode's resonant broadband power
+    keep: np.ndarray  # (B, nmax) bool: the modes carrying a broadband part
+    U: np.ndarray  # (B, M, 3) float64: the direction the factors Fd were made for (NaN: none)
+    Fd: np.ndarray  # (B, M, nmax) complex128: the direction factors
+
+
+class DriveRead(NamedTuple):
+    """What :func:`drive_read` reads of the model (owner: ``ActuatorSound``, made once)."""
+
+    dof: np.ndarray  # (J,) int64: each actuator's joint's dof
+    ids: np.ndarray  # (J,) int64: the actuators
+    ratio: np.ndarray  # (J,) float64: rotor radians per joint unit
+    gear: np.ndarray  # (J,) float64: MJCF gear
+    inv_radius: np.ndarray  # (J,) float64: 1 / the preset's radius (1: a slide)
+    gate: float  # joint speed at full level
+
+
+
+@njit(cache=True)
+def bodies_point(streams, sidx, ptr, rows, k0, acting, a, anchor, axis, drives, regain, sign):
+    """Point and direction of each driven body's stream for the gains, as
+    :func:`.drive_tones.streams_write` sets them (the strongest acting drive's anchor and
+    direction, times its side's sign), its gains marked due every ``regain`` samples; no ring
+    samples are written. ``sign[b]`` (written): the strongest drive's side sign (+1: the
+    joint's body, -1: the parent), 0 where no drive acts on body ``b``. Returns whether some
+    gains are due.
+
+    Parameters
+    ----------
+    acting : (J,) bool, whether actuator ``j`` drives in this block (others as in
+        :func:`.drive_tones.streams_write`)
+    """
+    nrm = np.empty(3)
+    due = False
+    for b in range(sidx.shape[0]):
+        sign[b] = 0.0
+        s = sidx[b]
+        if s < 0:
+            continue
+        best = -1
+        for i in range(ptr[b], ptr[b + 1]):
+            j = rows[i] // 2
+            if acting[j] and (best < 0 or a[j] > a[rows[best] // 2]):
+                best = i
+        if best < 0:
+            continue
+        jb = rows[best] // 2
+        sg = 1.0 if rows[best] % 2 == 0 else -1.0
+        sign[b] = sg
+        st = streams.table[s]
+        jt = drives[jb].joint
+        drive_direction(axis[jt], drives[jb].slide, nrm)
+        for c in range(3):
+            st.p[c] = anchor[jt, c]
+            st.n[c] = sg * nrm[c]
+        g = st.gupd
+        if k0 >= g + regain or k0 < g:
+            st.gupd = k0
+            st.due = 1
+            due = True
+    return due
+
+
+@njit(cache=True)
+def drive_read(rd, act, qvel, force, fresh):
+    """A new block's ends: the last end becomes the start (``act.w0, a0``; ``fresh``: the
+    start is now too) and ``act.w1, a1`` each actuator's rotor speed ``w = ratio qdot``
+    [rad/s] and force scale ``a = |gear force| inv_radius min(1, |qdot| / gate)`` [N] now (a
+    non-finite value reads 0). Returns whether some force scale is not 0."""
+    live = False
+    w, a = act.w1, act.a1
+    for j in range(w.shape[0]):
+        act.w0[j] = w[j]
+        act.a0[j] = a[j]
+        qd = qvel[rd.dof[j]]
+        w[j] = qd * rd.ratio[j]
+        a[j] = abs(force[rd.ids[j]] * rd.gear[j]) * rd.inv_radius[j] * min(1.0, abs(qd) / rd.gate)
+        if not (math.isfinite(w[j]) and math.isfinite(a[j])):
+            w[j] = 0.0 if not math.isfinite(w[j]) else w[j]
+            a[j] = 0.0
+        if fresh:
+            act.w0[j] = w[j]
+            act.a0[j] = a[j]
+        live = live or a[j] != 0.0 or act.a0[j] != 0.0
+    return live
+
+
+@njit(cache=True)
+def line_weights(synth, dr, act, lw, bg, fs):
+    """Each component's complex weight ``lw.W1[c, m]`` (without the force scale; see the
+    module) at the rotor speeds ``act.w1`` [rad/s], each actuator's broadband gain
+    ``lw.B1[j, m]`` (the static ``Im H(0)``), each microphone's delay ``lw.Dm[m]`` [samples],
+    whether each actuator's broadband part goes through the modes (``lw.exact``, ``lw.power``:
+    :mod:`.drive_broadband`) and, per driven body, its modes' static response and resonant
+    broadband power (``bg.static``, ``bg.resonant``). The bodies' gains are ``bg.gr, gi``
+    (:func:`.drive_broadband.gains_copy`); an air microphone hears a directional object's
+    modes times their direction factor towards it now (as the exact rendering's forcing rows;
+    ``dr`` the :class:`.records.DirectionState`, ``bg.U, Fd`` the factors' cache).
+
+    Parameters
+    ----------
+    synth : :class:`.records.SynthState` (the streams' delays and objects, poles, poses,
+        microphones, channels)
+    act : :class:`Actuators`; lw : :class:`LineWeights`; bg : :class:`BodyGains`
+    fs : float [Hz]
+
+    Returns the largest of ``lw.Dm``.
+    """
+    gr, gi, static, resonant, U, Fd = bg.gr, bg.gi, bg.static, bg.resonant, bg.U, bg.Fd
+    W, B, Dm, exact, power = lw.W1, lw.B1, lw.Dm, lw.exact, lw.power
+    sidx, sign, ptr, rows, comp_off, tones, noise, w, a = (act.sidx, act.sign, act.ptr, act.rows, act.comp_off,
+                                                           act.tones, act.noise, act.w1, act.a1)
+    D, table = synth.streams.D, synth.streams.table
+    lam, mode_off = synth.objects.lam, synth.objects.mode_off
+    mics, pos, R, channels = synth.mics, synth.pos, synth.R, synth.channels
+    C, M = W.shape
+    J = B.shape[0]
+    for c in range(C):
+        for m in range(M):
+            W[c, m] = 0.0
+    for j in range(J):
+        for m in range(M):
+            B[j, m] = 0.0
+    for m in range(M):
+        Dm[m] = -1
+    for b in range(sidx.shape[0]):
+        s = sidx[b]
+        if s < 0 or sign[b] == 0.0:
+            continue
+        for m in range(M):
+            if Dm[m] < 0 or D[s, m] < Dm[m]:
+                Dm[m] = D[s, m]
+    for m in range(M):
+        if Dm[m] < 0:
+            Dm[m] = 0
+    limit = 2.0 * math.pi * 0.45
+    nmax = gr.shape[2]
+    for b in range(sidx.shape[0]):
+        for k in range(nmax):
+            resonant[b, k] = 0.0
+    pr = np.empty(nmax)
+    pi = np.empty(nmax)
+    g = np.empty((M, nmax), np.complex128)
+    h0 = np.empty(M)
+    Hp = np.empty(M, np.complex128)
+    Hn = np.empty(M, np.complex128)
+    two_pi = 2.0 * math.pi
+    res = np.zeros(J)  # the resonant broadband power per unit force scale
+    alpha = np.empty(J)
+    for j in range(J):
+        c0 = comp_off[j]
+        fc = min(abs(w[j]) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+        alpha[j] = 1.0 - math.exp(-two_pi * fc / fs)
+    for b in range(sidx.shape[0]):
+        s = sidx[b]
+        if s < 0 or sign[b] == 0.0:
+            continue
+        o = table[s].obj
+        m0 = mode_off[o]
+        n = mode_off[o + 1] - m0
+        for k in range(n):
+            p = np.exp(lam[m0 + k] / fs)
+            pr[k] = p.real
+            pi[k] = p.imag
+            resonant[b, k] = 0.0
+            for m in range(M):
+                g[m, k] = complex(gr[b, m, k], gi[b, m, k])
+        if dr.order[o] >= 0:
+            _direction_factors(g, n, o, m0, dr, mics, pos, R, channels, U[b], Fd[b])
+        for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
+            h = 0.0
+            for k in range(n):
+                static[b, m, k] = (g[m, k] / complex(1.0 - pr[k], -pi[k])).imag
+                h += static[b, m, k]
+            h0[m] = h
+        for i in range(ptr[b], ptr[b + 1]):
+            j = rows[i] // 2
+            coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)  # (this side's force along the stream's direction)
+            for m in range(M):
+                B[j, m] += coef * h0[m]
+            bb = noise[j].broadband
+            if bb > 0.0:
+                al = alpha[j]
+                q = 1.0 - al
+                for k in range(n):
+                    # the one-pole's power spectrum at the mode, alpha^2 / |1 - (1 - alpha) e^{-j w}|^2
+                    p2 = pr[k] * pr[k] + pi[k] * pi[k]
+                    S = al * al / (1.0 - 2.0 * q * pr[k] / math.sqrt(p2) + q * q)
+                    den = 2.0 * (1.0 - p2)
+                    for m in range(M):
+                        x = g[m, k]
+                        e = bb * bb * (x.real * x.real + x.imag * x.imag) * S / den
+                        res[j] += e
+                        resonant[b, k] += e * a[j] * a[j]
+            for c in range(comp_off[j], comp_off[j + 1]):
+                th = tones[c].order * w[j] / fs
+                if abs(th) >= limit:
+                    continue
+                cr = math.cos(th)
+                ci = math.sin(th)
+                for m in range(M):
+                    Hp[m] = 0.0
+                    Hn[m] = 0.0
+                for k in range(n):
+                    # 1 / (1 - p e^{-j th}) and 1 / (1 - p e^{+j th}), once for every microphone
+                    xr = 1.0 - (pr[k] * cr + pi[k] * ci)
+                    xi = pr[k] * ci - pi[k] * cr
+                    yr = 1.0 - (pr[k] * cr - pi[k] * ci)
+                    yi = -(pi[k] * cr + pr[k] * ci)
+                    u = 1.0 / (xr * xr + xi * xi)
+                    v = 1.0 / (yr * yr + yi * yi)
+                    ip = complex(xr * u, -xi * u)
+                    iq = complex(yr * v, -yi * v)
+                    for m in range(M):
+                        Hp[m] += g[m, k] * ip
+                        Hn[m] += g[m, k] * iq
+                for m in range(M):
+                    hp = Hp[m]
+                    hn = Hn[m]
+                    dd = D[s, m] - Dm[m]
+                    sh = complex(math.cos(th * dd), -math.sin(th * dd))
+                    W[c, m] += coef * tones[c].amp * sh * (hp - hn.conjugate()) * -0.5j
+    for j in range(J):
+        bb = noise[j].broadband
+        b2 = 0.0
+        for m in range(M):
+            b2 += B[j, m] * B[j, m]
+        total = res[j] + bb * bb * alpha[j] / (2.0 - alpha[j]) * b2
+        for c in range(comp_off[j], comp_off[j + 1]):
+            for m in range(M):
+                total += 0.5 * (W[c, m].real ** 2 + W[c, m].imag ** 2)
+        power[j, 0] = res[j]
+        power[j, 1] = total
+        exact[j] = res[j] > (RESONANT_OFF if exact[j] else RESONANT_ON) * total
+    dmax = 0
+    for m in range(M):
+        dmax = max(dmax, Dm[m])
+    return dmax
+
+
+@njit(cache=True)
+def _direction_factors(g, n, o, m0, dr, mics, pos, R, channels, U, Fd):
+    """``g[m, :n]`` (object ``o``'s modes, the first at ``m0`` of the flat order) times each
+    mode's direction factor towards air microphone ``m`` now (:func:`.directivity.hear_directions`'
+    target: the fit at ``u = R^T (mic - pos) / r``, its magnitude floored), made again only
+    when ``u`` turned by more than the synthesizer's step since the factors ``Fd[m]`` were
+    made for ``U[m]`` (a body's own cache; NaN: never made)."""
+    prm = dr.params[0]
+    floor = prm.floor
+    floor2 = floor * floor
+    L = dr.order[o]
+    for m in range(mics.shape[0]):
+        if channels[m].owner != AIR:
+            continue
+        dx = mics[m, 0] - pos[o, 0]
+        dy = mics[m, 1] - pos[o, 1]
+        dz = mics[m, 2] - pos[o, 2]
+        r = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if not r > 0.0:
+            continue
+        ux = (R[o, 0, 0] * dx + R[o, 1, 0] * dy + R[o, 2, 0] * dz) / r
+        uy = (R[o, 0, 1] * dx + R[o, 1, 1] * dy + R[o, 2, 1] * dz) / r
+        uz = (R[o, 0, 2] * dx + R[o, 1, 2] * dy + R[o, 2, 2] * dz) / r
+        if not ux * U[m, 0] + uy * U[m, 1] + uz * U[m, 2] >= prm.cos_step:  # (NaN: never made)
+            U[m, 0] = ux
+            U[m, 1] = uy
+            U[m, 2] = uz
+            real_sh(L, ux, uy, uz, dr.sh, dr.sh_tab)
+            for k in range(n):
+                k0 = dr.msh_off[m0 + k]
+                nsh = dr.msh_off[m0 + k + 1] - k0
+                t = complex(1.0, 0.0)
+                if nsh > 0:
+                    t = _factor(dr.sh, dr.coef_r, dr.coef_i, k0, nsh)
+                    a2 = t.real * t.real + t.imag * t.imag
+                    if not a2 >= floor2:
+                        t = t * (floor / np.sqrt(a2)) if a2 > 0.0 else complex(floor, 0.0)
+                Fd[m, k] = t
+        for k in range(n):
+            g[m, k] *= Fd[m, k]
+
+
+@njit(cache=True, fastmath=FAST)
+def _lines_pass(acc, first, off0, off1, two, L, S, V):
+    """The gathered lines over ``L`` samples into channels ``off0`` (and ``off1`` when
+    ``two``): rows of ``S`` (6, n) phasor, rate, rate's turn (re, im each; updated); of
+    ``V`` (8, n) channel 0's and 1's weight and its step per sample (re, im each)."""
+    n = S.shape[1]
+    mask = acc.shape[1] - 1
+    ur, ui, rr, ri, er, ei = S[0], S[1], S[2], S[3], S[4], S[5]
+    v0r, v0i, d0r, d0i, v1r, v1i, d1r, d1i = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
+    c0, k0 = off0
+    c1, k1 = off1
+    for k in range(L):
+        s0 = 0.0
+        s1 = 0.0
+        for q in range(n):
+            a = ur[q]
+            b = ui[q]
+            s0 += (v0r[q] + d0r[q] * k) * b + (v0i[q] + d0i[q] * k) * a
+            s1 += (v1r[q] + d1r[q] * k) * b + (v1i[q] + d1i[q] * k) * a
+            c = rr[q]
+            d = ri[q]
+            ur[q] = a * c - b * d
+            ui[q] = a * d + b * c
+            e = er[q]
+            f = ei[q]
+            rr[q] = c * e - d * f
+            ri[q] = c * f + d * e
+        if k0 + k >= first:
+            acc[c0, (k0 + k) & mask] += s0
+        if two and k1 + k >= first:
+            acc[c1, (k1 + k) & mask] += s1
+
+
+@njit(cache=True)
+def lines_render(track, act, lw, n0, L, fs):
+    """Add the block's lines and broadband part (module docstring) into the pulse track
+    (:class:`.records.TrackState`: its ring ``acc``, channels x capacity a power of two,
+    absolute sample ``k`` at ``k & (capacity - 1)``; its ``rec``'s pending span grows),
+    microphone ``m``'s source sample ``n0 + q`` at ``n0 + q + Dm[m]`` (ring samples before
+    ``rec.start``, handed out already, are not written), for ``0 <= q < L``; the components'
+    phases and the noise's state advance over the block (as :func:`.drive_tones.drive_tones`),
+    and the block's end weights become the next one's start.
+
+    Parameters
+    ----------
+    track : :class:`.records.TrackState`
+    act : :class:`Actuators` (speeds and force scales at the block's start and end)
+    lw : :class:`LineWeights` (the actuators ``exact`` are skipped here: their broadband part
+        goes through the modes, :func:`.drive_broadband.broadband_write`)
+    Returns the number of lines rendered.
+    """
+    acc, rec = track.acc, track.rec
+    comp_off, tones, noise, w0, w1, a0, a1 = act.comp_off, act.tones, act.noise, act.w0, act.w1, act.a0, act.a1
+    W0, W1, B0, B1, Dm, exact = lw.W0, lw.W1, lw.B0, lw.B1, lw.Dm, lw.exact
+    C, M = W1.shape
+    J = a0.shape[0]
+    limit = 2.0 * math.pi * 0.45
+    two_pi = 2.0 * math.pi
+    mask = acc.shape[1] - 1
+    first = rec[0].start
+    lo = n0 + L
+    hi = n0
+    for m in range(M):
+        lo = min(lo, n0 + Dm[m])
+        hi = max(hi, n0 + L + Dm[m])
+    lo = max(lo, first)
+    if hi > lo:
+        r = rec[0]
+        r.pending_from = lo if r.pending_until <= first else min(r.pending_from, lo)
+        r.pending_until = max(r.pending_until, hi)
+    # the lines that sound over the whole block, gathered (others: one at a time)
+    S = np.empty((6, C))
+    V = np.zeros((4 * M + 4, C))
+    nl = 0
+    for j in range(J):
+        silent = a0[j] == 0.0 and a1[j] == 0.0
+        dw = (w1[j] - w0[j]) / L
+        for c in range(comp_off[j], comp_off[j + 1]):
+            s0 = tones[c].order * w0[j] / fs
+            ds = tones[c].order * dw / fs
+            ph = tones[c].phase
+            tones[c].phase = (ph + s0 * L + ds * (0.5 * L * (L - 1))) % two_pi  # (exact: as drive_tones)
+            if silent:
+                continue
+            lo, hi = audible_span(s0, ds, limit, L)
+            if hi <= lo:
+                continue
+            ph0 = ph + s0 * lo + ds * (0.5 * lo * (lo - 1))  # (the phase at the first audible sample)
+            th0 = s0 + ds * lo
+            cr, ci = math.cos(ph0), math.sin(ph0)
+            tr, ti = math.cos(th0), math.sin(th0)
+            fr, fi = math.cos(ds), math.sin(ds)
+            whole = lo == 0 and hi == L
+            for m in range(M):
+                v0 = a0[j] * W0[c, m]
+                d = (a1[j] * W1[c, m] - v0) / L
+                if whole:
+                    V[4 * m, nl] = v0.real
+                    V[4 * m + 1, nl] = v0.imag
+                    V[4 * m + 2, nl] = d.real
+                    V[4 * m + 3, nl] = d.imag
+                else:  # (a line crossing the cut-off: its audible samples alone, one sample at a time)
+                    zr, zi, xr, xi = cr, ci, tr, ti
+                    for k in range(lo, hi):
+                        v = v0 + d * k
+                        if n0 + k + Dm[m] >= first:
+                            acc[m, (n0 + k + Dm[m]) & mask] += v.real * zi + v.imag * zr
+                        zr, zi = zr * xr - zi * xi, zr * xi + zi * xr
+                        xr, xi = xr * fr - xi * fi, xr * fi + xi * fr
+            if whole:
+                S[0, nl], S[1, nl], S[2, nl], S[3, nl], S[4, nl], S[5, nl] = cr, ci, tr, ti, fr, fi
+                nl += 1
+    if nl:
+        S0 = S[:, :nl].copy()
+        for m in range(0, M, 2):  # (two channels per pass over the phasors)
+            Sm = S0.copy() if m + 2 < M else S0
+            two = m + 1 < M
+            _lines_pass(acc, first, (m, n0 + Dm[m]), (m + 1 if two else m, n0 + Dm[m + 1 if two else m]), two, L,
+                        Sm, V[4 * m:4 * m + 8, :nl].copy())
+    # broadband: the static response of the low-passed noises, generated every R samples,
+    # summed per channel there and interpolated linearly in between
+    R = 64
+    for j in range(J):
+        if noise[j].broadband > 0.0 and (a0[j] != 0.0 or a1[j] != 0.0) and not exact[j]:
+            c0 = comp_off[j]
+            fc = abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi
+            R = min(R, max(1, int(fs / (16.0 * fc)) if fc > 0.0 else 64))
+    nb = (L + R - 1) // R  # decimated points at samples R - 1, 2R - 1, ... (the last at L - 1)
+    y = np.zeros((M, nb + 1))  # (column 0: the last block's end, from the noise state)
+    any_bb = False
+    for j in range(J):
+        b = noise[j].broadband
+        if b <= 0.0 or (a0[j] == 0.0 and a1[j] == 0.0) or exact[j]:
+            continue
+        any_bb = True
+        c0 = comp_off[j]
+        fc = min(abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+        alpha = 1.0 - math.exp(-two_pi * fc * R / fs)
+        scale = _SQRT3 / math.sqrt(R)  # (white noise at fs / R: the same density below f_c)
+        state = np.uint64(noise[j].rng)
+        yl = noise[j].lp
+        for m in range(M):
+            y[m, 0] += a0[j] * b * B0[j, m] * yl
+        for i in range(nb):
+            q = min(L - 1, (i + 1) * R - 1)
+            state, z = _splitmix(state)
+            x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
+                 + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
+            yl = alpha * (x * scale) + (1.0 - alpha) * yl
+            t = (q + 1) / L
+            for m in range(M):
+                y[m, i + 1] += (a0[j] + (a1[j] - a0[j]) * t) * b * (B0[j, m] + (B1[j, m] - B0[j, m]) * t) * yl
+        noise[j].rng = np.int64(state)
+        noise[j].lp = yl
+    for c in range(C):  # (this block's end starts the next)
+        for m in range(M):
+            W0[c, m] = W1[c, m]
+    for j in range(J):
+        for m in range(M):
+            B0[j, m] = B1[j, m]
+    if any_bb:
+        for m in range(M):
+            off = n0 + Dm[m]
+            for i in range(nb):
+                k0 = i * R
+                k1 = min(L, (i + 1) * R)
+                ya = y[m, i]
+                dy = (y[m, i + 1] - ya) / (k1 - k0)
+                for k in range(k0, k1):
+                    if off + k >= first:
+                        acc[m, (off + k) & mask] += ya + dy * (k - k0 + 1)
+    return nl
+
+
+@njit(cache=True)
+def lines_block(streams, act, k0, anchor, axis, regain):
+    """:func:`bodies_point` for the block from synth sample ``k0``, ``act.acting`` set from
+    the force scales at its ends. Returns whether some gains are due."""
+    for j in range(act.a1.shape[0]):
+        act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
+    return bodies_point(streams, act.sidx, act.ptr, act.rows, k0, act.acting, act.a1, anchor, axis, act.drives, regain,
+                        act.sign)
