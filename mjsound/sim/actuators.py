@@ -39,7 +39,7 @@ import numpy as np
 from ..synth.dispatch import EntryPoint
 from ..synth.drive_broadband import broadband_modes, broadband_write, gains_copy
 from ..synth.drive_lines import (Actuators, BodyGains, DriveRead, LineWeights, drive_read, line_weights, lines_block,
-                                 lines_render)
+                                 lines_render, scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 from ..synth.streams import streams_gains
 
@@ -252,6 +252,7 @@ class ActuatorSound:
                                    z(M, np.int64), z(J, np.bool_), z((J, 2)))
         self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, float(GATE_RAD_S))
         self._bg = None  # (the bodies' gains: _body_gains)
+        self._view, self._view_of = None, None  # (scene_view of the synthesizer's state and directions)
         self.lines_rendered = 0  # (lines the last block rendered: the cost's count)
         self.modes_kept = 0  # (modes running for the broadband parts at the last block)
         # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python)
@@ -346,7 +347,12 @@ class ActuatorSound:
             state, _ = synth.stream_tables()
             call["copy"]((state, act, self._body_gains(state)))
         bg = self._bg
-        dmax = call["weights"]((synth.kernel_state(), synth._bank.direction, act, lw, bg), self._fs)
+        ks, dr = synth.kernel_state(), synth._bank.direction
+        view = self._view
+        if view is None or self._view_of[0] is not ks or self._view_of[1] is not dr:
+            view = self._view = scene_view(ks, dr)
+            self._view_of = (ks, dr)
+        dmax = call["weights"]((view, act, lw, bg), self._fs)
         exact = lw.exact.any()
         self.modes_kept = call["modes"]((state, act, lw, bg)) if exact else 0
         if fresh:

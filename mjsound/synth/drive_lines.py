@@ -59,7 +59,7 @@ from .drive_tones import audible_span, drive_direction
 from .records import AIR
 from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix
 
-__all__ = ["Actuators", "LineWeights", "BodyGains", "DriveRead", "drive_read", "bodies_point", "line_weights",
+__all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read", "bodies_point", "line_weights",
            "lines_render", "lines_block"]
 
 
@@ -106,6 +106,36 @@ class BodyGains(NamedTuple):
     keep: np.ndarray  # (B, nmax) bool: the modes carrying a broadband part
     U: np.ndarray  # (B, M, 3) float64: the direction the factors Fd were made for (NaN: none)
     Fd: np.ndarray  # (B, M, nmax) complex128: the direction factors
+
+
+class SceneView(NamedTuple):
+    """What :func:`line_weights` reads of the synthesizer (owner: ``ActuatorSound``, made
+    again when one of the synthesizer's arrays is replaced): the streams' delays and records,
+    the objects' poles, poses, the microphones, the channels and the direction fits (the
+    fields of :class:`.records.DirectionState` of those names)."""
+
+    D: np.ndarray  # (S, M) int64
+    table: np.ndarray  # (S,) STREAM
+    lam: np.ndarray  # (modes,) complex128 [1/s]
+    mode_off: np.ndarray  # (objects + 1,) int64
+    mics: np.ndarray  # (M, 3) [m]
+    pos: np.ndarray  # (objects, 3) [m]
+    R: np.ndarray  # (objects, 3, 3)
+    channels: np.ndarray  # (M,) CHANNEL
+    order: np.ndarray  # (objects,) int64
+    msh_off: np.ndarray  # (modes + 1,) int64
+    coef_r: np.ndarray  # (k,) float64
+    coef_i: np.ndarray  # (k,) float64
+    sh: np.ndarray  # scratch
+    sh_tab: np.ndarray
+    params: np.ndarray  # (1,) DIRECTIONS
+
+
+def scene_view(synth, dr) -> SceneView:
+    """:class:`SceneView` of a :class:`.records.SynthState` and :class:`.records.DirectionState`."""
+    st, ob = synth.streams, synth.objects
+    return SceneView(st.D, st.table, ob.lam, ob.mode_off, synth.mics, synth.pos, synth.R, synth.channels, dr.order,
+                     dr.msh_off, dr.coef_r, dr.coef_i, dr.sh, dr.sh_tab, dr.params)
 
 
 class DriveRead(NamedTuple):
@@ -190,7 +220,7 @@ def drive_read(rd, act, qvel, force, fresh):
 
 
 @njit(cache=True)
-def line_weights(synth, dr, act, lw, bg, fs):
+def line_weights(view, act, lw, bg, fs):
     """Each component's complex weight ``lw.W1[c, m]`` (without the force scale; see the
     module) at the rotor speeds ``act.w1`` [rad/s], each actuator's broadband gain
     ``lw.B1[j, m]`` (the static ``Im H(0)``), each microphone's delay ``lw.Dm[m]`` [samples],
@@ -199,12 +229,12 @@ def line_weights(synth, dr, act, lw, bg, fs):
     broadband power (``bg.static``, ``bg.resonant``). The bodies' gains are ``bg.gr, gi``
     (:func:`.drive_broadband.gains_copy`); an air microphone hears a directional object's
     modes times their direction factor towards it now (as the exact rendering's forcing rows;
-    ``dr`` the :class:`.records.DirectionState`, ``bg.U, Fd`` the factors' cache).
+    ``bg.U, Fd`` the factors' cache).
 
     Parameters
     ----------
-    synth : :class:`.records.SynthState` (the streams' delays and objects, poles, poses,
-        microphones, channels)
+    view : :class:`SceneView` (the streams' delays and objects, poles, poses, microphones,
+        channels, direction fits)
     act : :class:`Actuators`; lw : :class:`LineWeights`; bg : :class:`BodyGains`
     fs : float [Hz]
 
@@ -214,9 +244,8 @@ def line_weights(synth, dr, act, lw, bg, fs):
     W, B, Dm, exact, power = lw.W1, lw.B1, lw.Dm, lw.exact, lw.power
     sidx, sign, ptr, rows, comp_off, tones, noise, w, a = (act.sidx, act.sign, act.ptr, act.rows, act.comp_off,
                                                            act.tones, act.noise, act.w1, act.a1)
-    D, table = synth.streams.D, synth.streams.table
-    lam, mode_off = synth.objects.lam, synth.objects.mode_off
-    mics, pos, R, channels = synth.mics, synth.pos, synth.R, synth.channels
+    D, table, lam, mode_off = view.D, view.table, view.lam, view.mode_off
+    mics, pos, R, channels = view.mics, view.pos, view.R, view.channels
     C, M = W.shape
     J = B.shape[0]
     for c in range(C):
@@ -269,8 +298,8 @@ def line_weights(synth, dr, act, lw, bg, fs):
             resonant[b, k] = 0.0
             for m in range(M):
                 g[m, k] = complex(gr[b, m, k], gi[b, m, k])
-        if dr.order[o] >= 0:
-            _direction_factors(g, n, o, m0, dr, mics, pos, R, channels, U[b], Fd[b])
+        if view.order[o] >= 0:
+            _direction_factors(g, n, o, m0, view, U[b], Fd[b])
         for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
             h = 0.0
             for k in range(n):
@@ -343,12 +372,13 @@ def line_weights(synth, dr, act, lw, bg, fs):
 
 
 @njit(cache=True)
-def _direction_factors(g, n, o, m0, dr, mics, pos, R, channels, U, Fd):
+def _direction_factors(g, n, o, m0, dr, U, Fd):
     """``g[m, :n]`` (object ``o``'s modes, the first at ``m0`` of the flat order) times each
     mode's direction factor towards air microphone ``m`` now (:func:`.directivity.hear_directions`'
     target: the fit at ``u = R^T (mic - pos) / r``, its magnitude floored), made again only
     when ``u`` turned by more than the synthesizer's step since the factors ``Fd[m]`` were
-    made for ``U[m]`` (a body's own cache; NaN: never made)."""
+    made for ``U[m]`` (a body's own cache; NaN: never made); ``dr``: a :class:`SceneView`."""
+    mics, pos, R, channels = dr.mics, dr.pos, dr.R, dr.channels
     prm = dr.params[0]
     floor = prm.floor
     floor2 = floor * floor
