@@ -241,15 +241,10 @@ class ActuatorSound:
         self.rendering = rendering if sim.pulses.active else "modal"
         M = sim.synth.n_channels
         C = len(self.tones)
+        self._weights_for(M)
         z = np.zeros
         self._act = Actuators(self.comp_off, self.tones, self.noise, self.drives, self.body_ptr, self.body_rows,
                               self._sidx, z(len(self.bodies)), z(J, np.bool_), z(J), z(J), z(J), z(J))
-        #: the lines' weights; ``exact``: whether each actuator's broadband part goes through
-        #: the modes now (its resonant response matters: :mod:`mjsound.synth.drive_broadband`);
-        #: ``power``: that resonant power and everything the actuator makes heard, per unit
-        #: force scale (summed over the microphones), at the last block
-        self.weights = LineWeights(z((C, M), np.complex128), z((C, M), np.complex128), z((J, M)), z((J, M)),
-                                   z(M, np.int64), z(J, np.bool_), z((J, 2)))
         self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, float(GATE_RAD_S))
         self._bg = None  # (the bodies' gains: _body_gains)
         self._view, self._view_of = None, None  # (scene_view of the synthesizer's state and directions)
@@ -306,6 +301,18 @@ class ActuatorSound:
         else:
             self._drive_lines(synth, d, k0, L, fresh)
 
+    def _weights_for(self, M: int) -> None:
+        """:attr:`weights` for ``M`` channels (new ones when the synthesizer's count changed)."""
+        C, J = len(self.tones), len(self.ids)
+        z = np.zeros
+        #: the lines' weights; ``exact``: whether each actuator's broadband part goes through
+        #: the modes now (its resonant response matters: :mod:`mjsound.synth.drive_broadband`);
+        #: ``power``: that resonant power and everything the actuator makes heard, per unit
+        #: force scale (summed over the microphones), at the last block
+        self.weights = LineWeights(z((C, M), np.complex128), z((C, M), np.complex128), z((J, M)), z((J, M)),
+                                   z(M, np.int64), z(J, np.bool_), z((J, 2)))
+        self._last = None  # (the next block starts from its own state)
+
     def _body_gains(self, state) -> BodyGains:
         """The bodies' gains and what is made of them, shaped as the stream table's gains."""
         nb, (_, M, nmax) = len(self.bodies), state.gr.shape
@@ -337,6 +344,9 @@ class ActuatorSound:
         """The lines' rendering (:mod:`mjsound.synth.drive_lines`) into the pulse track; the
         broadband parts that ring the modes through the bodies' streams
         (:mod:`mjsound.synth.drive_broadband`)."""
+        if self.weights.W1.shape[1] != synth.n_channels:  # (microphones added or removed)
+            self._weights_for(synth.n_channels)
+            fresh = True
         self._streams(synth)
         state, _ = synth.stream_tables()
         call, act, lw = self._calls, self._act, self.weights

@@ -383,7 +383,7 @@ def _direction_factors(g, n, o, m0, dr, U, Fd):
     floor = prm.floor
     floor2 = floor * floor
     L = dr.order[o]
-    for m in range(mics.shape[0]):
+    for m in range(min(g.shape[0], mics.shape[0])):
         if channels[m].owner != AIR:
             continue
         dx = mics[m, 0] - pos[o, 0]
@@ -469,6 +469,7 @@ def lines_render(track, act, lw, n0, L, fs):
     comp_off, tones, noise, w0, w1, a0, a1 = act.comp_off, act.tones, act.noise, act.w0, act.w1, act.a0, act.a1
     W0, W1, B0, B1, Dm, exact = lw.W0, lw.W1, lw.B0, lw.B1, lw.Dm, lw.exact
     C, M = W1.shape
+    M = min(M, acc.shape[0])  # (the track's channels: the same as the weights' where they are current)
     J = a0.shape[0]
     limit = 2.0 * math.pi * 0.45
     two_pi = 2.0 * math.pi
