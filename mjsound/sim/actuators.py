@@ -37,9 +37,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..synth.dispatch import EntryPoint
-from ..synth.drive_broadband import broadband_modes, broadband_write, gains_copy
-from ..synth.drive_lines import (Actuators, BodyGains, DriveRead, LineWeights, drive_read, line_weights, lines_block,
-                                 lines_render, scene_view)
+from ..synth.drive_broadband import broadband_write
+from ..synth.drive_lines import (Actuators, BodyGains, DriveRead, LineWeights, drive_read, lines_start, lines_step,
+                                 scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 from ..synth.streams import streams_gains
 
@@ -251,10 +251,9 @@ class ActuatorSound:
         self.lines_rendered = 0  # (lines the last block rendered: the cost's count)
         self.modes_kept = 0  # (modes running for the broadband parts at the last block)
         # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python)
-        self._calls = {"block": EntryPoint(lines_block), "gains": EntryPoint(streams_gains),
-                       "weights": EntryPoint(line_weights), "render": EntryPoint(lines_render),
-                       "broadband": EntryPoint(broadband_write), "copy": EntryPoint(gains_copy),
-                       "modes": EntryPoint(broadband_modes), "read": EntryPoint(drive_read)}
+        self._calls = {"read": EntryPoint(drive_read), "start": EntryPoint(lines_start),
+                       "gains": EntryPoint(streams_gains), "step": EntryPoint(lines_step),
+                       "broadband": EntryPoint(broadband_write)}
         self._regain, self._fs = sim.regain_samples, float(sim.sample_rate)
 
     def reset(self) -> None:
@@ -291,15 +290,13 @@ class ActuatorSound:
         d = sim.data
         fresh = self._last is None
         self._last = True
-        act = self._act
-        if not self._calls["read"]((self._rd, act), d.qvel, d.actuator_force, fresh):
-            return  # (every joint still: nothing to drive; the phases wait)
         synth = sim.synth
         k0 = done - origin
         if self.rendering == "modal":
-            self._drive_modal(synth, d, k0, L)
-        else:
-            self._drive_lines(synth, d, k0, L, fresh)
+            if self._calls["read"]((self._rd, self._act), d.qvel, d.actuator_force, fresh):
+                self._drive_modal(synth, d, k0, L)
+            return  # (else every joint is still: nothing to drive; the phases wait)
+        self._drive_lines(synth, d, k0, L, fresh)
 
     def _weights_for(self, M: int) -> None:
         """:attr:`weights` for ``M`` channels (new ones when the synthesizer's count changed)."""
@@ -350,35 +347,35 @@ class ActuatorSound:
         self._streams(synth)
         state, _ = synth.stream_tables()
         call, act, lw = self._calls, self._act, self.weights
-        if call["block"]((state, act), k0, d.xanchor, d.xaxis, self._regain):
+        code = call["start"]((self._rd, act, state), d.qvel, d.actuator_force, fresh, k0, d.xanchor, d.xaxis,
+                             self._regain)
+        if code == 0:
+            return  # (every joint still: nothing to drive; the phases wait)
+        if code == 2:  # (the driven streams' gains are due)
             if synth.on_regain is not None and not synth.poses_current:
                 synth.on_regain()  # (the poses and microphones now)
             call["gains"]((synth.kernel_state(),))
             state, _ = synth.stream_tables()
-            call["copy"]((state, act, self._body_gains(state)))
-        bg = self._bg
+            self._body_gains(state)
         ks, dr = synth.kernel_state(), synth._bank.direction
         view = self._view
         if view is None or self._view_of[0] is not ks or self._view_of[1] is not dr:
             view = self._view = scene_view(ks, dr)
             self._view_of = (ks, dr)
-        dmax = call["weights"]((view, act, lw, bg), self._fs)
-        exact = lw.exact.any()
-        self.modes_kept = call["modes"]((state, act, lw, bg)) if exact else 0
-        if fresh:
-            lw.W0[:] = lw.W1
-            lw.B0[:] = lw.B1
         track = self._sim.pulses.track
-        last = k0 + L + dmax
-        if last - track.start > track.state.acc.shape[1]:
-            track._grow(0, last)
-        self.lines_rendered = call["render"]((track.state, act, lw), k0, L, self._fs)
-        if exact:
-            if self._force.shape[1] != L:
-                self._force = np.empty((len(self.ids), L))
+        if self._force.shape[1] != L:
+            self._force = np.empty((len(self.ids), L))
+        while True:
+            nl, self.modes_kept = call["step"]((view, act, lw, self._bg, state, track.state), k0, L, self._fs, fresh,
+                                               code == 2, self._force)
+            if nl >= 0:
+                break
+            track._grow(0, -nl - 1)  # (the ring holds the block and the delays)
+        self.lines_rendered = nl
+        if lw.exact.any():
             while True:
                 st, consts = synth.stream_tables()
-                need = call["broadband"]((st, consts, act, lw), k0, self._fs, self._force)
+                need = call["broadband"]((st, consts, act, lw), k0, self._force)
                 if need == 0:
                     break
                 synth.grow_stream_ring(need)

@@ -23,7 +23,8 @@ import numpy as np
 from ..jit import njit
 from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix, ring_need
 
-__all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "gains_copy", "broadband_modes", "broadband_write"]
+__all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "gains_copy", "broadband_modes", "broadband_force",
+           "broadband_write"]
 
 #: Fraction of an actuator's heard power in the modes' resonant response to its broadband
 #: part above which that part goes through the modes (-10 dB) ...
@@ -108,25 +109,15 @@ def broadband_modes(streams, act, lw, bg):
 
 
 @njit(cache=True)
-def broadband_write(streams, consts, act, lw, k0, fs, F):
-    """The broadband part of the actuators ``lw.exact`` through the modes: each one's force
-    ``a b y`` (as :func:`.drive_tones.drive_tones`, into ``F`` (J, L)) summed per driven body
-    with its side's sign along the body's stream direction (``act.sign``,
-    :func:`.drive_lines.bodies_point`) into the stream's ring on synth samples ``[k0, k0 + L)``.
-    Returns 0, or the ring length needed first (nothing written then)."""
-    sidx, ptr, rows, sign, exact = act.sidx, act.ptr, act.rows, act.sign, lw.exact
-    comp_off, tones, noise, w0, w1, a0, a1 = act.comp_off, act.tones, act.noise, act.w0, act.w1, act.a0, act.a1
+def broadband_force(act, lw, fs, F):
+    """The broadband force ``a b y`` of each actuator ``lw.exact`` into ``F[j]`` (J, L), as
+    :func:`.drive_tones.drive_tones` makes it (its noise state advances); the others' rows
+    are left as they are."""
     J, L = F.shape
-    k1 = k0 + L
-    cap = streams.ring.shape[1]
-    for b in range(sidx.shape[0]):
-        if sidx[b] >= 0 and sign[b] != 0.0:
-            need = ring_need(streams, consts, sidx[b], k1)
-            if need > cap:
-                return need
+    comp_off, tones, noise, w0, w1, a0, a1 = act.comp_off, act.tones, act.noise, act.w0, act.w1, act.a0, act.a1
     two_pi = 2.0 * math.pi
     for j in range(J):
-        if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
+        if not lw.exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
             continue
         c0 = comp_off[j]
         fc = min(abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
@@ -143,6 +134,23 @@ def broadband_write(streams, consts, act, lw, k0, fs, F):
             F[j, q] = (a0[j] + da * q) * b * y
         noise[j].rng = np.int64(state)
         noise[j].lp = y
+
+
+@njit(cache=True)
+def broadband_write(streams, consts, act, lw, k0, F):
+    """The broadband forces ``F`` (J, L) of the actuators ``lw.exact`` (:func:`broadband_force`)
+    summed per driven body with its side's sign along the body's stream direction
+    (``act.sign``, :func:`.drive_lines.bodies_point`) into the stream's ring on synth samples
+    ``[k0, k0 + L)``. Returns 0, or the ring length needed first (nothing written then)."""
+    sidx, ptr, rows, sign, exact, a0, a1 = act.sidx, act.ptr, act.rows, act.sign, lw.exact, act.a0, act.a1
+    J, L = F.shape
+    k1 = k0 + L
+    cap = streams.ring.shape[1]
+    for b in range(sidx.shape[0]):
+        if sidx[b] >= 0 and sign[b] != 0.0:
+            need = ring_need(streams, consts, sidx[b], k1)
+            if need > cap:
+                return need
     ring = streams.ring
     mask = cap - 1
     for b in range(sidx.shape[0]):

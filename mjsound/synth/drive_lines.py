@@ -54,12 +54,13 @@ import numpy as np
 from ..jit import njit
 from .bank_loops import FAST
 from .directivity import _factor, real_sh
-from .drive_broadband import RESONANT_OFF, RESONANT_ON
+from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, gains_copy
 from .drive_tones import audible_span, drive_direction
 from .records import AIR
 from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix
 
-__all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read", "bodies_point", "line_weights",
+__all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read", "lines_start",
+           "lines_step", "bodies_point", "line_weights",
            "lines_render", "lines_block"]
 
 
@@ -448,7 +449,7 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V):
 
 
 @njit(cache=True)
-def lines_render(track, act, lw, n0, L, fs):
+def lines_render(track, act, lw, n0, L, fs, F):
     """Add the block's lines and broadband part (module docstring) into the pulse track
     (:class:`.records.TrackState`: its ring ``acc``, channels x capacity a power of two,
     absolute sample ``k`` at ``k & (capacity - 1)``; its ``rec``'s pending span grows),
@@ -461,8 +462,10 @@ def lines_render(track, act, lw, n0, L, fs):
     ----------
     track : :class:`.records.TrackState`
     act : :class:`Actuators` (speeds and force scales at the block's start and end)
-    lw : :class:`LineWeights` (the actuators ``exact`` are skipped here: their broadband part
-        goes through the modes, :func:`.drive_broadband.broadband_write`)
+    lw : :class:`LineWeights` (the actuators ``exact``: their broadband force is ``F[j]`` (J,
+        L), :func:`.drive_broadband.broadband_force`, heard here through their bodies' modes
+        left out of the modal route, ``lw.B``; the rest goes through the modes,
+        :func:`.drive_broadband.broadband_write`)
     Returns the number of lines rendered.
     """
     acc, rec = track.acc, track.rec
@@ -569,6 +572,15 @@ def lines_render(track, act, lw, n0, L, fs):
                 y[m, i + 1] += (a0[j] + (a1[j] - a0[j]) * t) * b * (B0[j, m] + (B1[j, m] - B0[j, m]) * t) * yl
         noise[j].rng = np.int64(state)
         noise[j].lp = yl
+    for j in range(J):  # the exact actuators' static part, from their own force
+        if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
+            continue
+        for m in range(M):
+            off = n0 + Dm[m]
+            dB = (B1[j, m] - B0[j, m]) / L
+            for q in range(L):
+                if off + q >= first:
+                    acc[m, (off + q) & mask] += (B0[j, m] + dB * q) * F[j, q]
     for c in range(C):  # (this block's end starts the next)
         for m in range(M):
             W0[c, m] = W1[c, m]
@@ -597,3 +609,45 @@ def lines_block(streams, act, k0, anchor, axis, regain):
         act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
     return bodies_point(streams, act.sidx, act.ptr, act.rows, k0, act.acting, act.a1, anchor, axis, act.drives, regain,
                         act.sign)
+
+
+@njit(cache=True)
+def lines_start(rd, act, streams, qvel, force, fresh, k0, anchor, axis, regain):
+    """A block's start in one call: :func:`drive_read`, then (unless every joint is still)
+    :func:`lines_block`. Returns 0 (every joint still: nothing to do), 1, or 2 (the driven
+    streams' gains are due: compute them, then :func:`lines_step` with ``fresh_gains``)."""
+    if not drive_read(rd, act, qvel, force, fresh):
+        return 0
+    return 2 if lines_block(streams, act, k0, anchor, axis, regain) else 1
+
+
+@njit(cache=True)
+def lines_step(view, act, lw, bg, streams, track, k0, L, fs, fresh, fresh_gains, F):
+    """The rest of a block in one call: the bodies' gains copied when ``fresh_gains``
+    (:func:`.drive_broadband.gains_copy`), :func:`line_weights`, the broadband's modes
+    (:func:`.drive_broadband.broadband_modes` and the force ``F`` (J, L),
+    :func:`.drive_broadband.broadband_force`, where some actuator's goes through them), the
+    weights' start (``fresh``: the same as the end) and :func:`lines_render` into ``track``.
+    Returns ``(lines rendered, modes kept)``, or ``(-(last + 1), 0)`` without rendering when
+    the track's ring must first hold sample ``last`` (grow it and call again: nothing is done
+    twice but the weights)."""
+    if fresh_gains:
+        gains_copy(streams, act, bg)
+    dmax = line_weights(view, act, lw, bg, fs)
+    last = k0 + L + dmax
+    if last - track.rec[0].start > track.acc.shape[1]:
+        return -(last + 1), 0
+    kept = 0
+    for j in range(lw.exact.shape[0]):
+        if lw.exact[j]:
+            kept = broadband_modes(streams, act, lw, bg)
+            broadband_force(act, lw, fs, F)
+            break
+    if fresh:
+        for c in range(lw.W1.shape[0]):
+            for m in range(lw.W1.shape[1]):
+                lw.W0[c, m] = lw.W1[c, m]
+        for j in range(lw.B1.shape[0]):
+            for m in range(lw.B1.shape[1]):
+                lw.B0[j, m] = lw.B1[j, m]
+    return lines_render(track, act, lw, k0, L, fs, F), kept
