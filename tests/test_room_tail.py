@@ -206,3 +206,24 @@ def test_the_tail_follows_the_timestep_and_keeps_sample_counts():
     assert a.size == round(0.4 * FS) and b.size == math.ceil(round(0.4 / 0.0007) * 0.0007 * FS)  # (ceil(t fs))
     k = min(a.size, b.size)
     assert np.abs(a[:k] - b[:k]).max() < 1e-9 * np.abs(a).max()
+
+
+def test_the_gymnasium_wrapper_takes_a_room_with_or_without_its_tail():
+    """AudioObservation passes ``room`` through (dm_control's AudioEnvironment too, through the
+    same EnvAudio): its tail is on unless the room says ``tail=False``, and it rings on after
+    the steps that struck the box."""
+    from mjsound.sim.stub import stub_model
+    from mjsound.wrappers import AudioObservation
+    from tests.test_wrappers import _HandSteppedEnv
+
+    out = {}
+    for tail in (True, False):
+        inner = _HandSteppedEnv()
+        env = AudioObservation(inner, materials={"box": "steel"}, substeps="manual", sample_rate=16000,
+                               window_s=0.01, room=Room((-3, -3, -0.5), (3, 3, 3), rt60=0.8, tail=tail),
+                               models={"box": stub_model("box:0.3,0.3,0.01", "steel", 8, 400.0)})
+        inner.on_substep = env.on_substep
+        env.reset(seed=0)
+        out[tail] = np.concatenate([env.step(np.zeros(1))[0]["audio"] for _ in range(30)], axis=-1)
+        assert (env.sim.tail is not None) == tail and len(env.sim.images) == 6
+    assert np.abs(out[False]).max() > 0 and not np.allclose(out[True], out[False])
