@@ -84,6 +84,23 @@ def test_an_impulse_decays_at_each_bands_rt60_with_the_stated_energy():
                                  [1.0]).apply(np.vstack([np.zeros((2, n)), block[1:]]))[:2])[0, 1] < 0.1  # (uncorrelated outputs)
 
 
+def test_every_line_loses_energy_at_every_frequency():
+    """The lines' filters stay below 0 dB between and beyond the band centres (the network is
+    stable) for decays from 0.1 s to an hour, and a long impulse response does not grow."""
+    grid = np.concatenate([[0.0], np.geomspace(10.0, FS / 2, 2000)])
+    for rt60 in ([0.1, 0.2, 0.1, 0.3, 0.1, 0.2], [7.0, 4.1, 2.2, 0.95, 0.6, 0.5], [3600.0] * 6,
+                 [3600, 0.05, 3600, 0.05, 3600, 0.05]):  # (the first and last: no room's, a fit's limits)
+        tail = LateTail(FS, BANDS, rt60, np.ones(6), [1.0], 0.01, ([0], [1.0]), [1], [1.0])
+        p = tail.plan
+        for i in range(reverb.N_LINES):
+            assert 20 * math.log10(p.line_g[i]) + cascade_db(p.line_eq[:, :, i], grid, FS).max() < 0
+    block = np.zeros((2, 20 * FS))
+    block[1, 0] = 1.0
+    tail.apply(block)
+    second = np.abs(block[0]).reshape(20, FS).max(axis=1)
+    assert np.all(np.isfinite(block)) and second[-1] < 1.01 * second[1:].max() and second[-1] > 0
+
+
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_any_split_into_blocks_renders_the_same_samples(dtype):
     rng = np.random.default_rng(7)

@@ -57,6 +57,9 @@ from .packing import state_typeof
 __all__ = ["TailPlan", "TailState", "LateTail", "shelf", "cascade_db", "fit_graphic_eq", "prime_delays",
            "render_tail", "N_LINES"]
 
+#: The largest gain of one shelf of :func:`fit_graphic_eq` [dB].
+MAX_SHELF_DB = 24.0
+
 #: Delay lines of the network (the kernel's Hadamard transform is written out for 8).
 N_LINES = 8
 
@@ -129,8 +132,10 @@ def fit_graphic_eq(bands_hz, target_db, fs: float, iterations: int = 6) -> tuple
     The shelves sit at the geometric midpoints between neighbouring centres; a shelf's dB
     response is nearly proportional to its gain (and exactly additive over the cascade), so
     Newton's iteration on the interaction matrix ``J[b, k] = d(dB at band b) / d(gain k)``
-    converges in a few steps. Bands at or above ``0.45 fs`` are left out (their shelves
-    flat): they take the highest band's gain below.
+    converges in a few steps (damped, each shelf within :data:`MAX_SHELF_DB`: targets that
+    alternate band by band more than shelves an octave apart can follow keep the closest
+    fit found). Bands at or above ``0.45 fs`` are left out (their shelves flat): they take the
+    highest band's gain below.
 
     Returns
     -------
@@ -155,14 +160,23 @@ def fit_graphic_eq(bands_hz, target_db, fs: float, iterations: int = 6) -> tuple
         sos = [shelf(mids[k], x[k + 1], fs) for k in range(fit - 1)]
         return x[0] + (cascade_db(np.array(sos), f, fs) if sos else 0.0)
 
-    for _ in range(iterations):
+    err = np.abs(t - response(x)).max()
+    for _ in range(iterations):  # (damped: a step is halved until it lowers the largest error)
         r = response(x)
         J = np.empty((fit, fit))
         for k in range(fit):
             dx = np.zeros(fit)
             dx[k] = 1e-3
             J[:, k] = (response(x + dx) - r) / 1e-3
-        x = x + np.linalg.solve(J, t - r)
+        step = np.linalg.lstsq(J, t - r, rcond=None)[0]
+        for lam in 0.5 ** np.arange(8):
+            trial = np.concatenate([[x[0] + lam * step[0]], np.clip(x[1:] + lam * step[1:], -MAX_SHELF_DB, MAX_SHELF_DB)])
+            e = np.abs(t - response(trial)).max()
+            if e < err:
+                x, err = trial, e
+                break
+        else:
+            break
     sos = np.tile(np.array([1.0, 0.0, 0.0, 0.0, 0.0]), (len(bands) - 1, 1))
     for k in range(fit - 1):
         sos[k] = shelf(mids[k], x[k + 1], fs)
@@ -272,8 +286,14 @@ class LateTail:
         # Jot's absorption: a band loses -60 m_i / (fs T60) dB over line i's m_i samples
         line_eq = np.zeros((S, 5, L))
         line_g = np.zeros(L)
+        grid = np.concatenate([[0.0], np.geomspace(10.0, fs / 2, 400)])
         for i in range(L):
             line_g[i], line_eq[:, :, i] = fit_graphic_eq(bands, -60.0 * line_len[i] / (fs * rt60), fs)
+            # (stable: the loop's gain below 1 at every frequency, not only at the band centres; a
+            # fit that rises to 0 dB between them, for decays of minutes, is lowered to -1e-4 dB)
+            top = 20 * math.log10(line_g[i]) + float(cascade_db(line_eq[:, :, i], grid, fs).max())
+            if top > -1e-4:
+                line_g[i] *= 10.0 ** (-(top + 1e-4) / 20.0)
         g, out_eq = fit_graphic_eq(bands, 20 * np.log10(band_gain), fs)
         tap_delay = np.asarray(taps[0], np.int64).reshape(-1)
         tap_gain = np.asarray(taps[1], np.float64).reshape(-1)
