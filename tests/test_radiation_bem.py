@@ -176,17 +176,36 @@ def test_clusters_end_when_levels_interleave_in_ka():
     assert len(_clusters(ka, np.zeros(40, int), 0.1, 4)) <= 4
 
 
-@pytest.mark.parametrize("spread", [0.0, 0.02, 0.5, 3.0, 40.0])  # k r: one k, a cluster, wide ones
-def test_shifted_far_fields_match_the_phase_applied_per_mode(spread):
-    from mjsound.modal.radiation import shifted_far_fields
+@pytest.mark.parametrize("spread", [0.0, 0.01, 0.05, 0.15, 0.3])  # relative: one k, clusters, wide ones
+def test_far_fields_per_mode_match_the_element_integrals_at_each_modes_wavenumber(sphere, spread):
+    # each mode's far field from one solve's parts at kc, against the 6-point element integrals
+    # (far_field_matrix) at the mode's own wavenumber with the local factor kept at kc: the
+    # difference is the local factor's change, O((k h)^2 dk / k), and exactly zero at kc
+    from mjsound.modal.bem import far_field_matrix, far_field_parts, far_fields_per_mode
 
     rng = np.random.default_rng(1)
-    nd, n, g, kc = 40, 60, 7, 20.0
-    Ep, Eq = (rng.normal(size=(nd, n)) + 1j * rng.normal(size=(nd, n)) for _ in range(2))
-    p, q = (rng.normal(size=(n, g)) + 1j * rng.normal(size=(n, g)) for _ in range(2))
-    proj = rng.uniform(-0.1, 0.1, size=(nd, n))
-    k = kc + np.linspace(-1, 1, g) * spread / 0.1
-    ref = np.stack([(Ep * np.exp(-1j * (ki - kc) * proj)) @ p[:, i] * (ki / kc)
-                    + (Eq * np.exp(-1j * (ki - kc) * proj)) @ q[:, i] for i, ki in enumerate(k)], axis=1)
-    out = shifted_far_fields(Ep, Eq, proj, p, q, k, kc)
-    assert np.abs(out - ref).max() <= 1e-12 * np.abs(ref).max()
+    g, kc = 7, 3.0
+    d = rng.normal(size=(40, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    p, q = (rng.normal(size=(g, len(sphere))) + 1j * rng.normal(size=(g, len(sphere))) for _ in range(2))
+    k = kc * (1 + np.linspace(-1, 1, g) * spread)
+    centre = np.array([0.1, -0.2, 0.05])
+    F = far_fields_per_mode(*far_field_parts(sphere, kc, d, centre), p, q, k)
+    for i, ki in enumerate(k):
+        Ep, Eq = far_field_matrix(sphere, ki, d, centre)
+        ref = Ep @ p[i] + Eq @ q[i]
+        tol = 1e-11 if ki == kc else 0.1 * abs(ki - kc) / kc * (kc * sphere.size) ** 2 + 1e-11
+        assert np.abs(F[:, i] - ref).max() <= tol * np.abs(ref).max(), (i, ki)
+
+
+def test_refined_solve_reaches_double_precision():
+    from mjsound.modal.bem import assemble_mesh
+    from mjsound.modal.radiation import refined_solve
+
+    s = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
+    A, B = assemble_mesh(BemMesh(s.vertices, s.faces), 40.0)
+    b = B @ np.random.default_rng(2).normal(size=(len(A), 3))
+    x = refined_solve(A.copy(), b)
+    exact = np.linalg.solve(A, b)
+    assert np.abs(x - exact).max() <= 1e-12 * np.abs(exact).max()
+    assert np.abs(refined_solve(A.copy(), b, steps=0) - exact).max() > 1e-9 * np.abs(exact).max()

@@ -46,7 +46,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["QUAD_BARY", "QUAD_WEIGHTS", "BemMesh", "assemble", "assemble_mesh", "solve_far_field", "far_field_matrix"]
+__all__ = ["QUAD_BARY", "QUAD_WEIGHTS", "BemMesh", "assemble", "assemble_mesh", "solve_far_field", "far_field_matrix",
+           "far_field_parts", "far_fields_per_mode"]
 
 FOUR_PI = 4.0 * np.pi
 
@@ -184,40 +185,53 @@ def _remainders(kr, k):
                 a2bR += (m - 1) * (m - 3) * term / (R * R * R * R)
         A = ab - k * k / (2.0 * R)
         return g, ab, a2bR, A
-    E = np.exp(ik * R)
-    g = (E - 1.0) / R
-    A = (ik * R * E - E + 1.0) / (R * R * R)
-    ab = A + k * k / (2.0 * R)
-    a2bR = ((-k * k * E / R - 3.0 * A) / (R * R) - k * k / (2.0 * R * R * R)) * R
-    return g, ab, a2bR, A
+    # real arithmetic, no complex division: e^{ikR} = c + i s
+    c, s = np.cos(kr), np.sin(kr)
+    iR = 1.0 / R
+    iR3 = iR * iR * iR
+    g = complex((c - 1.0) * iR, s * iR)
+    Ar, Ai = (1.0 - c - kr * s) * iR3, (kr * c - s) * iR3
+    half = 0.5 * k * k * iR
+    ab = complex(Ar + half, Ai)
+    a2bR = complex((-k * k * c * iR - 3.0 * Ar) * iR - half * iR, (-k * k * s * iR - 3.0 * Ai) * iR)
+    return g, ab, a2bR, complex(Ar, Ai)
 
 
 @njit(cache=True)
 def _far_pair(x, nx, nT, quad3, area, k):
     """4 pi times (S, K, K', W) of a distant triangle by the 3-point rule on the whole kernel:
-    ``G' = e^{ikR}(ikR - 1) / R^2``, ``G'' = e^{ikR}((ik)^2 R^2 - 2ikR + 2) / R^3`` (times 1/4 pi)."""
-    S = 0j
-    K = 0j
-    Kp = 0j
-    W = 0j
-    ik = 1j * k
+    ``G' = e^{ikR}(ikR - 1) / R^2``, ``G'' = e^{ikR}((ik)^2 R^2 - 2ikR + 2) / R^3`` (times 1/4 pi).
+
+    In real arithmetic (``t = kR``, ``e^{it} = c + i s``): ``G' / R = e^{it}(it - 1) / R^3`` and
+    ``G'' / R^2 - G' / R^3 = e^{it}(3 - t^2 - 3it) / R^5``."""
+    Sr = Si = Kr = Ki = Kpr = Kpi = Wr = Wi = 0.0
     nn = nx[0] * nT[0] + nx[1] * nT[1] + nx[2] * nT[2]
     w = area / 3.0
     for q in range(3):
         y = quad3[q]
         dx, dy, dz = x[0] - y[0], x[1] - y[1], x[2] - y[2]
-        R = np.sqrt(dx * dx + dy * dy + dz * dz)
-        E = np.exp(ik * R)
-        g = E / R
-        g1 = E * (ik * R - 1.0) / (R * R)
-        g2 = E * (ik * ik * R * R - 2.0 * ik * R + 2.0) / (R * R * R)
+        R2 = dx * dx + dy * dy + dz * dz
+        R = np.sqrt(R2)
+        iR = 1.0 / R
+        iR3 = iR / R2
+        t = k * R
+        c, s = np.cos(t), np.sin(t)
+        # G' / R
+        g1r, g1i = (-c - s * t) * iR3, (c * t - s) * iR3
+        # G'' / R^2 - G' / R^3
+        u = 3.0 - t * t
+        g2r, g2i = (c * u + 3.0 * s * t) * iR3 / R2, (s * u - 3.0 * c * t) * iR3 / R2
         cy = dx * nT[0] + dy * nT[1] + dz * nT[2]
         cx = dx * nx[0] + dy * nx[1] + dz * nx[2]
-        S += w * g
-        K += w * (-g1 * cy / R)
-        Kp += w * (g1 * cx / R)
-        W += w * (-nn * g1 / R - cx * cy * (g2 / (R * R) - g1 / (R * R * R)))
-    return S, K, Kp, W
+        Sr += w * c * iR
+        Si += w * s * iR
+        Kr -= w * g1r * cy
+        Ki -= w * g1i * cy
+        Kpr += w * g1r * cx
+        Kpi += w * g1i * cx
+        Wr -= w * (nn * g1r + cx * cy * g2r)
+        Wi -= w * (nn * g1i + cx * cy * g2i)
+    return complex(Sr, Si), complex(Kr, Ki), complex(Kpr, Kpi), complex(Wr, Wi)
 
 
 @njit(cache=True, parallel=True)
@@ -305,6 +319,115 @@ def far_field_matrix(mesh: BemMesh, k: float, directions, centre):
     ph = np.einsum("dnq,nq->dn", phase, mesh.quad_w) / FOUR_PI
     Ep = -1j * k * (d @ mesh.normals.T) * ph
     return Ep, -ph
+
+
+@njit(cache=True, inline="always")
+def _cis(theta):
+    r"""``(cos theta, sin theta)`` in branch-free arithmetic that the compiler vectorises:
+    ``theta`` reduced to ``r`` in ``[-pi, pi]``, the Taylor polynomials of ``cos`` and ``sin``
+    at ``r / 4`` (``|r / 4| <= pi / 4``: remainder ``(pi/4)^14 / 14! < 1e-12``), then the
+    double-angle formulas twice. Within ``1e-11`` of ``np.cos``, ``np.sin``."""
+    r = theta - 6.283185307179586 * np.floor(theta * 0.15915494309189535 + 0.5)
+    z = 0.25 * r
+    z2 = z * z
+    c = 1.0 + z2 * (-1.0 / 2 + z2 * (1.0 / 24 + z2 * (-1.0 / 720 + z2 * (1.0 / 40320 + z2 * (
+        -1.0 / 3628800 + z2 * (1.0 / 479001600))))))
+    s = z * (1.0 + z2 * (-1.0 / 6 + z2 * (1.0 / 120 + z2 * (-1.0 / 5040 + z2 * (1.0 / 362880 + z2 * (
+        -1.0 / 39916800 + z2 * (1.0 / 6227020800)))))))
+    c, s = c * c - s * s, 2.0 * c * s
+    return c * c - s * s, 2.0 * c * s
+
+
+def far_field_parts(mesh: BemMesh, k: float, directions, centre):
+    r"""The far field's pieces at the solve's wavenumber ``k`` for :func:`far_fields_per_mode`.
+
+    Each element's integral of ``e^{-ik d.(y - c)}`` splits into the phase of its centroid
+    ``x_n`` and a local factor, ``int e^{-ik d.(y - c)} dA = e^{-ik d.(x_n - c)} l_n(d)`` with
+    ``l_n(d) = int e^{-ik d.(y - x_n)} dA`` (6-point rule). ``l_n = A_n (1 + O((k h)^2))``:
+    its first-order term vanishes about the centroid, so a mode a few per cent off ``k`` keeps
+    the local factor at ``k`` and takes its own wavenumber in the centroid's phase.
+
+    Returns
+    -------
+    local : (n_dirs, N) complex, ``l_n(d) / 4 pi`` [m^2]
+    proj : (n_dirs, N) float, ``d . (x_n - c)`` [m]
+    dn : (n_dirs, N) float, ``d . n_n``
+    """
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    return _far_field_parts(d, mesh.quad, mesh.quad_w, mesh.centroids, mesh.normals,
+                            np.asarray(centre, np.float64), float(k))
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _far_field_parts(d, quad, quad_w, centroids, normals, centre, k):
+    nd, N, Q = len(d), len(quad), quad.shape[1]
+    local = np.empty((nd, N), np.complex128)
+    proj = np.empty((nd, N))
+    dn = np.empty((nd, N))
+    for a in prange(nd):
+        for n in range(N):
+            re = 0.0
+            im = 0.0
+            for q in range(Q):
+                s = (d[a, 0] * (quad[n, q, 0] - centroids[n, 0]) + d[a, 1] * (quad[n, q, 1] - centroids[n, 1])
+                     + d[a, 2] * (quad[n, q, 2] - centroids[n, 2]))
+                c, sn = _cis(-k * s)
+                re += quad_w[n, q] * c
+                im += quad_w[n, q] * sn
+            local[a, n] = complex(re, im) / FOUR_PI
+            proj[a, n] = (d[a, 0] * (centroids[n, 0] - centre[0]) + d[a, 1] * (centroids[n, 1] - centre[1])
+                          + d[a, 2] * (centroids[n, 2] - centre[2]))
+            dn[a, n] = d[a, 0] * normals[n, 0] + d[a, 1] * normals[n, 1] + d[a, 2] * normals[n, 2]
+    return local, proj, dn
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def far_fields_per_mode(local, proj, dn, p, q, k):
+    r"""Far fields of modes, each at its own wavenumber, from one solve's surface fields.
+
+    ``F[d, i] = sum_n local[d, n] e^{-i k_i proj[d, n]} (-i k_i dn[d, n] p[i, n] - q[i, n])``:
+    the module docstring's far-field integral with the parts of :func:`far_field_parts`
+    (the phase by :func:`_cis`, which vectorises where ``np.exp`` does not).
+
+    Parameters
+    ----------
+    local, proj, dn : (n_dirs, N), :func:`far_field_parts`
+    p, q : (g, N) complex, surface pressure [Pa] and its normal derivative [Pa/m] per mode
+    k : (g,) float, the modes' wavenumbers [1/m]
+
+    Returns
+    -------
+    F : (n_dirs, g) complex far-field amplitudes [Pa m].
+    """
+    nd, N = proj.shape
+    g = len(k)
+    F = np.empty((nd, g), np.complex128)
+    lr = np.empty((nd, N))
+    li = np.empty((nd, N))
+    for a in range(nd):
+        for n in range(N):
+            lr[a, n] = local[a, n].real
+            li[a, n] = local[a, n].imag
+    pr = np.ascontiguousarray(p.real)
+    pi = np.ascontiguousarray(p.imag)
+    qr = np.ascontiguousarray(q.real)
+    qi = np.ascontiguousarray(q.imag)
+    for a in prange(nd):
+        for i in range(g):
+            ki = k[i]
+            re = 0.0
+            im = 0.0
+            for n in range(N):
+                c, s = _cis(-ki * proj[a, n])
+                er, ei = lr[a, n] * c - li[a, n] * s, lr[a, n] * s + li[a, n] * c  # local e^{i ph}
+                # (-i k dn p - q)
+                kd = ki * dn[a, n]
+                vr = kd * pi[i, n] - qr[i, n]
+                vi = -kd * pr[i, n] - qi[i, n]
+                re += er * vr - ei * vi
+                im += er * vi + ei * vr
+            F[a, i] = re + 1j * im
+    return F
 
 
 def solve_far_field(mesh: BemMesh, k: float, q, directions, centre=(0.0, 0.0, 0.0)):
