@@ -209,3 +209,25 @@ def test_refined_solve_reaches_double_precision():
     exact = np.linalg.solve(A, b)
     assert np.abs(x - exact).max() <= 1e-12 * np.abs(exact).max()
     assert np.abs(refined_solve(A.copy(), b, steps=0) - exact).max() > 1e-9 * np.abs(exact).max()
+
+
+def test_the_budget_bounds_the_solves_and_every_mode_keeps_an_error_estimate():
+    # a budget far under what the modes' own levels need: clusters go to coarser levels (a
+    # solve and its check within what is left); once it is spent, each further cluster costs
+    # the cheapest pair of levels and no more, and every mode still reports the step between
+    # two levels
+    from mjsound.modal.radiation import solve_cost
+
+    budget = 1e6
+    kw = dict(f_max=8000, quality="draft", cache=False, error_estimate=False, progress=False)
+    m = analyze("box:0.15,0.1,0.004", "aluminium", radiation={"budget": budget}, **kw)
+    info = m.info["radiation"]
+    n_el = info["levels"]
+    limited = info["budget_limited_clusters"]
+    assert limited >= 3
+    assert info["cost"] <= budget + limited * (solve_cost(n_el[0]) + solve_cost(n_el[1]))
+    est = np.array([np.nan if e is None else e for e in info["error_db"]], float)
+    assert np.all(np.isfinite(est)) and np.all(m.radiation > 0)
+    # the default budget on the same modes: fewer limited clusters, finer levels
+    full = analyze("box:0.15,0.1,0.004", "aluminium", radiation="default", **kw).info["radiation"]
+    assert full["budget_limited_clusters"] < limited and full["cost"] > 3 * info["cost"]

@@ -165,6 +165,23 @@ def _laplace_parts(x, nx, v0, v1, v2, nT, self_term):
     return i1, omega, V, B, h
 
 
+@njit(cache=True, inline="always")
+def _cis(theta):
+    r"""``(cos theta, sin theta)`` in branch-free arithmetic that the compiler vectorises:
+    ``theta`` reduced to ``r`` in ``[-pi, pi]``, the Taylor polynomials of ``cos`` and ``sin``
+    at ``r / 4`` (``|r / 4| <= pi / 4``: remainder ``(pi/4)^14 / 14! < 1e-12``), then the
+    double-angle formulas twice. Within ``1e-11`` of ``np.cos``, ``np.sin``."""
+    r = theta - 6.283185307179586 * np.floor(theta * 0.15915494309189535 + 0.5)
+    z = 0.25 * r
+    z2 = z * z
+    c = 1.0 + z2 * (-1.0 / 2 + z2 * (1.0 / 24 + z2 * (-1.0 / 720 + z2 * (1.0 / 40320 + z2 * (
+        -1.0 / 3628800 + z2 * (1.0 / 479001600))))))
+    s = z * (1.0 + z2 * (-1.0 / 6 + z2 * (1.0 / 120 + z2 * (-1.0 / 5040 + z2 * (1.0 / 362880 + z2 * (
+        -1.0 / 39916800 + z2 * (1.0 / 6227020800)))))))
+    c, s = c * c - s * s, 2.0 * c * s
+    return c * c - s * s, 2.0 * c * s
+
+
 @njit(cache=True)
 def _remainders(kr, k):
     """4 pi times the bounded Helmholtz remainders at R (module docstring):
@@ -186,7 +203,7 @@ def _remainders(kr, k):
         A = ab - k * k / (2.0 * R)
         return g, ab, a2bR, A
     # real arithmetic, no complex division: e^{ikR} = c + i s
-    c, s = np.cos(kr), np.sin(kr)
+    c, s = _cis(kr)
     iR = 1.0 / R
     iR3 = iR * iR * iR
     g = complex((c - 1.0) * iR, s * iR)
@@ -215,7 +232,7 @@ def _far_pair(x, nx, nT, quad3, area, k):
         iR = 1.0 / R
         iR3 = iR / R2
         t = k * R
-        c, s = np.cos(t), np.sin(t)
+        c, s = _cis(t)
         # G' / R
         g1r, g1i = (-c - s * t) * iR3, (c * t - s) * iR3
         # G'' / R^2 - G' / R^3
@@ -319,23 +336,6 @@ def far_field_matrix(mesh: BemMesh, k: float, directions, centre):
     ph = np.einsum("dnq,nq->dn", phase, mesh.quad_w) / FOUR_PI
     Ep = -1j * k * (d @ mesh.normals.T) * ph
     return Ep, -ph
-
-
-@njit(cache=True, inline="always")
-def _cis(theta):
-    r"""``(cos theta, sin theta)`` in branch-free arithmetic that the compiler vectorises:
-    ``theta`` reduced to ``r`` in ``[-pi, pi]``, the Taylor polynomials of ``cos`` and ``sin``
-    at ``r / 4`` (``|r / 4| <= pi / 4``: remainder ``(pi/4)^14 / 14! < 1e-12``), then the
-    double-angle formulas twice. Within ``1e-11`` of ``np.cos``, ``np.sin``."""
-    r = theta - 6.283185307179586 * np.floor(theta * 0.15915494309189535 + 0.5)
-    z = 0.25 * r
-    z2 = z * z
-    c = 1.0 + z2 * (-1.0 / 2 + z2 * (1.0 / 24 + z2 * (-1.0 / 720 + z2 * (1.0 / 40320 + z2 * (
-        -1.0 / 3628800 + z2 * (1.0 / 479001600))))))
-    s = z * (1.0 + z2 * (-1.0 / 6 + z2 * (1.0 / 120 + z2 * (-1.0 / 5040 + z2 * (1.0 / 362880 + z2 * (
-        -1.0 / 39916800 + z2 * (1.0 / 6227020800)))))))
-    c, s = c * c - s * s, 2.0 * c * s
-    return c * c - s * s, 2.0 * c * s
 
 
 def far_field_parts(mesh: BemMesh, k: float, directions, centre):

@@ -17,11 +17,17 @@ Cost and accuracy
   sphere around the object) share one factorisation, solved at the cluster's middle; each mode
   then takes its own wavenumber in the far-field integral, which carries the strong ``(k a)^n``
   dependence of compact sources exactly (sphere ``n = 0..3``: 0.5 dB at ``k a = 6`` for 5 %
-  off the solve's wavenumber, under 0.1 dB below ``k a = 1`` for 10 %).
+  off the solve's wavenumber, under 0.1 dB below ``k a = 1`` for 10 %; a cluster 0.6 wide,
+  the default below ``k a = 4``, puts a mode at most 0.3 off: the sphere's ``n = 0..3`` within
+  0.9 dB in every direction for ``k a`` from 0.5 to 6).
 * Modes whose wavelength the finest affordable level does not resolve ``epw`` times (large
   objects at high frequency) are solved on that level regardless, at most ``max_solves``
   factorisations in all (wider clusters above): ``info['radiation']`` reports how many modes
   that concerns and an error estimate from the same modes solved one level coarser.
+* Budget: the solves are counted (:func:`solve_cost`) against ``budget``; a cluster is solved
+  on the finest level its solve and the coarser check fit in what is left, is refined only
+  within its share of what is left (so a mode that converges slowly cannot starve the later
+  ones), and once the budget is spent each further cluster takes the two coarsest levels.
 
 Radiated power ``W = (1 / 2 rho0 c) int |F|^2 dOmega`` makes the mode's radiation damping
 (:func:`radiation_damping`); the RMS of ``|F|`` over directions is ``ModalModel.radiation``.
@@ -47,11 +53,12 @@ SPEED_OF_SOUND = 343.0
 #: per analysis quality: elements per wavelength, fewest and most elements of a level, the
 #: widest cluster in k a, the most clusters, the highest harmonic degree stored, and the
 #: change of a mode's power [dB] from one level to the next under which it counts as converged,
-#: and the budget of the solves in element pairs (:func:`solve_cost`; 1e7 is about 7 s of one
-#: core): a cluster it cannot afford is solved on a coarser level, its error estimate reported
+#: and the budget of the solves in element pairs (:func:`solve_cost`; 1.2e7 took 3 s of CPU
+#: on the plate at 20 kHz, docs/radiation.md "Cost"): a cluster it cannot afford is solved on
+#: a coarser level, its error estimate reported
 RADIATION_QUALITY = {
     "draft": dict(epw=4.0, n_min=100, n_max=500, dka=0.4, max_solves=6, degree=10, tol_db=1.0, budget=3e6),
-    "default": dict(epw=5.0, n_min=200, n_max=1500, dka=0.3, max_solves=10, degree=16, tol_db=0.5, budget=25e6),
+    "default": dict(epw=5.0, n_min=200, n_max=1500, dka=0.6, max_solves=10, degree=16, tol_db=0.5, budget=12e6),
     "high": dict(epw=7.0, n_min=400, n_max=2500, dka=0.2, max_solves=40, degree=24, tol_db=0.25, budget=2e8),
 }
 
@@ -148,7 +155,9 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
         if h <= h_need and len(ff) >= settings["n_max"] / 2:
             break
         h /= np.sqrt(2.0)
-    if len(levels) == 1:  # a coarser level below, so that every mode gets an error estimate
+    if len(levels) == 1 or len(levels[0]) >= settings["n_min"]:
+        # a coarser level below, so that every mode gets an error estimate, and one a solve on
+        # the first level used (n_min) checks against at a fraction of its cost
         vv, ff = level_mesh(outer, hs[0] * np.sqrt(2.0))
         if len(ff) < len(levels[0]):
             levels.insert(0, BemMesh(vv, ff))
@@ -197,7 +206,20 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     coefficients : (n_modes, (L + 1)^2) complex spherical-harmonic coefficients of ``F``
     info : dict (JSON-able): levels, solves, seconds, modes under-resolved and the error
         estimate for them.
+
+    BLAS runs on one thread here: OpenBLAS's second thread on dense LUs of at most a few
+    thousand unknowns gained no wall time on this 2-core machine and doubled the CPU time (its
+    threads wait spinning beside the assembly's numba threads; the plate at 20 kHz, captured
+    inputs: 5.8 -> 3.1 s CPU, 3.1 s wall either way).
     """
+    from .block_lanczos import single_threaded_blas
+
+    with single_threaded_blas():
+        return _solve_radiation(plan, u_n, omega, progress)
+
+
+def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
+    """:func:`solve_radiation`'s work."""
     t0, c0 = time.perf_counter(), time.process_time()
     s = plan.settings
     omega = np.asarray(omega, float)
@@ -225,8 +247,9 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     n_el = [len(m) for m in plan.levels]
     j_min = min(int(np.searchsorted(n_el, s["n_min"])), n_levels - 1)
 
-    def affordable(j):
-        return spent[0] + solve_cost(n_el[j]) <= s["budget"]
+    def affordable(j, check=False):  # check: and the solve one level coarser for the error estimate
+        extra = solve_cost(n_el[j - 1]) if check and j > 0 else 0.0
+        return spent[0] + solve_cost(n_el[j]) + extra <= s["budget"]
 
     def solve(j, g, kc):
         out = _solve_group(plan.levels[j], kc, k[g], omega[g], un_levels[j][:, g], dirs, plan.centre)
@@ -243,14 +266,21 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     for gi, g in enumerate(groups):
         g = np.asarray(g)
         j = int(level[g[0]])
-        while j > j_min and not affordable(j):  # over the budget: coarser, with its error estimate
+        while j > j_min and not affordable(j, check=True):  # over the budget: coarser, with its error estimate
             j -= 1
         limited += int(j < level[g[0]])
         kc = float(np.sqrt(k[g].min() * k[g].max()))
         Fg = solve(j, g, kc)
         est = None
-        # refine while the next level changes the power by more than tol_db (and it is affordable)
-        while j + 1 < n_levels and (est is None or est.max() > s["tol_db"]) and affordable(j + 1):
+        # refine while the next level changes the power by more than tol_db and the steps shrink.
+        # A refinement step also stays within the cluster's share of the budget left (a mode
+        # converging slowly, such as a thin plate's torsion, whose radiation is the remainder
+        # of cancelling edge flows, keeps its error estimate rather than the later modes' solves)
+        share = spent[0] + (s["budget"] - spent[0]) / (len(groups) - gi)
+        prev = np.inf
+        while (j + 1 < n_levels and (est is None or s["tol_db"] < est.max() < prev)
+               and affordable(j + 1) and spent[0] + solve_cost(n_el[j + 1]) <= share):
+            prev = np.inf if est is None else est.max()
             Fn = solve(j + 1, g, kc)
             est, Fg, j = step_db(Fg, Fn), Fn, j + 1
         if est is None and j > 0:  # not refined (finest level, or the budget): the step from below
