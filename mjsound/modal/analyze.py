@@ -68,7 +68,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 21  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 22  # bump when discretization or model contents change (invalidates cache)
 METHODS = ("auto", "hex", "tet", "facet", "shell")
 
 

@@ -53,13 +53,17 @@ SPEED_OF_SOUND = 343.0
 #: per analysis quality: elements per wavelength, fewest and most elements of a level, the
 #: widest cluster in k a, the most clusters, the highest harmonic degree stored, and the
 #: change of a mode's power [dB] from one level to the next under which it counts as converged,
+#: the coarsening grid's cell in units of the element edge (:data:`.radiation_mesh.COARSEN_CELLS`),
 #: and the budget of the solves in element pairs (:func:`solve_cost`; 1.2e7 took 3 s of CPU
 #: on the plate at 20 kHz, docs/radiation.md "Cost"): a cluster it cannot afford is solved on
 #: a coarser level, its error estimate reported
 RADIATION_QUALITY = {
-    "draft": dict(epw=4.0, n_min=100, n_max=500, dka=0.4, max_solves=6, degree=10, tol_db=1.0, budget=3e6),
-    "default": dict(epw=5.0, n_min=200, n_max=1500, dka=0.6, max_solves=10, degree=16, tol_db=0.5, budget=12e6),
-    "high": dict(epw=7.0, n_min=400, n_max=2500, dka=0.2, max_solves=40, degree=24, tol_db=0.25, budget=2e8),
+    "draft": dict(epw=4.0, n_min=100, n_max=500, dka=0.4, max_solves=6, degree=10, tol_db=1.0, budget=3e6,
+                  coarsen=1.0),
+    "default": dict(epw=5.0, n_min=200, n_max=1500, dka=0.6, max_solves=10, degree=16, tol_db=0.5, budget=12e6,
+                    coarsen=1.0),
+    "high": dict(epw=7.0, n_min=400, n_max=2500, dka=0.2, max_solves=40, degree=24, tol_db=0.25, budget=2e8,
+                 coarsen=0.5),
 }
 
 
@@ -132,9 +136,10 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
     h_need = SPEED_OF_SOUND / (f_max * settings["epw"])
     levels, hs = [], []
     h = size / 6.0
+    cells = tuple(dict.fromkeys((float(settings["coarsen"]), 0.5)))
     meshes = {}  # h -> level_mesh(outer, h), each made once
     for _ in range(6):  # a first level over n_max (a fine mesh the clustering could not coarsen): coarser
-        meshes[h] = level_mesh(outer, h)
+        meshes[h] = level_mesh(outer, h, cells)
         if len(meshes[h][1]) <= settings["n_max"]:
             break
         h *= np.sqrt(2.0)
@@ -147,7 +152,7 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
             f"the outer surface coarsens to no fewer than {len(meshes[h][1])} boundary elements "
             f"(most {RADIATION_MAX_ELEMENTS})")
     while True:
-        vv, ff = meshes[h] if h in meshes else level_mesh(outer, h)
+        vv, ff = meshes[h] if h in meshes else level_mesh(outer, h, cells)
         if levels and len(ff) > settings["n_max"]:
             break
         levels.append(BemMesh(vv, ff))
@@ -158,7 +163,7 @@ def plan_radiation(outer, f_max: float, quality="default") -> RadiationPlan:
     if len(levels) == 1 or len(levels[0]) >= settings["n_min"]:
         # a coarser level below, so that every mode gets an error estimate, and one a solve on
         # the first level used (n_min) checks against at a fraction of its cost
-        vv, ff = level_mesh(outer, hs[0] * np.sqrt(2.0))
+        vv, ff = level_mesh(outer, hs[0] * np.sqrt(2.0), cells)
         if len(ff) < len(levels[0]):
             levels.insert(0, BemMesh(vv, ff))
             hs.insert(0, hs[0] * np.sqrt(2.0))

@@ -16,9 +16,10 @@ import numpy as np
 __all__ = ["coarsen", "refine_to", "level_mesh"]
 #: the grid cells :func:`level_mesh` tries for :func:`coarsen`, in units of the level's
 #: element edge ``h``, until one keeps the surface's area: a cell of ``h`` gives triangles of
-#: about ``h``; a cell of ``h / 2`` alone (before) gave the 10 cm bowl 712 elements at
-#: ``h = 4.7 cm``, where equilateral triangles of that edge would be 128 (now 253), and each
-#: solve several times the cost (the level objects' errors: reports/accuracy.md)
+#: about ``h``; a cell of ``h / 2`` alone (before, and still the ``high`` radiation setting's
+#: choice) gave the 10 cm bowl 712 elements at ``h = 4.7 cm``, where equilateral triangles of
+#: that edge would be 128 (now 253), and each solve several times the cost (the level
+#: objects' errors: reports/accuracy.md)
 COARSEN_CELLS = (1.0, 0.5)
 
 
@@ -122,14 +123,15 @@ def _refine_once(tri, h):
     return np.concatenate(out), more
 
 
-def level_mesh(tm, h: float):
+def level_mesh(tm, h: float, cells=COARSEN_CELLS):
     """The outer surface ``tm`` (trimesh, closed) as boundary elements of edge at most ``h``:
     coarsened first where most of its triangles are narrower than ``h / 3`` (their shortest
-    edge). Returns ``(vertices, faces)``."""
+    edge), on the first grid of ``cells`` (units of ``h``, :data:`COARSEN_CELLS`) that keeps
+    its area. Returns ``(vertices, faces)``."""
     v, f = np.asarray(tm.vertices, float), np.asarray(tm.faces, np.int64)
     shortest = np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=2).min(axis=1)
     if np.median(shortest) < h / 3:
-        for cell in COARSEN_CELLS:  # the coarsest grid that keeps the area, else the surface as given
+        for cell in cells:  # the coarsest grid that keeps the area, else the surface as given
             cv, cf = coarsen(v, f, tm.vertex_normals, cell * h)
             area = 0.5 * np.linalg.norm(np.cross(cv[cf[:, 1]] - cv[cf[:, 0]], cv[cf[:, 2]] - cv[cf[:, 0]]),
                                         axis=1).sum()

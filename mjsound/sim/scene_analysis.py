@@ -62,11 +62,11 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
 
 #: The radiation setting a scene analyses its objects with, by analysis quality. A scene holds
 #: several objects and is built before the first sound, so its default is the boundary-element
-#: solve's ``draft`` setting: on the reference objects at most 1.2 dB RMS error of a mode's
-#: radiated power (largest 2.0 dB on converged modes; a few directions of weak modes several
-#: dB), at 1.2-4 times the modal analysis's own cost at 20 kHz, where ``default`` costs 6-14
-#: times it (docs/radiation.md, reports/accuracy.md "Levels"). ``quality="high"`` scenes take
-#: the converged setting.
+#: solve's ``draft`` setting: on the reference objects at most 1.3 dB RMS error of a mode's
+#: radiated power (largest 1.6 dB on converged modes; a few directions of weak modes several
+#: dB), at 0.1-0.4 times the modal analysis's own cost at 20 kHz, where ``default`` costs
+#: 0.8-1.5 times it (docs/radiation.md "Cost", reports/accuracy.md "Levels").
+#: ``quality="high"`` scenes take the converged setting.
 SCENE_RADIATION = {"draft": "draft", "default": "draft", "high": "default"}
 
 #: Process-wide memo of modal models by (surface, material, analysis options), so that several
