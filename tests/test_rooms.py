@@ -205,15 +205,17 @@ def test_plane_surfaces_from_options_text_and_material():
         get_surface(1.0)
 
 
-def test_fold_adds_each_image_times_its_factor_into_its_microphone():
+def test_fold_adds_each_image_into_its_microphone():
+    """The image rows carry their reflection already (the synthesizer's modes get ``R(f)``,
+    the clicks' images join their microphone's pulse): the fold is a plain sum."""
     from mjsound.sim.images import ImageSet
 
     block = np.arange(5 * 4, dtype=np.float32).reshape(5, 4)  # 2 air, 2 images, 1 contact
     im = ImageSet(np.array([1, 0]), np.zeros((2, 3, 4)), np.ones((2, 6)), np.array([0.5, 0.25]), ["a", "b"])
     out = fold(block.copy(), 2, im)
     assert out.shape == (3, 4) and out.dtype == np.float32
-    assert np.array_equal(out[0], block[0] + 0.25 * block[3])
-    assert np.array_equal(out[1], block[1] + 0.5 * block[2])
+    assert np.array_equal(out[0], block[0] + block[3])
+    assert np.array_equal(out[1], block[1] + block[2])
     assert np.array_equal(out[2], block[4])
 
 
@@ -229,17 +231,19 @@ def test_fold_kernel_is_the_plain_sum_image_by_image(dtype):
     n_air, parent, n_contact = 2, np.array([0, 1, 0, 0, 1]), 2
     gains = rng.uniform(0.2, 1.0, parent.size)
     block = rng.standard_normal((n_air + parent.size + n_contact, 48)).astype(dtype)
-    ref = block.copy()
+    ref, plain = block.copy(), block.copy()
     for i, p in enumerate(parent):
         ref[p] += ref[n_air + i] * dtype(gains[i])
+        plain[p] += plain[n_air + i]
     ref = np.concatenate([ref[:n_air], ref[n_air + parent.size:]])
+    plain = np.concatenate([plain[:n_air], plain[n_air + parent.size:]])
     im = ImageSet(parent, np.zeros((parent.size, 3, 4)), np.ones((parent.size, 6)), gains, list("abcde"))
-    out = fold(block.copy(), n_air, im)
+    out = fold(block.copy(), n_air, im)  # (the image rows as they are: their modes carry R(f))
     assert out.dtype == dtype and out.shape == ref.shape
-    assert np.array_equal(out, ref)
-    half = fold(block.copy(), n_air, im, gains=0.5 * gains)  # (the factors given)
-    assert np.array_equal(half[n_air:], ref[n_air:])
-    assert np.array_equal(half[1], block[1] + block[3] * dtype(0.5 * gains[1]) + block[6] * dtype(0.5 * gains[4]))
+    assert np.array_equal(out, plain)
+    given = fold(block.copy(), n_air, im, gains=gains)  # (the factors given)
+    assert np.array_equal(given, ref)
+    assert np.array_equal(given[1], block[1] + block[3] * dtype(gains[1]) + block[6] * dtype(gains[4]))
 
 # ---------------------------------------------------------------- clicks
 BALL_XML = """<mujoco><option timestep="0.001"/>

@@ -10,17 +10,17 @@ normal ``n``) travels as far as the direct path from ``S`` to the mirror image o
 and arrives from the direction of ``M'`` as seen from ``S``. So each reflecting plane adds an
 *image microphone* at ``M'``: one more air channel of the synthesizer, rendered as every air
 microphone is (delay ``|S - M'| / c``, ``1 / |S - M'|``, the object's radiation toward it, the
-click's dipole toward it), then multiplied by the surface's reflection factor
-(:mod:`.surfaces`) and added into ``M``'s channel (:func:`fold`). Above a rigid plane this is
+click's dipole toward it), times the surface's reflection factor (:mod:`.surfaces`), and
+added into ``M``'s channel (:func:`fold`). Above a rigid plane this is
 exactly the two-source field ``p = p(S -> M) + p(S' -> M)`` of a source and its mirror image.
 A room (:mod:`.rooms`) adds the images of higher order the same way: the composition of
 mirrors is the affine map ``x -> A x + b`` each image row carries.
 
 The reflection factor depends on frequency: the synthesizer multiplies every mode it renders
-at an image microphone by ``R(f_mode) / R_click``
-(:meth:`mjsound.synth.synthesizer.Synthesizer.set_channel_response`) and :func:`fold` by
-``R_click`` (the click's factor), so modes get ``R(f_mode)`` and clicks ``R_click``, with one
-sum per image row.
+at an image microphone by ``R(f_mode)``
+(:meth:`mjsound.synth.synthesizer.Synthesizer.set_channel_response`) and :func:`fold` adds
+the image rows as they are (a click's image is not in them: it joins its microphone's pulse
+with its factor ``R_click``, :func:`.clicks.click_rows`).
 
 Synthesizer rows (microphones): the air microphones ``0 .. A-1``, their images ``A .. A+I-1``,
 then the contact microphones. Output channels: the air microphones, then the contact
@@ -44,6 +44,7 @@ __all__ = ["ImageSet", "no_images", "mirror_affine", "apply_affine", "plane_imag
 SURFACE_TEXT_PREFIX = "mjsound-surface:"
 
 _PLANE = 0  # mjGEOM_PLANE
+_PLAIN = np.zeros(0)  # (fold_rows' gains: none)
 
 
 class ImageSet(NamedTuple):
@@ -89,9 +90,9 @@ class ImageSet(NamedTuple):
         return channel, affine
 
     def mode_gains(self) -> np.ndarray:
-        """``(I, 6)`` per band what the synthesizer multiplies a mode by (``R / R_click``; the
-        rest, ``R_click``, is :func:`fold`'s)."""
-        return self.reflection / self.click[:, None]
+        """``(I, 6)`` per band what the synthesizer multiplies a mode by: ``R`` (all of it;
+        :func:`fold` adds the rows as they are)."""
+        return self.reflection
 
 
 def no_images() -> ImageSet:
@@ -203,8 +204,8 @@ def plane_images(model, data, surfaces: dict, mics) -> ImageSet:
 
 def fold(block: np.ndarray, n_air: int, images: ImageSet, gains: np.ndarray | None = None) -> np.ndarray:
     """The output channels of a synthesizer block (rows: air microphones, images, contact
-    microphones; module docstring): each image row times its click factor (``gains``, default
-    ``images.click``) added into its parent's row, the image rows dropped.
+    microphones; module docstring): each image row (times ``gains`` where given) added into
+    its parent's row, the image rows dropped.
 
     Parameters
     ----------
@@ -213,6 +214,8 @@ def fold(block: np.ndarray, n_air: int, images: ImageSet, gains: np.ndarray | No
     n_air : int
         ``A``.
     images : ImageSet
+    gains : (I,) float, optional
+        Factors of the image rows (default none: their modes carry the reflection already).
 
     Returns
     -------
@@ -223,13 +226,13 @@ def fold(block: np.ndarray, n_air: int, images: ImageSet, gains: np.ndarray | No
     --------
     >>> im = ImageSet(np.array([0]), np.zeros((1, 3, 4)), np.ones((1, 6)), np.array([0.5]), ["floor"])
     >>> fold(np.array([[1.0, 2.0], [4.0, 4.0]]), 1, im)
-    array([[3., 4.]])
+    array([[5., 6.]])
     """
     k = len(images)
     if k == 0:
         return block
-    g = images.click if gains is None else gains
-    return block[:fold_rows(block, n_air, images.parent, np.asarray(g, np.float64))]
+    g = _PLAIN if gains is None else np.asarray(gains, np.float64)
+    return block[:fold_rows(block, n_air, images.parent, g)]
 
 
 @njit(cache=True)
@@ -242,14 +245,14 @@ def fold_rows(block, n_air, parent, gain):
     block : (A + I + C, n) float32 or float64
         Synthesizer rows: ``A`` air microphones, ``I`` images, ``C`` contact microphones.
         Overwritten: ``block[parent[i]] += gain[i] block[A + i]`` for ``i = 0 .. I-1`` in this
-        order (the product rounded to the block's dtype, then the sum), then the contact rows
-        moved to rows ``A .. A+C-1``.
+        order (the product rounded to the block's dtype, then the sum; the plain sum for an
+        empty ``gain``), then the contact rows moved to rows ``A .. A+C-1``.
     n_air : int
         ``A``.
     parent : (I,) int64
         The air row each image is added into.
-    gain : (I,) float64
-        Each image's factor (its click reflection), rounded to the block's dtype first.
+    gain : (I,) or (0,) float64
+        Each image's factor, rounded to the block's dtype first; empty: none.
 
     Returns
     -------
@@ -260,9 +263,13 @@ def fold_rows(block, n_air, parent, gain):
     rows, n = block.shape
     g = np.empty(1, block.dtype)
     for i in range(k):
+        p = parent[i]
+        if gain.shape[0] == 0:
+            for s in range(n):
+                block[p, s] += block[n_air + i, s]
+            continue
         g[0] = gain[i]
         gi = g[0]
-        p = parent[i]
         for s in range(n):
             block[p, s] += block[n_air + i, s] * gi
     for r in range(n_air + k, rows):

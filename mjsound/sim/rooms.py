@@ -258,7 +258,7 @@ def scene_images(model, data, scene, mics, reflections=True, room=None) -> Image
 
 
 def set_image_responses(synth, n_air: int, images: ImageSet) -> None:
-    """Give each image row of ``synth`` (rows ``n_air ..``) its per-mode gain ``R(f) / R_click``
+    """Give each image row of ``synth`` (rows ``n_air ..``) its per-mode gain ``R(f)``
     (:mod:`.images`; none where that is 1 in every band)."""
     for k, g in enumerate(images.mode_gains()):
         if not np.all(g == 1.0):

@@ -275,15 +275,18 @@ def _voice_rows(ptr, re, im, m, c0, nm):
     return False
 
 
-@njit_inner(cache=True, fastmath=FAST, inline="always")
-def _factor(Y, cr, ci, base, nsh):
-    """``sum_k Y[k] (cr + j ci)[base + k]`` for ``k < nsh`` (one mode's factor; vectorised)."""
+@njit_inner(cache=True, fastmath=FAST)
+def _factor(Y, cr, ci):
+    """``sum_k Y[k] (cr + j ci)[k]`` over the views' length (one mode's factor at one direction).
+    Its own kernel with ``fastmath``, over views that start at 0, so that LLVM vectorises the
+    sum (inlined into :func:`hear_directions`, whose NaN tests need strict IEEE semantics, or
+    indexed from an offset, it runs one coefficient at a time: about 4x slower at order 10)."""
     re = 0.0
     im = 0.0
-    for k in range(nsh):
-        re += Y[k] * cr[base + k]
-        im += Y[k] * ci[base + k]
-    return complex(re, im)
+    for k in range(cr.shape[0]):
+        re += Y[k] * cr[k]
+        im += Y[k] * ci[k]
+    return re, im
 
 
 @njit_inner(cache=True, inline="always")
@@ -299,7 +302,8 @@ def _root(qr, qi, n):
     turn of a few degrees per block, the common case) from ``log q = 2 atanh w``,
     ``w = (q - 1) / (q + 1)``, to the ninth power of ``w`` (``|w| < 0.15``: relative error
     below 1e-9) and ``e^x`` to the fourth power of ``x`` (``|x| < 1e-3 / n``), in real
-    arithmetic; else from ``log`` and ``exp``."""
+    arithmetic; else from the real ``log`` of ``|q|^2``, ``arctan2`` and ``e^x`` to the eighth
+    power of ``x`` (``|x| < 0.05``) or ``exp``, ``cos`` and ``sin``."""
     dr = qr - 1.0
     inv_n = 1.0 / n
     if dr * dr + qi * qi < 0.0625:
@@ -319,9 +323,22 @@ def _root(qr, qi, n):
         er, ei = _cmul(xr, xi, er + 0.5, ei)
         er, ei = _cmul(xr, xi, er + 1.0, ei)
         return xr, xi, er + 1.0, ei
-    x = np.log(complex(qr, qi)) * inv_n
-    rho = np.exp(x)
-    return x.real, x.imag, rho.real, rho.imag
+    # (the real functions: numba's complex log and exp take the modulus by hypot and guard
+    # every special value; q is finite and not 0 here, |T| and |A| >= the floor)
+    xr = 0.5 * np.log(qr * qr + qi * qi) * inv_n
+    xi = np.arctan2(qi, qr) * inv_n
+    if xr * xr + xi * xi < 0.0025:  # e^x to the eighth power of x (|x| < 0.05: error below 1e-17)
+        er, ei = xr * (1.0 / 40320.0) + 1.0 / 5040.0, xi * (1.0 / 40320.0)
+        er, ei = _cmul(xr, xi, er, ei)
+        er, ei = _cmul(xr, xi, er + 1.0 / 720.0, ei)
+        er, ei = _cmul(xr, xi, er + 1.0 / 120.0, ei)
+        er, ei = _cmul(xr, xi, er + 1.0 / 24.0, ei)
+        er, ei = _cmul(xr, xi, er + 1.0 / 6.0, ei)
+        er, ei = _cmul(xr, xi, er + 0.5, ei)
+        er, ei = _cmul(xr, xi, er + 1.0, ei)
+        return xr, xi, er + 1.0, ei
+    e = np.exp(xr)
+    return xr, xi, e * np.cos(xi), e * np.sin(xi)
 
 
 @njit(cache=True)
@@ -354,11 +371,16 @@ def hear_directions(synth, bank, layout, ev, src, n):
     owner = synth.channels["owner"]
     mics, P, Rs, mode_off = synth.mics, synth.pos, synth.R, synth.objects.mode_off
     M = owner.shape[0]
+    # per voice of the object being made (slot t < nsel): its microphone, whether its direction
+    # turned, whether it has rows in the block, whether its Y[t] is made, whether it ramps
+    vm = np.empty((5, M), np.int64)
     for o in range(order.shape[0]):
         L = order[o]
         if L < 0 or o >= vbase.shape[0] or vbase[o] < 0:
             continue
         g0 = mode_off[o]
+        nm = 0
+        nsel = 0
         for m in range(M):
             if owner[m] != AIR:
                 continue
@@ -390,10 +412,24 @@ def hear_directions(synth, bank, layout, ev, src, n):
                     turned = True
             if not np.isfinite(U[v, 0]) or not (turned or rows):  # (nothing to make)
                 continue
-            made = False  # (Y at U[v])
-            ramps = False
-            for j in range(nm):
-                i = s0 + j
+            vm[0, nsel] = m
+            vm[1, nsel] = turned
+            vm[2, nsel] = rows
+            vm[3, nsel] = False
+            vm[4, nsel] = False
+            nsel += 1
+        # mode by mode, each for every voice made (a microphone and its images): the mode's
+        # coefficients are read once from memory for all of them
+        for j in range(nm if nsel > 0 else 0):
+            k0 = msh_off[g0 + j]
+            k1 = msh_off[g0 + j + 1]
+            crj = cr[k0:k1]
+            cij = ci[k0:k1]
+            for t in range(nsel):
+                m = vm[0, t]
+                turned = vm[1, t] != 0
+                rows = vm[2, t] != 0
+                i = bstart[m] + v_rel[vbase[o] + m] + j
                 stale = not np.isfinite(ar[i])
                 ring = act[i] and not stale
                 if ring and not turned:
@@ -404,27 +440,34 @@ def hear_directions(synth, bank, layout, ev, src, n):
                     continue
                 if not ring and not (turned or stale):
                     continue
-                if not made:
-                    real_sh(L, U[v, 0], U[v, 1], U[v, 2], Y, tab)
-                    made = True
-                k0 = msh_off[g0 + j]
-                t = _factor(Y, cr, ci, k0, msh_off[g0 + j + 1] - k0)
-                a2 = t.real * t.real + t.imag * t.imag
+                if vm[3, t] == 0:
+                    v = vbase[o] + m
+                    real_sh(L, U[v, 0], U[v, 1], U[v, 2], Y[t], tab)
+                    vm[3, t] = True
+                fr, fi = _factor(Y[t, :k1 - k0], crj, cij)
+                a2 = fr * fr + fi * fi
                 if not a2 >= floor2:  # (a null, or a NaN pattern: the floor, with the phase if any)
-                    t = t * (floor / np.sqrt(a2)) if a2 > 0.0 else complex(floor, 0.0)
-                tr[i] = t.real
-                ti[i] = t.imag
+                    if a2 > 0.0:
+                        c = floor / np.sqrt(a2)
+                        fr *= c
+                        fi *= c
+                    else:
+                        fr = floor
+                        fi = 0.0
+                tr[i] = fr
+                ti[i] = fi
                 if ring:  # ramped across the block
                     den = ar[i] * ar[i] + ai[i] * ai[i]  # (|A| >= floor > 0)
-                    qr, qi = _cmul(t.real, t.imag, ar[i] / den, -ai[i] / den)  # T / A
+                    qr, qi = _cmul(fr, fi, ar[i] / den, -ai[i] / den)  # T / A
                     lr[i], li[i], rr[i], ri[i] = _root(qr, qi, n)
                     peak2[i] *= qr * qr + qi * qi
-                    ramps = True
+                    vm[4, t] = True
                 else:  # silent: at once
-                    ar[i] = t.real
-                    ai[i] = t.imag
-            if ramps:
-                ramp[m] = True
+                    ar[i] = fr
+                    ai[i] = fi
+        for t in range(nsel):
+            if vm[4, t] != 0:
+                ramp[vm[0, t]] = True
 
 
 # ---------------------------------------------------------------- applied by the render (.kernels)

@@ -213,7 +213,7 @@ def _direction_state(by_index, nidx, AR, AI, U, DM, mic_off) -> DirectionState:
     return DirectionState(order, msh_off, np.ascontiguousarray(coef.real), np.ascontiguousarray(coef.imag), U, AR, AI,
                           AR.copy(), AI.copy(), np.zeros(total), np.zeros(total), np.ones(total), np.zeros(total),
                           np.zeros(len(on), np.bool_), on, DM, np.array([int((order >= 0).sum())], np.int64), params,
-                          np.zeros(sh_count(top)), sh_tables(top))
+                          np.zeros((len(mic_off) - 1, sh_count(top))), sh_tables(top))
 
 
 class Layout(NamedTuple):

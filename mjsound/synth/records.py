@@ -186,7 +186,7 @@ class DirectionState(NamedTuple):
     dmode: np.ndarray  # (modes,) bool
     n_objects: np.ndarray  # (1,) int64 objects with a direction (0: nothing to do)
     params: np.ndarray  # (1,) DIRECTIONS
-    sh: np.ndarray  # ((max order + 1)^2,) float64 scratch
+    sh: np.ndarray  # (microphones, (max order + 1)^2) float64 scratch: one object's harmonics per voice
     sh_tab: np.ndarray  # (3, (max order + 1)^2) float64 recurrence factors (:func:`.directivity.sh_tables`)
 
 
