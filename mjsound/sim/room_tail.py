@@ -29,9 +29,8 @@ Input: the network is fed with what each air microphone hears directly and early
 path through its own input (:class:`.LateTail`: orthogonal input vectors, so the copies'
 tails add incoherently instead of comb-filtering each other): microphone ``a``'s own row
 (the direct sound, and every click with its images: the clicks' images go straight to
-their microphone, :mod:`.clicks`) and each of its image rows times its click reflection
-``R_i,click`` (the row's modes carry ``R_i,b / R_i,click``, :mod:`.images`), all weighted by
-``w_a``. For a source at ``S`` (distance ``r_a`` to the microphone, ``r_i`` to image ``i``)
+their microphone, :mod:`.clicks`) and each of its image rows (whose modes carry their
+reflection ``R_i,b``, :mod:`.images`), all weighted by ``w_a``. For a source at ``S`` (distance ``r_a`` to the microphone, ``r_i`` to image ``i``)
 whose direct sound has the energy ``E_1`` at 1 m, the input then has the energy ``E_1 q_b``,
 
 .. math::
@@ -157,7 +156,7 @@ def room_tail(room, images, mics, fs: float, source=None) -> LateTail:
     q = (w[:, None] ** 2 * P).sum(0)
     rows = np.concatenate([np.arange(A), A + np.arange(I)])
     order = np.argsort(np.concatenate([np.arange(A), images.parent]), kind="stable")  # (each microphone, then its images)
-    weight = np.concatenate([w, w[images.parent] * images.click])[order]
+    weight = np.concatenate([w, w[images.parent]])[order]
     rows = rows[order]
     t_first = float(r_mic.min()) / c
     # delay lines: the room's mean free path, long enough for a modal overlap a room's tones can
