@@ -265,14 +265,13 @@ def evaluate_fit(fit: DirectionFit, directions) -> np.ndarray:
 
 
 @njit_inner(cache=True, inline="always")  # (numba IR: no call that reference-counts the records)
-def _voice_rows(ptr, re, im, m, c0, nm):
-    """Whether the voice at columns ``c0 .. c0 + nm`` of bank ``m`` has a non-zero row among
-    rows ``ptr[m] .. ptr[m + 1]`` of ``re + j im`` (events or forcing rows of the block)."""
+def _row_columns(ptr, re, im, m, hit):
+    """``hit[j] |= `` whether column ``j`` of rows ``ptr[m] .. ptr[m + 1]`` of ``re + j im``
+    (events or forcing rows of bank ``m`` in the block) is non-zero: one pass over the rows
+    (a branch-free loop), not one per voice."""
     for e in range(ptr[m], ptr[m + 1]):
-        for j in range(c0, c0 + nm):
-            if re[e, j] != 0.0 or im[e, j] != 0.0:
-                return True
-    return False
+        for j in range(re.shape[1]):
+            hit[j] |= (re[e, j] != 0.0) | (im[e, j] != 0.0)
 
 
 @njit_inner(cache=True, fastmath=FAST)
@@ -371,6 +370,12 @@ def hear_directions(synth, bank, layout, ev, src, n):
     owner = synth.channels["owner"]
     mics, P, Rs, mode_off = synth.mics, synth.pos, synth.R, synth.objects.mode_off
     M = owner.shape[0]
+    # the columns of each air bank with an event or a forcing row in this block
+    hit = np.zeros((M, max(layout.width, ev_re.shape[1], src_gr.shape[1])), np.bool_)
+    for m in range(M):
+        if owner[m] == AIR:
+            _row_columns(ev_ptr, ev_re, ev_im, m, hit[m])
+            _row_columns(src_ptr, src_gr, src_gi, m, hit[m])
     # per voice of the object being made (slot t < nsel): its microphone, whether its direction
     # turned, whether it has rows in the block, whether its Y[t] is made, whether it ramps
     vm = np.empty((5, M), np.int64)
@@ -393,7 +398,11 @@ def hear_directions(synth, bank, layout, ev, src, n):
                 if act[i]:
                     ringing = True
                     break
-            rows = _voice_rows(ev_ptr, ev_re, ev_im, m, c0, nm) or _voice_rows(src_ptr, src_gr, src_gi, m, c0, nm)
+            rows = False
+            for j in range(c0, c0 + nm):
+                if hit[m, j]:
+                    rows = True
+                    break
             if not (ringing or rows):
                 continue
             dx = mics[m, 0] - P[o, 0]
