@@ -874,7 +874,7 @@ def test_an_impact_gives_its_modes_at_most_the_energy_the_collision_takes():
     assert im["restitution"] == pytest.approx(e, rel=1e-12)
     assert im["speed"] == pytest.approx(v, rel=0.02)
     assert im["impulse"] == pytest.approx(m * (1 + e) * im["speed"], rel=0.02)
-    obj, P, J, tau, budget, n = call_inner(impact_sides, sim._drive_state(sim.reader.state()), impacts, 1)
+    obj, P, J, tau, budget, mass, n = call_inner(impact_sides, sim._drive_state(sim.reader.state()), impacts, 1)
     assert n == 1  # (the ball sounds, the floor does not)
     assert budget[0] == pytest.approx(0.5 * im["impulse"] * im["speed"] * (1 - e), rel=1e-12)
     assert budget[0] == pytest.approx(0.5 * m * im["speed"] ** 2 * (1 - e * e), rel=0.02)

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from ..synth.constants import MAX_AMPLITUDE
-from ..synth.impact_energy import lost_energy
+from ..synth.impact_energy import collision_mass, lost_energy
 from ..synth.kernels import commit_queued, impacts_to_queue
 from ..synth.pulse import contact_time, effective, hertz_coef, shell_contact_time
 from ..synth.streams import ring_need, stream_drive
@@ -89,13 +89,14 @@ def sync_poses(drive, views, synth):
 
 @njit_inner(cache=True)
 def impact_sides(drive, impacts, k):
-    """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, budget, n)``, per
-    side the synthesizer object index, world point [m], impulse on that side [N s], Hertz pulse
-    length [s] (struck geom ``g``, other geom ``o``: ``hertz_coef(effective(m_g, M_o),
-    effective(R_g, R_o), c_g + C_o)``, the struck fields and the other's of ``drive.sound``) and
+    """Every sounding side of the impacts ``impacts[:k]``: ``(obj, P, J, tau, budget, mass, n)``,
+    per side the synthesizer object index, world point [m], impulse on that side [N s], Hertz
+    pulse length [s] (struck geom ``g``, other geom ``o``: ``hertz_coef(effective(m_g, M_o),
+    effective(R_g, R_o), c_g + C_o)``, the struck fields and the other's of ``drive.sound``),
     the most vibration energy the impact can give it, the energy the collision takes from the
     approach, ``|J| v (1 - e) / 2`` [J] (``v`` the approach speed, ``e`` the restitution of the
-    impulse ``J = m* (1 + e) v``; ``inf`` without a speed; see
+    impulse ``J = m* (1 + e) v``; ``inf`` without a speed), and the collision's effective mass
+    ``m* = |J| / ((1 + e) v)`` [kg] that the modes are coupled to (0 without a speed; see
     :func:`mjsound.synth.kernels.impacts_to_queue`)."""
     sound = drive.sound
     obj = np.empty(2 * k, np.int64)
@@ -103,6 +104,7 @@ def impact_sides(drive, impacts, k):
     J = np.empty((2 * k, 3))
     tau = np.empty(2 * k)
     budget = np.empty(2 * k)
+    mass = np.empty(2 * k)
     n = 0
     for r in range(k):
         im = impacts[r]
@@ -123,8 +125,9 @@ def impact_sides(drive, impacts, k):
                 J[n, q] = a * im.normal[q]
             tau[n] = _with_shells(contact_time(c, im.speed), s, o, im.speed)
             budget[n] = lost_energy(im.impulse, im.speed, im.restitution)
+            mass[n] = collision_mass(im.impulse, im.speed, im.restitution)
             n += 1
-    return obj[:n], P[:n], J[:n], tau[:n], budget[:n], n
+    return obj[:n], P[:n], J[:n], tau[:n], budget[:n], mass[:n], n
 
 
 @njit_inner(cache=True)
@@ -156,9 +159,9 @@ def queue_impacts(drive, synth, buf, k, t_ev):
     """The substep's impacts ``buf.impacts[:k]`` into the synthesizer's queue at synth time
     ``t_ev`` [s] (:func:`mjsound.synth.kernels.impacts_to_queue`). Returns 0, or 1 when an
     amplitude is out of range (nothing queued)."""
-    obj, P, J, tau, budget, n = impact_sides(drive, buf.impacts, k)
+    obj, P, J, tau, budget, mass, n = impact_sides(drive, buf.impacts, k)
     t = np.full(n, t_ev)
-    count, used, nxt, amax = impacts_to_queue(synth, obj, P, J, t, tau, budget)
+    count, used, nxt, amax = impacts_to_queue(synth, obj, P, J, t, tau, budget, mass)
     if not amax <= MAX_AMPLITUDE:  # (also NaN)
         return 1
     commit_queued(synth.queue, count, used, nxt)

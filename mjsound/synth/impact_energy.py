@@ -23,7 +23,7 @@ import math
 
 from ..jit import njit
 
-__all__ = ["lost_energy"]
+__all__ = ["lost_energy", "collision_mass"]
 
 
 @njit(cache=True)
@@ -42,3 +42,23 @@ def lost_energy(impulse, speed, restitution):
         return math.inf
     e = restitution if 0.0 <= restitution <= 1.0 else 0.0
     return 0.5 * abs(impulse * speed) * (1.0 - e)
+
+
+@njit(cache=True)
+def collision_mass(impulse, speed, restitution):
+    """The collision's effective mass ``m* = |J| / ((1 + e) v)`` [kg] along the normal, from
+    the impulse ``J`` [N s] it was given at the approach speed ``v`` [m/s] with restitution
+    ``e`` (``J = m* (1 + e) v``; ``e`` outside [0, 1] or NaN taken as 0, as
+    :func:`lost_energy` does); 0 (unknown) when ``v`` is not positive and finite or ``J`` is not
+    finite. The mass the struck object's modes are coupled to
+    (:mod:`.contact_coupling`).
+
+    Examples
+    --------
+    >>> collision_mass(10.0, 2.0, 0.25)   # 10 / (1.25 * 2)
+    4.0
+    """
+    if not (speed > 0) or math.isinf(speed) or not math.isfinite(impulse):
+        return 0.0
+    e = restitution if 0.0 <= restitution <= 1.0 else 0.0
+    return abs(impulse) / ((1.0 + e) * speed)

@@ -27,7 +27,7 @@ class ImpactMethods:
     synthesizer's objects, event queue ``_ev`` and kernel state)."""
 
     def impact(self, name, point, impulse, time, *, pulse_s=None, other_material=None, other_mass_kg=np.inf,
-               other_radius_m=np.inf, speed=None, radius_m=None) -> None:
+               other_radius_m=np.inf, speed=None, radius_m=None, effective_mass_kg=None) -> None:
         """One impact: impulse ``J`` [N s] (world vector) at world ``point`` [m] at ``time`` [s].
 
         Parameters
@@ -54,6 +54,11 @@ class ImpactMethods:
             of :func:`.kernels.impacts_to_queue`, which the per-step driver always applies).
         radius_m : float, optional
             This object's radius of curvature at the contact [m]; default half its size.
+        effective_mass_kg : float, optional
+            The collision's effective mass along the normal [kg] (``|J| / ((1 + e) v)``, as the
+            per-step driver gives it). Given, the object's modes are coupled to the contact
+            that drives them (:mod:`.contact_coupling`; needs a contact time > 0): they take no
+            more than the collision has. Default: the half-sine force alone.
 
         Notes
         -----
@@ -65,14 +70,17 @@ class ImpactMethods:
                      np.reshape(np.asarray(impulse, dtype=np.float64), (1, -1)) if np.size(impulse) == 3 else impulse,
                      np.atleast_1d(np.asarray(time, dtype=np.float64)) if np.size(time) == 1 else time,
                      pulse_s=pulse_s, other_material=other_material, other_mass_kg=other_mass_kg,
-                     other_radius_m=other_radius_m, speed=speed, radius_m=radius_m)
+                     other_radius_m=other_radius_m, speed=speed, radius_m=radius_m,
+                     effective_mass_kg=effective_mass_kg)
 
     def impacts(self, name, points, impulses, times, *, pulse_s=None, other_material=None,
-                other_mass_kg=np.inf, other_radius_m=np.inf, speed=None, radius_m=None) -> None:
+                other_mass_kg=np.inf, other_radius_m=np.inf, speed=None, radius_m=None,
+                effective_mass_kg=None) -> None:
         """Many impacts on one object at once (vectorised :meth:`impact`).
 
         ``points`` (k, 3) [m], ``impulses`` (k, 3) [N s], ``times`` (k,) [s]; ``pulse_s`` and
-        ``speed`` may be scalars or (k,) arrays. Much faster than k calls of :meth:`impact`.
+        ``speed`` and ``effective_mass_kg`` may be scalars or (k,) arrays. Much faster than k
+        calls of :meth:`impact`.
         """
         ob = self._get(name)
         P = finite_array(points, "point", "give world coordinates in metres")
@@ -109,9 +117,16 @@ class ImpactMethods:
             e = self._restitution(ob, other_material)
             budget = np.array([lost_energy(j, vi, e) for j, vi in zip(np.sqrt(np.einsum("kc,kc->k", J, J)).tolist(),
                                                                        v.tolist())])
+        mass = None
+        if effective_mass_kg is not None:
+            mass = finite_array(effective_mass_kg, "effective_mass_kg", "give the collision's effective mass in kg")
+            if np.any(mass <= 0):
+                raise ValueError("effective_mass_kg must be a positive mass in kg (leave it out for the half-sine "
+                                 "force alone)")
+            mass = np.broadcast_to(mass.reshape(-1), (k,)).astype(np.float64)
         if len(ob.keep) == 0 or k == 0:
             return
-        self._impact_rows(np.full(k, ob.index, np.int64), P, J, t, tau, budget)
+        self._impact_rows(np.full(k, ob.index, np.int64), P, J, t, tau, budget, mass)
 
     @staticmethod
     def _speeds(speed, k):
@@ -161,19 +176,21 @@ class ImpactMethods:
             v = np.sqrt(np.einsum("kc,kc->k", J, J)) / (mstar * (1 + e)) if not math.isinf(mstar) else np.zeros(len(J))
         return np.array([contact_time(coef, vi) for vi in np.asarray(v, np.float64).reshape(-1).tolist()])
 
-    def _impact_rows(self, obj, P, J, t, tau, budget=None) -> None:
+    def _impact_rows(self, obj, P, J, t, tau, budget=None, mass=None) -> None:
         """Impacts in one numba call (:func:`.kernels.impacts_to_queue`; the per-step driver
         queues its own in numba: :func:`mjsound.sim.drive.queue_impacts`): impact ``i``
         strikes object index ``obj[i]`` at world ``P[i]`` with impulse ``J[i]`` [N s] at synth
         time ``t[i]`` >= :attr:`time` [s], pulse length ``tau[i]`` [s], at most the vibration
-        energy ``budget[i]`` [J] (None: unbounded; rows with non-finite values are skipped).
-        State is unchanged on error."""
+        energy ``budget[i]`` [J] (None: unbounded; rows with non-finite values are skipped),
+        the modes coupled to a contact of effective mass ``mass[i]`` [kg] (None or 0: the
+        half-sine force alone; :mod:`.contact_coupling`). State is unchanged on error."""
         self.reserve_impacts(len(obj))
         f64 = np.float64
         count, used, nxt, amax = kernels.impacts_to_queue(
             self.kernel_state(), obj, np.ascontiguousarray(P, f64), np.ascontiguousarray(J, f64),
             np.ascontiguousarray(t, f64), np.ascontiguousarray(tau, f64),
-            np.full(len(obj), np.inf) if budget is None else np.ascontiguousarray(budget, f64))
+            np.full(len(obj), np.inf) if budget is None else np.ascontiguousarray(budget, f64),
+            np.zeros(len(obj)) if mass is None else np.ascontiguousarray(mass, f64))
         if not (amax <= MAX_AMPLITUDE):  # also catches NaN
             raise self.amplitude_error(obj)
         kernels.commit_queued(self._ev.state, count, used, nxt)

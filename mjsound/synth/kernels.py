@@ -33,6 +33,7 @@ import numpy as np
 from ..jit import njit, njit_inner
 from .bank_loops import bank_forced, bank_free
 from .directivity import ModeGains, commit_ramp, gain_at, hear_directions, ramp_poles, scale_sources
+from .contact_coupling import coupled_response
 from .pulse import half_sine
 from .queue import take_due
 from .records import AIR, EventRows, SourceRows
@@ -372,7 +373,7 @@ def one_pole(x, a, y0):
 
 
 @njit(cache=True)
-def impacts_to_queue(synth, obj, P, J, t, tau, budget):
+def impacts_to_queue(synth, obj, P, J, t, tau, budget, mass):
     """Modal amplitudes of ``k`` impacts at every microphone, appended to the synthesizer's
     event queue (``synth.queue``, from its ``count`` and ``pool_used``; the caller reserved
     room; the counts are *not* advanced: :func:`commit_queued` does that once the amplitudes
@@ -399,6 +400,14 @@ def impacts_to_queue(synth, obj, P, J, t, tau, budget):
     ``e`` (:mod:`.impact_energy`), so when ``E > budget[i]`` every amplitude of the impact is
     scaled by ``sqrt(budget[i] / E)``. ``budget[i] = inf`` (an impulse given without a speed)
     leaves it unbounded.
+
+    **Coupling.** Where ``mass[i]`` (the collision's effective mass along the impulse [kg],
+    ``|J| / ((1 + e) v)``) is positive and finite and ``tau[i] > 0``, the modes push back on
+    the contact that drives them (:func:`.contact_coupling.coupled_response`): the amplitudes
+    are those the coupled contact leaves when it ends, ``T`` after ``t[i]``, and are queued from
+    then on (``t[i] + T`` in place of ``t[i]`` above); they keep the modes' energy within the
+    collision's however light the struck point is. ``mass[i] = 0`` keeps the prescribed
+    half-sine force alone (the closed form above).
     """
     ob, cst, q = synth.objects, synth.consts[0], synth.queue
     mics = synth.mics
@@ -435,12 +444,28 @@ def impacts_to_queue(synth, obj, P, J, t, tau, budget):
         bi = nearest_sorted(ob.pts[p0:p1], ob.pts_index[p0:p1], ob.pts_axis[o], pl[0], pl[1], pl[2])
         sb = s0 + 3 * bi * n
         cm = np.empty(n, np.complex128)
+        gn = np.empty(n)  # phi_m(x) . J
         energy = 0.0
         for m in range(n):
             G = ob.shk[sb + m] * jl[0] + ob.shk[sb + n + m] * jl[1] + ob.shk[sb + 2 * n + m] * jl[2]
+            gn[m] = G
             vm = G * half_sine(ob.wd[m0 + m] * tau[i])
             cm[m] = vm / ob.wd[m0 + m]
             energy += 0.5 * (vm.real * vm.real + vm.imag * vm.imag)
+        jn = np.sqrt(jl[0] * jl[0] + jl[1] * jl[1] + jl[2] * jl[2])
+        t_i = t[i]
+        if mass[i] > 0 and np.isfinite(mass[i]) and tau[i] > 0 and jn > 0:  # (docstring: coupling)
+            for m in range(n):
+                gn[m] /= jn
+            ring = np.empty(n, np.complex128)
+            steps, t_end = coupled_response(gn, ob.lam[m0:m1], tau[i], mass[i], ring)
+            if steps > 0:
+                t_i = t[i] + t_end  # (the modes ring from the contact's end)
+                energy = 0.0
+                for m in range(n):
+                    cm[m] = jn * ring[m]
+                    vm = cm[m] * ob.wd[m0 + m]
+                    energy += 0.5 * (vm.real * vm.real + vm.imag * vm.imag)
         if energy > budget[i]:  # (the energy bound, docstring; NaN budgets bound nothing)
             f = np.sqrt(budget[i] / energy)
             for m in range(n):
@@ -449,10 +474,10 @@ def impacts_to_queue(synth, obj, P, J, t, tau, budget):
             ch = chans[mi]
             if ch.owner == AIR:
                 r = mic_distance(mics, mi, pos, rmin)
-                ta = t[i] + r / c
+                ta = t_i + r / c
             elif ch.owner == o:  # a contact microphone on this object: no delay, its own weights
                 r = 1.0
-                ta = t[i]
+                ta = t_i
             else:  # a contact microphone on another body hears nothing of this impact
                 continue
             nn = np.int64(np.ceil(ta * fs - tol))
