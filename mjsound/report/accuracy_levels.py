@@ -103,7 +103,8 @@ def levels_section(levels, command="mjsound report accuracy --sections levels") 
       "(`radiation=False`); *est* is the default setting's own error estimate (its last refinement "
       "step). Rows marked ~ are modes whose reference itself moved by more than 1 dB from 1500 to 3000 "
       "elements (thin edges converge slowly): their errors are not meaningful. On these small "
-      "objects *high* reaches the reference's own finest mesh, so its near-zero errors say only that. "
+      "objects *high* can reach the reference's own finest mesh (the bowl and the can do): an error near "
+      "0.0 dB there says only that. "
       "Times: wall and CPU seconds of the whole analysis (CPU counts both threads of the parallel "
       "assembly; the machine is shared, so wall times carry the load), and the radiation solve's CPU "
       "seconds. Method and formulas: `docs/radiation.md`.")
