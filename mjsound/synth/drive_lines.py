@@ -127,7 +127,7 @@ class SceneView(NamedTuple):
     msh_off: np.ndarray  # (modes + 1,) int64
     coef_r: np.ndarray  # (k,) float64
     coef_i: np.ndarray  # (k,) float64
-    sh: np.ndarray  # scratch
+    sh: np.ndarray  # (rows, harmonics) scratch (its first row is used)
     sh_tab: np.ndarray
     params: np.ndarray  # (1,) DIRECTIONS
 
@@ -400,13 +400,15 @@ def _direction_factors(g, n, o, m0, dr, U, Fd):
             U[m, 0] = ux
             U[m, 1] = uy
             U[m, 2] = uz
-            real_sh(L, ux, uy, uz, dr.sh, dr.sh_tab)
+            Y = dr.sh[0]  # (the synthesizer's scratch: one row of harmonics)
+            real_sh(L, ux, uy, uz, Y, dr.sh_tab)
             for k in range(n):
                 k0 = dr.msh_off[m0 + k]
                 nsh = dr.msh_off[m0 + k + 1] - k0
                 t = complex(1.0, 0.0)
                 if nsh > 0:
-                    t = _factor(dr.sh, dr.coef_r, dr.coef_i, k0, nsh)
+                    fr, fi = _factor(Y[:nsh], dr.coef_r[k0:k0 + nsh], dr.coef_i[k0:k0 + nsh])
+                    t = complex(fr, fi)
                     a2 = t.real * t.real + t.imag * t.imag
                     if not a2 >= floor2:
                         t = t * (floor / np.sqrt(a2)) if a2 > 0.0 else complex(floor, 0.0)
