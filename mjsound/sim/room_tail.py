@@ -30,8 +30,9 @@ path through its own input (:class:`.LateTail`: orthogonal input vectors, so the
 tails add incoherently instead of comb-filtering each other): microphone ``a``'s own row
 (the direct sound, and every click with its images: the clicks' images go straight to
 their microphone, :mod:`.clicks`) and each of its image rows (whose modes carry their
-reflection ``R_i,b``, :mod:`.images`), all weighted by ``w_a``. For a source at ``S`` (distance ``r_a`` to the microphone, ``r_i`` to image ``i``)
-whose direct sound has the energy ``E_1`` at 1 m, the input then has the energy ``E_1 q_b``,
+reflection ``R_i,b``, :mod:`.images`), all weighted by ``w_a``. For a source at ``S``
+(distance ``r_a`` to the microphone, ``r_i`` to image ``i``) whose direct sound has the
+energy ``E_1`` at 1 m, the input then has the energy ``E_1 q_b``,
 
 .. math::
 
