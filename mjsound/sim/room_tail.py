@@ -1,4 +1,4 @@
-"""A room's late reverberant tail: the feedback delay network (:mod:`mjsound.synth.reverb`)
+r"""A room's late reverberant tail: the feedback delay network (:mod:`mjsound.synth.reverb`)
 tuned to the room and fed by its rendered early reflections.
 
 Decay: every octave band decays at the room's Eyring time ``T_b`` (:meth:`.rooms.Room.rt60`;
@@ -11,8 +11,8 @@ ed., 2009, sec. 4.1 and 5.1; J.-D. Polack's model of the late impulse response)
 
 .. math::
 
-    \\frac{\\langle p^2(t) \\rangle}{E_1} = \\frac{4 \\pi c}{V} e^{-t / \\tau_b}
-    \\quad \\text{per second,}
+    \frac{\langle p^2(t) \rangle}{E_1} = \frac{4 \pi c}{V} e^{-t / \tau_b}
+    \quad \text{per second,}
 
 ``E_1`` the energy of the direct sound at 1 m. Its integral from the emission on,
 ``4 pi c tau_b / V = 16 pi / A_b`` with Eyring's absorption area ``A_b = -S ln(1 - alpha_b)``,
@@ -49,9 +49,9 @@ With the network's impulse energy ``Phi`` (:meth:`.LateTail.impulse_energy`), th
 
 .. math::
 
-    G_b^2 = \\frac{4 \\pi c}{V f_s\\, \\Phi\\, q_b \\sum_k a_k^2 e^{d_k / (f_s \\tau_b)}\\,
-    M_b}, \\qquad M_b = \\frac{1}{q_b} \\sum_a w_a^2 \\Big(\\frac{e^{r_a / (c \\tau_b)}}{r_a^2} +
-    \\sum_{i \\in a} \\frac{R_{i,b}^2\\, e^{r_i / (c \\tau_b)}}{r_i^2}\\Big).
+    G_b^2 = \frac{4 \pi c}{V f_s\, \Phi\, q_b \sum_k a_k^2 e^{d_k / (f_s \tau_b)}\,
+    M_b}, \qquad M_b = \frac{1}{q_b} \sum_a w_a^2 \Big(\frac{e^{r_a / (c \tau_b)}}{r_a^2} +
+    \sum_{i \in a} \frac{R_{i,b}^2\, e^{r_i / (c \tau_b)}}{r_i^2}\Big).
 
 One network serves every air microphone of the room (its late field is one diffuse field):
 each microphone hears it through its own output vector (rows of a Hadamard matrix:
