@@ -21,7 +21,8 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix, ring_need
+from .drive_tones import noise_cutoff_hz
+from .streams import SQRT3, noise_draw, ring_need, stream_written
 
 __all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "gains_copy", "broadband_modes", "broadband_force",
            "broadband_write"]
@@ -119,18 +120,15 @@ def broadband_force(act, lw, fs, F):
     for j in range(J):
         if not lw.exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
             continue
-        c0 = comp_off[j]
-        fc = min(abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+        fc = noise_cutoff_hz(tones, comp_off, j, 0.5 * (w0[j] + w1[j]), fs)
         alpha = 1.0 - math.exp(-two_pi * fc / fs)
         state = np.uint64(noise[j].rng)
         y = noise[j].lp
         b = noise[j].broadband
         da = (a1[j] - a0[j]) / L
         for q in range(L):
-            state, z = _splitmix(state)
-            x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
-                 + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
-            y = alpha * (x * _SQRT3) + (1.0 - alpha) * y
+            state, x = noise_draw(state)
+            y = alpha * (x * SQRT3) + (1.0 - alpha) * y
             F[j, q] = (a0[j] + da * q) * b * y
         noise[j].rng = np.int64(state)
         noise[j].lp = y
@@ -180,11 +178,5 @@ def broadband_write(streams, consts, act, lw, k0, F):
             f = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
             for q in range(L):
                 ring[s, (k0 + q) & mask] += f * F[j, q]
-        st.k0 = k0
-        st.k1 = k1
-        st.amp = 1.0
-        if k1 > st.gen:
-            st.gen = k1
-        if k1 > st.last:
-            st.last = k1
+        stream_written(st, k0, k1)
     return 0

@@ -55,9 +55,9 @@ from ..jit import njit
 from .bank_loops import FAST
 from .directivity import _factor, real_sh
 from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, gains_copy
-from .drive_tones import audible_span, drive_direction
+from .drive_tones import audible_span, drive_direction, noise_cutoff_hz
 from .records import AIR
-from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix
+from .streams import SQRT3, noise_draw, stream_aim
 
 __all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read", "lines_start",
            "lines_step", "bodies_point", "line_weights",
@@ -182,16 +182,9 @@ def bodies_point(streams, sidx, ptr, rows, k0, acting, a, anchor, axis, drives, 
         jb = rows[best] // 2
         sg = 1.0 if rows[best] % 2 == 0 else -1.0
         sign[b] = sg
-        st = streams.table[s]
         jt = drives[jb].joint
         drive_direction(axis[jt], drives[jb].slide, nrm)
-        for c in range(3):
-            st.p[c] = anchor[jt, c]
-            st.n[c] = sg * nrm[c]
-        g = st.gupd
-        if k0 >= g + regain or k0 < g:
-            st.gupd = k0
-            st.due = 1
+        if stream_aim(streams.table[s], anchor[jt], nrm, sg, k0, regain):
             due = True
     return due
 
@@ -282,8 +275,7 @@ def line_weights(view, act, lw, bg, fs):
     res = np.zeros(J)  # the resonant broadband power per unit force scale
     alpha = np.empty(J)
     for j in range(J):
-        c0 = comp_off[j]
-        fc = min(abs(w[j]) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+        fc = noise_cutoff_hz(tones, comp_off, j, w[j], fs)
         alpha[j] = 1.0 - math.exp(-two_pi * fc / fs)
     for b in range(sidx.shape[0]):
         s = sidx[b]
@@ -555,19 +547,16 @@ def lines_render(track, act, lw, n0, L, fs, F):
         if b <= 0.0 or (a0[j] == 0.0 and a1[j] == 0.0) or exact[j]:
             continue
         any_bb = True
-        c0 = comp_off[j]
-        fc = min(abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+        fc = noise_cutoff_hz(tones, comp_off, j, 0.5 * (w0[j] + w1[j]), fs)
         alpha = 1.0 - math.exp(-two_pi * fc * R / fs)
-        scale = _SQRT3 / math.sqrt(R)  # (white noise at fs / R: the same density below f_c)
+        scale = SQRT3 / math.sqrt(R)  # (white noise at fs / R: the same density below f_c)
         state = np.uint64(noise[j].rng)
         yl = noise[j].lp
         for m in range(M):
             y[m, 0] += a0[j] * b * B0[j, m] * yl
         for i in range(nb):
             q = min(L - 1, (i + 1) * R - 1)
-            state, z = _splitmix(state)
-            x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
-                 + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
+            state, x = noise_draw(state)
             yl = alpha * (x * scale) + (1.0 - alpha) * yl
             t = (q + 1) / L
             for m in range(M):

@@ -36,9 +36,9 @@ import math
 import numpy as np
 
 from ..jit import njit
-from .streams import _INV16, _M16, _S16, _S32, _S48, _SQRT3, _splitmix, ring_need
+from .streams import SQRT3, noise_draw, ring_need, stream_aim, stream_written
 
-__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "streams_write", "DRIVE", "TONE", "NOISE"]
+__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "noise_cutoff_hz", "streams_write", "DRIVE", "TONE", "NOISE"]
 
 #: A tonal component of an actuator's force: its multiple of the rotor's rate, its amplitude
 #: relative to the force scale and its phase [rad] (carried from block to block).
@@ -170,16 +170,13 @@ def drive_tones(w0, w1, a0, a1, comp_off, tones, noise, fs, out):
         da = (a1[j] - a0[j]) / L
         b = noise[j].broadband
         if b > 0.0:
-            c0 = comp_off[j]
-            fc = min(abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi, 0.45 * fs)
+            fc = noise_cutoff_hz(tones, comp_off, j, 0.5 * (w0[j] + w1[j]), fs)
             alpha = 1.0 - math.exp(-two_pi * fc / fs)
             state = np.uint64(noise[j].rng)
             y = noise[j].lp
             for q in range(L):
-                state, z = _splitmix(state)
-                x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
-                     + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
-                y = alpha * (x * _SQRT3) + (1.0 - alpha) * y
+                state, x = noise_draw(state)
+                y = alpha * (x * SQRT3) + (1.0 - alpha) * y
                 out[j, q] = (a0[j] + da * q) * (out[j, q] + b * y)
             noise[j].rng = np.int64(state)
             noise[j].lp = y
@@ -210,6 +207,15 @@ def drive_direction(axis, slide, out):
     out[e] = 0.0
     out[(e + 1) % 3] = y / nrm
     out[(e + 2) % 3] = -x / nrm
+
+
+@njit(cache=True, inline="always")
+def noise_cutoff_hz(tones, comp_off, j, w, fs):
+    """The low-pass corner of actuator ``j``'s broadband noise [Hz]: its first component's
+    order (1 without components; ``tones``, ``comp_off`` as :func:`drive_tones`) times the
+    rotor rate ``w`` [rad/s], at most ``0.45 fs``."""
+    c0 = comp_off[j]
+    return min(abs(w) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / (2.0 * math.pi), 0.45 * fs)
 
 
 @njit(cache=True)
@@ -269,13 +275,7 @@ def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, driv
         st = streams.table[s]
         jt = drives[jb].joint
         drive_direction(axis[jt], drives[jb].slide, nrm)
-        for c in range(3):
-            st.p[c] = anchor[jt, c]
-            st.n[c] = sg * nrm[c]
-        g = st.gupd
-        if k0 >= g + regain or k0 < g:
-            st.gupd = k0
-            st.due = 1
+        stream_aim(st, anchor[jt], nrm, sg, k0, regain)
         k = st.gen
         if k < k1 - cap:
             k = k1 - cap
@@ -299,11 +299,5 @@ def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, driv
             ring[s, r0 + q] = v[q]
         for q in range(n0, L):
             ring[s, q - n0] = v[q]
-        st.k0 = k0
-        st.k1 = k1
-        st.amp = 1.0
-        if k1 > st.gen:
-            st.gen = k1
-        if k1 > st.last:
-            st.last = k1
+        stream_written(st, k0, k1)
     return 0

@@ -19,7 +19,7 @@ import numpy as np
 from ..jit import njit, njit_inner
 from .records import AIR
 
-__all__ = ["stream_seed", "nearest_sorted", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
+__all__ = ["noise_draw", "stream_aim", "stream_written", "stream_seed", "nearest_sorted", "stream_gains", "stream_generate", "stream_drive", "streams_gains", "streams_bank_rows",
            "any_due"]
 
 _U1 = np.uint64(0x9E3779B97F4A7C15)
@@ -33,7 +33,7 @@ _S16 = np.uint64(16)
 _S32 = np.uint64(32)
 _S48 = np.uint64(48)
 _INV16 = 1.0 / 65536.0
-_SQRT3 = float(np.sqrt(3.0))
+SQRT3 = float(np.sqrt(3.0))  # a noise_draw times this: unit variance
 
 
 @njit(cache=True, inline="always")
@@ -44,6 +44,17 @@ def _splitmix(state):
     z = (z ^ (z >> _S27)) * _U3
     z = z ^ (z >> _S31)
     return state, z
+
+
+@njit(cache=True, inline="always")
+def noise_draw(state):
+    """The next sample of a stream's noise generator: ``(state, x)``, ``state`` the generator's
+    uint64 state, ``x`` the centred sum of the four 16-bit lanes of one splitmix64 draw: in
+    [-2, 2), mean 0, variance 1/3, near Gaussian (times :data:`SQRT3`: unit variance)."""
+    state, z = _splitmix(state)
+    x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
+         + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
+    return state, x
 
 
 _MASK64 = (1 << 64) - 1
@@ -255,10 +266,8 @@ def stream_generate(streams, s, k0, k1, amp, alpha):
     state = np.uint64(st.rng)
     while k < k1:
         if k >= k0:
-            state, z = _splitmix(state)
-            x = (np.float64(z & _M16) + np.float64((z >> _S16) & _M16) + np.float64((z >> _S32) & _M16)
-                 + np.float64(z >> _S48) + 2.0) * _INV16 - 2.0
-            x *= _SQRT3
+            state, x = noise_draw(state)
+            x *= SQRT3
             y = alpha * x + b * y
             ring[s, k & mask] = y * amp
         else:
@@ -294,16 +303,39 @@ def stream_drive(streams, consts, s, k0, k1, amp, alpha, p, nrm, regain):
     need = ring_need(streams, consts, s, k1)
     if need > streams.ring.shape[1]:
         return need
-    st = streams.table[s]
+    stream_aim(streams.table[s], p, nrm, 1.0, k0, regain)
+    stream_generate(streams, s, k0, k1, amp, alpha)
+    return 0
+
+
+@njit_inner(cache=True, inline="always")  # (as stream_generate: no call per record member)
+def stream_aim(st, p, nrm, sign, k0, regain):
+    """Point stream record ``st`` at world point ``p`` [m] along ``sign * nrm`` (``nrm`` a unit
+    vector), its gains marked due when ``regain`` samples have passed since they were made at
+    sample ``st.gupd`` (or the clock went back before it) at sample ``k0``. Returns whether
+    they were marked due."""
     for c in range(3):
         st.p[c] = p[c]
-        st.n[c] = nrm[c]
+        st.n[c] = sign * nrm[c]
     g = st.gupd
     if k0 >= g + regain or k0 < g:
         st.gupd = k0
         st.due = 1
-    stream_generate(streams, s, k0, k1, amp, alpha)
-    return 0
+        return True
+    return False
+
+
+@njit_inner(cache=True, inline="always")
+def stream_written(st, k0, k1):
+    """Stream record ``st`` now holds force samples ``[k0, k1)`` at unit amplitude, written into
+    its ring by the caller (the drives: :mod:`.drive_tones`, :mod:`.drive_broadband`)."""
+    st.k0 = k0
+    st.k1 = k1
+    st.amp = 1.0
+    if k1 > st.gen:
+        st.gen = k1
+    if k1 > st.last:
+        st.last = k1
 
 
 @njit(cache=True)
