@@ -25,7 +25,10 @@ Each mode's far-field pressure at 1 m per unit modal coordinate, by direction, c
 exterior boundary-element solve on the object's outer surface (:mod:`.radiation`, :mod:`.bem`;
 ``radiation=`` sets its accuracy) and is stored as spherical-harmonic coefficients
 (``ModalModel.radiation_sh``, read with ``ModalModel.radiation_pattern``); ``radiation`` is its
-RMS over directions. Where the outer surface is not closed (or ``radiation=False``), the compact
+RMS over directions. Every mode's pattern is capped at radiation efficiency 1 where it is
+made (:mod:`.radiation_bound`; ``info['radiation']['capped_db']`` says by how much, and a
+capped mode's ``error_db`` is at least that), so the pattern, ``radiation`` and the radiation
+damping in ``decay_per_s`` agree. Where the outer surface is not closed (or ``radiation=False``), the compact
 monopole ``Q_i = sum_p a_p (phi_i(x_p) . n_p)`` and dipole ``D_i = sum_p a_p (x_p - c)
 (phi_i(x_p) . n_p)`` of the surface displacement stand in:
 
@@ -60,6 +63,7 @@ from .error_estimate import (FACET_DRAFT_ERROR_ORDER, FACET_ERROR_ORDER, HEX_STA
                              richardson_error)
 from .model import ModalModel
 from .radiation import radiation_damping  # noqa: F401 (re-exported)
+from .radiation_bound import cap_radiation, efficiency_limit
 from .plan import (QUALITY, AnalysisBudgetError, Plan, element_size, hex_min_cells, hex_moments, hex_refine,
                    plan_analysis, quality_preset, thin_wall)
 from ..user_frame import user_stacklevel
@@ -68,7 +72,7 @@ __all__ = ["analyze", "element_size", "QUALITY", "cache_dir", "F_MIN_HZ", "defau
 
 AIR_DENSITY = 1.2
 SPEED_OF_SOUND = 343.0
-MODEL_VERSION = 22  # bump when discretization or model contents change (invalidates cache)
+MODEL_VERSION = 23  # bump when discretization or model contents change (invalidates cache)
 METHODS = ("auto", "hex", "tet", "facet", "shell")
 
 
@@ -402,11 +406,16 @@ def _run(tm, material, plan: Plan, n_points, thickness, refine, error_estimate, 
         radiation, radiation_sh, rad_info = solve_radiation(rplan, u_n, omega)
         centre = rplan.centre
     shapes = shapes[: len(points)]
+    # at most radiation efficiency 1 (.radiation_bound): an unresolved mode's solve can exceed
+    # it by tens of dB. Capped here, so the pattern, its RMS and the damping below agree
+    limit = efficiency_limit(points, normals, shapes, float(tm.area), omega)
+    radiation, radiation_sh, over_db = cap_radiation(radiation, radiation_sh, limit)
     # Rayleigh damping d = (alpha + beta omega^2) / 2 plus what radiation takes away;
     # overdamped modes (d >= omega) make no tone and are dropped
     decay = 0.5 * (material.alpha + material.beta * omega**2) + radiation_damping(radiation, omega)
     under = decay < omega
     shapes, radiation, decay, radiation_sh = shapes[:, :, under], radiation[under], decay[under], radiation_sh[under]
+    rad_info = _mark_capped(rad_info, over_db, under)
     ex = np.zeros(disc.dofs)
     ex[0::disc.dofs_per_node] = 1.0  # rigid translation along x: e^T M e is the total mass
     mass = float(ex @ (disc.M @ ex))
@@ -463,10 +472,11 @@ def _radiation(points, normals, shapes, omega, area):
     bound, so for modes whose wavelength is shorter than the object it would radiate more
     power than the surface can emit. A surface radiates at most with efficiency 1,
     ``W = rho0 c <v_n^2> A``, which at 1 m is ``R_max = rho0 c omega sqrt(A_eff / 4 pi)``
-    with ``A_eff = sum_p a_p (phi . n)^2``: the weight is the smaller of the two.
+    with ``A_eff = sum_p a_p (phi . n)^2``: the analysis keeps the smaller of the two.
 
     The pattern is the compact one, ``F(d) = -(rho0 omega^2 / 4 pi) (Q - i k d . D)``
-    (degree 1 in spherical harmonics), scaled down with the weight where the cap applies.
+    (degree 1 in spherical harmonics); :func:`_run` caps it at efficiency 1 as it does the
+    boundary elements' (:func:`.radiation_bound.cap_radiation`).
 
     The radiated power is energy the mode loses: see :func:`radiation_damping`.
 
@@ -487,9 +497,19 @@ def _radiation(points, normals, shapes, omega, area):
     D = a * np.einsum("pc,pn->cn", x, un)
     k = omega / SPEED_OF_SOUND
     compact = AIR_DENSITY * omega**2 / (4 * np.pi) * np.sqrt(Q**2 + (k * np.linalg.norm(D, axis=0)) ** 2 / 3.0)
-    r_max = AIR_DENSITY * SPEED_OF_SOUND * omega * np.sqrt(a * np.einsum("pn,pn->n", un, un) / (4 * np.pi))
-    rms = np.minimum(compact, r_max)
     dirs, _ = sphere_quadrature(1)
     F = -AIR_DENSITY * omega**2 / (4 * np.pi) * (Q[None, :] - 1j * k[None, :] * (dirs @ D))
-    scale = np.divide(rms, compact, out=np.zeros_like(rms), where=compact > 0)
-    return rms, fit_coefficients(1, F * scale[None, :]), centre
+    return compact, fit_coefficients(1, F), centre
+
+
+def _mark_capped(rad_info: dict, over_db, kept) -> dict:
+    """``rad_info`` with the modes ``kept`` only and the efficiency cap marked: ``capped_db``
+    per mode (by how much the solve exceeded :func:`.radiation_bound.efficiency_limit`, 0 where
+    it did not), ``capped`` (how many), and each capped mode's ``error_db`` at least its
+    ``capped_db`` (the solve was at least that far off; the capped value is an upper bound)."""
+    over = [round(float(x), 2) for x in np.asarray(over_db, float)[kept]]
+    info = dict(rad_info, capped=int(sum(o > 0 for o in over)), capped_db=over)
+    if "error_db" in info:
+        est = [e for e, k in zip(info["error_db"], kept) if k]
+        info["error_db"] = [e if o <= 0 else max(o, e or 0.0) for e, o in zip(est, over)]
+    return info

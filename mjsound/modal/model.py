@@ -201,7 +201,7 @@ class ModalModel:
             shapes=self.shapes[:, :, keep],
             radiation=self.radiation[keep],
             radiation_sh=None if self.radiation_sh is None else self.radiation_sh[keep],
-            info=dict(self.info),
+            info=_select_info(self.info, keep, self.n_modes),
         )
 
     def truncated(self, f_max: float | None = None, n_modes: int | None = None) -> "ModalModel":
@@ -301,6 +301,24 @@ class ModalModel:
             )
         except (KeyError, TypeError, ValueError) as exc:  # a metadata field missing or malformed
             raise ValueError(f"{path}: not a valid mjsound model (metadata {type(exc).__name__}: {exc})") from exc
+
+
+#: per-mode lists in ``info['radiation']`` that :meth:`ModalModel.select` keeps aligned
+PER_MODE_RADIATION_INFO = ("error_db", "capped_db")
+
+
+def _select_info(info: dict, keep, n_modes: int) -> dict:
+    """A copy of ``info`` whose per-mode radiation lists hold the modes ``keep`` only."""
+    out = dict(info)
+    rad = out.get("radiation")
+    if isinstance(rad, dict):
+        idx = np.arange(n_modes)[np.asarray(keep)]
+        rad = dict(rad)
+        for key in PER_MODE_RADIATION_INFO:
+            if isinstance(rad.get(key), list) and len(rad[key]) == n_modes:
+                rad[key] = [rad[key][i] for i in idx]
+        out["radiation"] = rad
+    return out
 
 
 def _json_default(o):

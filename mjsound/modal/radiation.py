@@ -301,6 +301,11 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
             progress((gi + 1) / len(groups))
     coef = fit_coefficients(L, F)
     rms = np.sqrt((w[:, None] * np.abs(F) ** 2).sum(axis=0) / (4 * np.pi))
+    # a pattern finer than degree L (high k a beyond the setting's degree) loses the power above
+    # L in the fit: the coefficients are scaled to the solved power, so that the stored pattern's
+    # RMS is ``radiation`` (sqrt(sum |c|^2 / 4 pi)) and the damping the power it radiates
+    fitted = np.sqrt(np.sum(np.abs(coef) ** 2, axis=1) / (4 * np.pi))
+    coef *= np.divide(rms, fitted, out=np.ones_like(rms), where=fitted > 0)[:, None]
     info = dict(method="bem-burton-miller", degree=L, levels=[len(m) for m in plan.levels],
                 h_m=[round(h, 5) for h in plan.h], epw=s["epw"], solves=len(solves), clusters=solves,
                 under_resolved=int(under.sum()), budget_limited_clusters=limited, cost=spent[0],

@@ -12,34 +12,60 @@ most::
 
     R_max = rho0 c omega sqrt(A_eff / (4 pi)),      A_eff = sum_p a_p (phi_p . n_p)^2
 
-(``a_p`` the area of surface sample ``p``: the model's surface over its samples). The compact
-estimate of :mod:`.analyze` is capped there when it is made; a boundary-element solve
-(:mod:`.radiation`) whose elements do not resolve a mode's wavelength is not: the mode's shape,
-sampled on elements wider than its own half-wavelength, leaves a net volume flow that the
-mode does not have, and such modes come out 10 to 40 dB above ``R_max`` (the HalfCheetah
-torso's modes above 3 kHz at draft quality: ``scripts/diagnose_levels.py``).
-:func:`bounded_radiation` caps every mode at ``R_max`` and gives it the radiation damping that
-goes with the capped value (:func:`.radiation.radiation_damping`), so that the mode still loses
-what it radiates.
+(``a_p`` the area of surface sample ``p``: the model's surface over its samples).
+
+A boundary-element solve (:mod:`.radiation`) whose elements do not resolve a mode's wavelength
+samples the mode's shape on elements wider than its own half-wavelength, which leaves a net
+volume flow that the mode does not have: such modes came out 10 to 40 dB above ``R_max`` (the
+HalfCheetah torso's modes above 3 kHz at draft quality, ``scripts/diagnose_levels.py``). The
+analysis (:func:`mjsound.analyze`) therefore caps every mode's pattern at ``R_max`` where it
+makes the model (:func:`cap_radiation`: the whole pattern scaled, so its shape is kept and its
+RMS is ``R_max``), before the radiation damping is derived from it, and records by how much
+(``info['radiation']['capped_db']``); the stored pattern, ``ModalModel.radiation`` and the
+decay rates agree, and the synthesizer reads them as they are.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .radiation import AIR_DENSITY, SPEED_OF_SOUND, radiation_damping
+from .radiation import AIR_DENSITY, SPEED_OF_SOUND
 
-__all__ = ["radiation_limit", "bounded_radiation"]
+__all__ = ["efficiency_limit", "radiation_limit", "cap_radiation"]
 
 
-def radiation_limit(model) -> np.ndarray | None:
-    """``R_max`` [Pa m] per mode of ``model`` at radiation efficiency 1 (module docstring), or
-    None when the model does not say its surface area (``model.info['area_m2']``) or has no
-    surface samples.
+def efficiency_limit(points, normals, shapes, area_m2: float, omega) -> np.ndarray:
+    """``R_max`` [Pa m] per mode at radiation efficiency 1 (module docstring).
 
     Parameters
     ----------
-    model : ModalModel
+    points : (p, 3) surface samples [m], equal shares of the surface
+    normals : (p, 3) their outward unit normals
+    shapes : (p, 3, n) mass-normalised mode shapes at the samples [1/sqrt(kg)]
+    area_m2 : float
+        The surface's area [m^2]; each sample stands for ``area_m2 / p``.
+    omega : (n,) angular frequencies [rad/s]
+
+    Returns
+    -------
+    (n,) float64
+
+    Examples
+    --------
+    >>> efficiency_limit(np.zeros((1, 3)), [[0, 0, 1.0]], np.ones((1, 3, 1)), 1.0, [1.0])  # doctest: +ELLIPSIS
+    array([116.1...])
+    """
+    p = len(points)
+    un = np.einsum("pcn,pc->pn", np.asarray(shapes, np.float64), np.asarray(normals, np.float64))
+    a = float(area_m2) / max(p, 1)
+    return AIR_DENSITY * SPEED_OF_SOUND * np.asarray(omega, np.float64) * np.sqrt(
+        a * np.einsum("pn,pn->n", un, un) / (4 * np.pi))
+
+
+def radiation_limit(model) -> np.ndarray | None:
+    """:func:`efficiency_limit` of a :class:`~mjsound.modal.model.ModalModel`'s modes, or None
+    when the model does not say its surface area (``model.info['area_m2']``) or has no surface
+    samples.
 
     Returns
     -------
@@ -49,32 +75,40 @@ def radiation_limit(model) -> np.ndarray | None:
     points = np.asarray(model.points)
     if area is None or not np.isfinite(area) or area <= 0 or len(points) == 0:
         return None
-    a = float(area) / len(points)
-    un = np.einsum("pcn,pc->pn", np.asarray(model.shapes, np.float64), np.asarray(model.normals, np.float64))
     omega = 2 * np.pi * np.asarray(model.frequencies_hz, np.float64)
-    return AIR_DENSITY * SPEED_OF_SOUND * omega * np.sqrt(a * np.einsum("pn,pn->n", un, un) / (4 * np.pi))
+    return efficiency_limit(points, model.normals, model.shapes, float(area), omega)
 
 
-def bounded_radiation(model) -> tuple[np.ndarray, np.ndarray, int]:
-    """``(radiation, decay, n_capped)``: the model's ``radiation`` [Pa m] capped at
-    :func:`radiation_limit`, its ``decay_per_s`` [1/s] with each capped mode's radiation damping
-    replaced by the capped value's, and how many modes were capped (the model's own values,
-    and 0, when it does not say its area).
+def cap_radiation(rms, coefficients, limit):
+    """Modes' patterns capped at ``limit``: ``(rms, coefficients, over_db)``.
+
+    A mode whose RMS ``R`` exceeds ``R_max`` has its whole pattern (``coefficients``, its
+    spherical-harmonic coefficients, one row per mode) scaled by ``R_max / R``, so that its
+    directions keep their proportions and the RMS over them is ``R_max``.
+
+    Parameters
+    ----------
+    rms : (n,) RMS of each pattern over directions [Pa m]
+    coefficients : (n, m) complex, the patterns' coefficients
+    limit : (n,) ``R_max`` [Pa m] (:func:`efficiency_limit`)
+
+    Returns
+    -------
+    rms : (n,) float64, ``min(R, R_max)``
+    coefficients : (n, m) complex, scaled rows where capped
+    over_db : (n,) float64, ``20 log10(R / R_max)`` where capped, else 0 [dB]
 
     Examples
     --------
-    >>> rad, decay, n = bounded_radiation(model)  # doctest: +SKIP
+    >>> r, c, over = cap_radiation([1.0, 10.0], np.ones((2, 1)), [2.0, 1.0])
+    >>> r.tolist(), c[:, 0].real.tolist(), over.round(1).tolist()
+    ([1.0, 1.0], [1.0, 0.1], [0.0, 20.0])
     """
-    rad = np.asarray(model.radiation, np.float64)
-    decay = np.asarray(model.decay_per_s, np.float64)
-    limit = radiation_limit(model)
-    if limit is None:
-        return rad, decay, 0
-    over = rad > limit
-    if not over.any():
-        return rad, decay, 0
-    omega = 2 * np.pi * np.asarray(model.frequencies_hz, np.float64)
-    capped = np.where(over, limit, rad)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        change = np.where(over, radiation_damping(capped, omega) - radiation_damping(rad, omega), 0.0)
-    return capped, decay + change, int(over.sum())
+    rms = np.asarray(rms, np.float64)
+    limit = np.asarray(limit, np.float64)
+    over = rms > limit
+    safe_rms = np.where(over, rms, 1.0)
+    scale = np.where(over, limit / safe_rms, 1.0)
+    # (a mode with no normal motion at the samples has R_max = 0: over by "600 dB", not inf)
+    over_db = np.where(over, 20 * np.log10(safe_rms / np.maximum(np.where(over, limit, 1.0), 1e-30 * safe_rms)), 0.0)
+    return np.where(over, limit, rms), np.asarray(coefficients) * scale[:, None], over_db

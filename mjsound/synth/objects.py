@@ -14,7 +14,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..modal.radiation_bound import bounded_radiation
 from .constants import D_MIN_PER_S, GRID, RHO_AIR
 from .directivity import DIRECTION_FLOOR, DIRECTION_STEP_DEG, DirectionFit, fit_directions, sh_count, sh_tables
 from .records import DIRECTIONS, Bank, BankLayout, DirectionState, ObjectTable
@@ -114,14 +113,14 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
 
     Modes at or above ``0.45 fs`` (or ``f_max``), overdamped ones (``d >= omega``) and
     non-positive frequencies are dropped; a zero or negative decay becomes ``D_MIN_PER_S``.
-    ``w_d = sqrt(w0^2 - d^2)``; radiation weights from the model (``radiation``: at most what
-    radiation efficiency 1 allows, with the decay that goes with it,
-    :func:`mjsound.modal.radiation_bound.bounded_radiation`) or the
+    ``w_d = sqrt(w0^2 - d^2)``; radiation weights from the model (``radiation``, as
+    :func:`mjsound.analyze` made it: capped at radiation efficiency 1 with the decay that goes
+    with that, :mod:`mjsound.modal.radiation_bound`) or the
     modal-acceleration proxy ``-w0^2 rho_air / (4 pi) size^2 rms(phi . n)``; poles rounded to
     ``dtype`` and the grid correction (module docstring); with ``radiation`` and ``directivity``
     the direction factors of the model's ``radiation_pattern`` (:func:`.directivity.fit_directions`;
     the proxy is heard the same in every direction)."""
-    rad, decay, _ = bounded_radiation(model) if radiation else (None, model.decay_per_s, 0)
+    rad, decay = np.asarray(model.radiation, np.float64), np.asarray(model.decay_per_s, np.float64)
     fs = sample_rate
     f = model.frequencies_hz
     d = np.where(decay > 0, decay, D_MIN_PER_S)
@@ -141,7 +140,7 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
     ob.d, ob.wd = d, wd
     ob.lam = -d + 1j * wd
     if radiation:
-        ob.weights = rad[keep]  # (at most radiation efficiency 1: modal.radiation_bound)
+        ob.weights = rad[keep]
     else:
         sh = model.shapes[:, :, keep].astype(np.float64)
         if len(model.points):
@@ -152,8 +151,7 @@ def prepare_object(name, model, index, poses, pos, R, sample_rate, dtype, radiat
         size = model.size_m if model.size_m > 0 else 0.1
         ob.weights = -(w0[keep] ** 2) * RHO_AIR / (4 * np.pi) * size**2 * rms
     if radiation and directivity:
-        # (factors of the model's own pattern: the capped weight scales every direction alike)
-        ob.directions = fit_directions(model, keep, np.asarray(model.radiation, np.float64)[keep], name)
+        ob.directions = fit_directions(model, keep, rad[keep], name)
     else:
         ob.directions = DirectionFit.none(len(keep))
     # rounded poles with |p| < 1, and the exact-pole correction
