@@ -18,8 +18,9 @@ options, spec and reset semantics as the gymnasium wrapper
 * ``reset()`` (and the reset dm_control does by itself on the step after a ``LAST`` step)
   silences the ringing and re-anchors the audio clock (``AudioSimulator.reset``), so nothing of
   the last episode carries over;
-* ``observation_spec()["audio"]`` is a ``dm_env.specs.BoundedArray`` float32 in [-1, 1]
-  (waveform) or [0, log1p(sum(hann))] (spectrogram), the shape of ``AudioObservation``'s.
+* ``observation_spec()["audio"]`` is a ``dm_env.specs.BoundedArray`` float32, the bounds and
+  shape of ``AudioObservation``'s (waveform: one atmosphere in full-scale units, [-1, 1] with
+  ``clip=True``).
 
 Example
 -------
@@ -62,7 +63,8 @@ class AudioEnvironment(dm_env.Environment):
         ``default_material`` ("aluminium"), ``full_scale_pa``, ``n_fft``, ``hop``,
         ``follow``, ``quality`` ("draft"), ``budget_modes``, ``models``, ``progress``,
         ``sim_kwargs``, ``objects``, ``sound_meshes``, ``play`` (live audio, docs/live.md),
-        ``reflections`` (default True: the floor reflects; docs/rooms.md), ``room``, ``masses``.
+        ``reflections`` (default True: the floor reflects; docs/rooms.md), ``room``, ``masses``,
+        ``clip`` (default False: no clipping at full scale).
 
     Attributes
     ----------

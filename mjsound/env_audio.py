@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 
-from .audio_window import AudioWindow
+from .audio_window import ATMOSPHERE_PA, AudioWindow
 from .synth.contact_mic import check_contact_full_scale
 from .user_frame import user_stacklevel
 
@@ -57,7 +57,7 @@ class EnvAudio:
                  materials=None, default_material="aluminium", full_scale_pa=20.0, n_fft=256, hop=None,
                  follow="auto", quality="draft", budget_modes=None, models=None, progress=True, sim_kwargs=None,
                  objects="body", sound_meshes=None, contact_mics=None, contact_full_scale=None, clicks=True,
-                 reflections=True, room=None, dt_source="the env's dt", play=None, masses=None):
+                 reflections=True, room=None, dt_source="the env's dt", play=None, masses=None, clip=False):
         if mode not in ("waveform", "spectrogram"):
             raise ValueError(f"mode={mode!r}: choose 'waveform' or 'spectrogram'")
         fsp = float(full_scale_pa)
@@ -100,7 +100,7 @@ class EnvAudio:
         self.n_channels = self.sim.n_channels
         # contact channels [m/s^2] enter the window in the air channels' full-scale units
         self._contact_gain = fsp / fsc
-        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop)
+        self.audio = AudioWindow(self.n_channels, window, fsp, mode, n_fft, hop, clip=clip)
         self._rng = None
         self._audible_seen = 0
         self._clip_reported = False
@@ -217,17 +217,26 @@ class EnvAudio:
         return new
 
     def _report_clipping(self, clipped: int, peak: float) -> None:
-        """Warn, once per env, that the observation clipped (the agent hears a distorted
-        sound; ``info["audio_clipped"]`` keeps counting)."""
+        """Warn, once per env, that the observation clipped (``info["audio_clipped"]`` keeps
+        counting): at full scale with ``clip=True`` (the agent hears a distorted sound), else at
+        one atmosphere, which no sound reaches (the simulation has gone wrong)."""
         self._clip_reported = True
         fsp = self.audio.full_scale_pa
+        tail = ("The step's info counts every step's (audio_clipped; dm_control: last_info); reported once "
+                "per env")
+        if not self.audio.clip:
+            warnings.warn(f"mjsound: the audio observation clipped {clipped} sample(s) this step at one atmosphere "
+                          f"({ATMOSPHERE_PA:g} Pa), peak {peak:.3g} Pa (NaN counts as clipped): no sound is that "
+                          "loud, so the simulation has most likely gone unstable (MuJoCo's warnings, "
+                          "data.warning, say where; a smaller timestep or stiffer solver settings help). " + tail,
+                          RuntimeWarning, stacklevel=user_stacklevel())
+            return
         knobs = f"full_scale_pa (now {fsp:g} Pa)"
         if len(self._contact):
             knobs += f" or, for the contact channels, contact_full_scale (now {fsp / self._contact_gain:g} m/s^2)"
         warnings.warn(f"mjsound: the audio observation clipped: {clipped} sample(s) beyond full scale this step, "
-                      f"peak {peak:.3g} Pa (NaN counts as clipped); a larger {knobs} keeps such steps undistorted. "
-                      "The step's info counts every step's (audio_clipped; dm_control: last_info); reported once "
-                      "per env", RuntimeWarning, stacklevel=user_stacklevel())
+                      f"peak {peak:.3g} Pa (NaN counts as clipped); a larger {knobs}, or clip=False, keeps such "
+                      "steps undistorted. " + tail, RuntimeWarning, stacklevel=user_stacklevel())
 
     def _check_step_time(self) -> None:
         """The first env step: the window (one env step by default) must last what the step

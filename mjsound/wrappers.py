@@ -71,13 +71,14 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         ``window`` samples +-1 when ``dt * fs`` is not an integer).
     mode : {"waveform", "spectrogram"}
         ``"waveform"``: ``audio`` is float32 ``(channels, window)`` in full-scale units
-        (pressure / ``full_scale_pa``, clipped to [-1, 1]).
+        (pressure / ``full_scale_pa``; see ``clip``).
         ``"spectrogram"``: ``audio`` is float32 ``(channels, n_fft // 2 + 1, frames)``,
         ``log1p(|STFT|)`` of that waveform (as SoundSpaces / Sonicverse): periodic Hann window
         of ``n_fft`` samples, hop ``hop`` (default ``n_fft // 2``), frames start at sample 0
         with no centring or padding, ``frames = 1 + (window - n_fft) // hop``, unnormalised
         ``scipy.fft.rfft``. If the window is shorter than ``n_fft``, ``n_fft`` becomes the
-        largest power of two that fits. Values lie in ``[0, log1p(sum(hann))]``.
+        largest power of two that fits. Values lie in ``[0, log1p(sum(hann) * limit)]``, ``limit``
+        the waveform's bound (``clip``).
     mics : list[str] | (m, 3) array | None
         Microphone sites (follow their bodies) or fixed world positions [m]; one channel each.
         Default: the model's sites named ``mic*``; without any, one listener 1 m from the
@@ -107,8 +108,15 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         modal analysis very expensive (slow waves need fine meshes) and are overdamped above a
         few kHz: prefer stiff ones.
     full_scale_pa : float
-        Pressure mapped to 1.0 (default 20 Pa = 120 dB SPL, as ``mjsound.synth.output``).
-        ``info["audio_clipped"]`` counts the new samples (all channels) beyond it.
+        Pressure mapped to 1.0 (default 20 Pa = 120 dB SPL, as ``mjsound.synth.output``): the
+        observation's unit. Ordinary contact sounds lie well inside it; a metal limb striking
+        the floor at several m/s (random actions on dmc humanoid, Walker2d) makes 50-400 Pa.
+    clip : bool
+        False (default): the observation keeps every level, bounded only at one atmosphere
+        (``mjsound.audio_window.ATMOSPHERE_PA`` / ``full_scale_pa``, 5066 at 20 Pa, beyond which
+        nothing is sound: such samples are clipped, counted and warned about once). True: clip
+        at full scale, [-1, 1], as a microphone that saturates; ``info["audio_clipped"]``
+        counts the new samples (all channels) clipped either way.
     n_fft, hop : int
         STFT parameters of the spectrogram mode (default 256 and 128: 16 ms / 8 ms at 16 kHz).
     follow : "auto" | str | None
@@ -158,7 +166,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     Info
     ----
-    ``audio_clipped`` (int, samples x channels of this step beyond full scale, NaN included),
+    ``audio_clipped`` (int, samples x channels of this step clipped, NaN included; ``clip``),
     ``audio_peak_pa`` (float, largest |pressure| of this step [Pa]; a contact channel counts as
     its acceleration times ``full_scale_pa / contact_full_scale``), ``audio_samples`` (int,
     new samples per channel this step), ``audio_impacts`` (int, impacts this step that
@@ -200,13 +208,14 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         substeps: str = "auto",
         play=None,
         masses: str | None = None,
+        clip: bool = False,
     ):
         gym.utils.RecordConstructorArgs.__init__(
             self, sample_rate=sample_rate, window_s=window_s, mode=mode, mics=mics, materials=materials,
             default_material=default_material, full_scale_pa=full_scale_pa, n_fft=n_fft, hop=hop,
             follow=follow, quality=quality, budget_modes=budget_modes, objects=objects, substeps=substeps,
             contact_mics=contact_mics, contact_full_scale=contact_full_scale, clicks=clicks, play=play,
-            reflections=reflections, room=room, masses=masses,
+            reflections=reflections, room=room, masses=masses, clip=clip,
         )
         gym.Wrapper.__init__(self, env)
         uw = env.unwrapped
@@ -239,7 +248,7 @@ class AudioObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                              models=models, progress=progress, sim_kwargs=sim_kwargs, objects=objects,
                              sound_meshes=sound_meshes, contact_mics=contact_mics,
                              contact_full_scale=contact_full_scale, clicks=clicks, dt_source=dt_source,
-                             play=play, reflections=reflections, room=room, masses=masses)
+                             play=play, reflections=reflections, room=room, masses=masses, clip=clip)
         self.audio = self.core.audio
         self.sample_rate, self.window, self.n_channels = self.core.sample_rate, self.core.window, self.core.n_channels
         self.mode, self.full_scale_pa = mode, self.core.audio.full_scale_pa

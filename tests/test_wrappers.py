@@ -100,14 +100,42 @@ def test_substep_contacts_are_read():
 
 
 def test_clipping_is_counted_and_reported_once():
-    env = wrapped("Ant-v5", full_scale_pa=1e-9)
+    env = wrapped("Ant-v5", full_scale_pa=1e-9, clip=True)
+    assert env.observation_space["audio"].high.max() == 1.0
     with pytest.warns(RuntimeWarning, match="full_scale_pa \\(now 1e-09 Pa\\)") as record:
-        _, infos = run(env, 7, 25)
+        obs, infos = run(env, 7, 25)
     clipped = sum(i["audio_clipped"] for i in infos)
     assert clipped > 0
     assert sum("audio observation clipped" in str(w.message) for w in record) == 1
     assert sum(i["audio_clipped"] > 0 for i in infos) > 1  # (later steps clipped too, unreported)
     assert all("audio_clipped" in i and "audio_peak_pa" in i for i in infos)
+    assert max(float(np.abs(o["audio"]).max()) for o in obs) == 1.0
+    env.close()
+
+
+def test_default_observation_keeps_levels_beyond_full_scale():
+    """clip=False (the default): a step louder than full scale reaches the agent unclipped, as
+    pressure / full_scale_pa, inside the space (bounded at one atmosphere); nothing is counted
+    as clipped and nothing warns. A sample beyond one atmosphere is not sound: the warning says
+    the simulation has gone wrong."""
+    import warnings
+
+    from mjsound.audio_window import ATMOSPHERE_PA
+
+    env = wrapped("Ant-v5", full_scale_pa=1e-3)
+    high = env.observation_space["audio"].high
+    assert np.all(high == np.float32(ATMOSPHERE_PA / 1e-3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        obs, infos = run(env, 7, 25)
+    assert sum(i["audio_clipped"] for i in infos) == 0
+    loud = max(i["audio_peak_pa"] for i in infos)
+    assert loud > 2e-3  # Ant's feet on the floor: louder than this full scale
+    top = max(float(np.abs(o["audio"]).max()) for o in obs)
+    assert top == pytest.approx(loud / 1e-3, rel=1e-5)  # the peak, unclipped
+    assert all(env.observation_space.contains(o) for o in obs)
+    with pytest.warns(RuntimeWarning, match="one atmosphere .* gone unstable"):
+        env.core._report_clipping(3, 2.0e5)
     env.close()
 
 
@@ -281,27 +309,35 @@ def test_rejects_non_mujoco_env():
         AudioObservation(gym.make("CartPole-v1"))
 
 
-def test_audio_window_push_matches_numpy_reference():
-    """The numba push: shift, scale, clip to [-1, 1], NaN/Inf -> 0 and counted, peak before
-    clipping; blocks shorter, equal and longer than the window."""
+@pytest.mark.parametrize("clip", [True, False])
+def test_audio_window_push_matches_numpy_reference(clip):
+    """The numba push: shift, scale, clip to [-limit, limit] (1 with ``clip``, else one
+    atmosphere in full-scale units), NaN/Inf -> 0 and counted, peak before clipping; blocks
+    shorter, equal and longer than the window."""
+    from mjsound.audio_window import ATMOSPHERE_PA
     from mjsound.wrappers import AudioWindow
 
     rng = np.random.default_rng(3)
-    win = AudioWindow(2, 50, full_scale_pa=2.0)
+    win = AudioWindow(2, 50, full_scale_pa=2.0, clip=clip)
+    limit = 1.0 if clip else ATMOSPHERE_PA / 2.0
+    assert win.space.high.max() == np.float32(limit) and win.space.low.min() == np.float32(-limit)
     ref = np.zeros((2, 50), np.float32)
     for n in (7, 50, 64, 1, 30):
         block = (rng.normal(size=(2, n)) * 2.5).astype(np.float32)
         block[0, 0] = np.nan
         block[1, -1] = np.inf
+        block[0, -1] = -3.0e5  # (beyond one atmosphere: clipped either way)
         clipped, peak = win.push(block)
         x = block / np.float32(2.0)
         bad = ~np.isfinite(x)
         x = np.where(bad, 0.0, x).astype(np.float32)
-        assert clipped == int(bad.sum() + (np.abs(x) > 1).sum())
+        assert clipped == int(bad.sum() + (np.abs(x) > limit).sum())
         assert peak == pytest.approx(float(np.abs(x).max()) * 2.0, rel=1e-6)
-        ref = np.concatenate([ref, np.clip(x, -1, 1)], axis=1)[:, -50:]
+        ref = np.concatenate([ref, np.clip(x, -limit, limit)], axis=1)[:, -50:]
         np.testing.assert_array_equal(win.observe(), ref)
     assert win.push(np.zeros((2, 0), np.float32)) == (0, 0.0)
+    with pytest.raises(ValueError, match="clip="):
+        AudioWindow(1, 8, clip="yes")
 
 
 def test_maze_env_is_heard_through_its_inner_env():
