@@ -36,12 +36,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..synth.dispatch import EntryPoint
-from ..synth.drive_broadband import broadband_write
-from ..synth.drive_lines import (Actuators, BodyGains, DriveRead, LineWeights, drive_read, lines_start, lines_step,
-                                 scene_view)
+from ..synth.dispatch import EntryPoint, PackedEntry
+from ..synth.drive_lines import (DONE, GROW_TRACK, Actuators, BodyGains, DriveRead, LineWeights, drive_read,
+                                 lines_drive_packed, scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
-from ..synth.streams import streams_gains
 
 __all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "DRIVE_BLOCK_S", "RENDERINGS",
            "ActuatorSound", "actuator_config"]
@@ -245,15 +243,16 @@ class ActuatorSound:
         z = np.zeros
         self._act = Actuators(self.comp_off, self.tones, self.noise, self.drives, self.body_ptr, self.body_rows,
                               self._sidx, z(len(self.bodies)), z(J, np.bool_), z(J), z(J), z(J), z(J))
-        self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, float(GATE_RAD_S))
+        self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, np.array([float(GATE_RAD_S)]))
         self._bg = None  # (the bodies' gains: _body_gains)
         self._view, self._view_of = None, None  # (scene_view of the synthesizer's state and directions)
         self.lines_rendered = 0  # (lines the last block rendered: the cost's count)
         self.modes_kept = 0  # (modes running for the broadband parts at the last block)
-        # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python)
-        self._calls = {"read": EntryPoint(drive_read), "start": EntryPoint(lines_start),
-                       "gains": EntryPoint(streams_gains), "step": EntryPoint(lines_step),
-                       "broadband": EntryPoint(broadband_write)}
+        # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python;
+        # the lines' one call per block takes its state packed, :mod:`mjsound.synth.packing`)
+        self._calls = {"read": EntryPoint(drive_read), "lines": PackedEntry(lines_drive_packed)}
+        self._io = np.zeros(4, np.int64)
+        self._dv, self._dv_of = None, None  # (the data's arrays the drives read, and the data they view)
         self._regain, self._fs = sim.regain_samples, float(sim.sample_rate)
 
     def reset(self) -> None:
@@ -314,9 +313,11 @@ class ActuatorSound:
         """The bodies' gains and what is made of them, shaped as the stream table's gains."""
         nb, (_, M, nmax) = len(self.bodies), state.gr.shape
         bg = self._bg
-        if bg is None or bg.gr.shape != (nb, M, nmax) or bg.gr.dtype != state.gr.dtype:
+        if bg is None or bg.gr.shape != (nb, M, nmax):
             z = np.zeros
-            bg = self._bg = BodyGains(z((nb, M, nmax), state.gr.dtype), z((nb, M, nmax), state.gr.dtype),
+            R = len(self.body_rows)
+            bg = self._bg = BodyGains(z((nb, M, nmax)), z((nb, M, nmax)), z((nb, M), np.int64), np.full((nb, M), np.nan),
+                                      z((nb, M, nmax), np.complex128), np.full((R, 3), np.nan), z(R, np.int64),
                                       z((nb, M, nmax)), z((nb, nmax)), z((nb, nmax), np.bool_),
                                       np.full((nb, M, 3), np.nan), z((nb, M, nmax), np.complex128))
         return bg
@@ -340,42 +341,34 @@ class ActuatorSound:
     def _drive_lines(self, synth, d, k0, L, fresh) -> None:
         """The lines' rendering (:mod:`mjsound.synth.drive_lines`) into the pulse track; the
         broadband parts that ring the modes through the bodies' streams
-        (:mod:`mjsound.synth.drive_broadband`)."""
+        (:mod:`mjsound.synth.drive_broadband`): one kernel call per block."""
         if self.weights.W1.shape[1] != synth.n_channels:  # (microphones added or removed)
             self._weights_for(synth.n_channels)
             fresh = True
         self._streams(synth)
-        state, _ = synth.stream_tables()
-        call, act, lw = self._calls, self._act, self.weights
-        code = call["start"]((self._rd, act, state), d.qvel, d.actuator_force, fresh, k0, d.xanchor, d.xaxis,
-                             self._regain)
-        if code == 0:
-            return  # (every joint still: nothing to drive; the phases wait)
-        if code == 2:  # (the driven streams' gains are due)
-            if synth.on_regain is not None and not synth.poses_current:
-                synth.on_regain()  # (the poses and microphones now)
-            call["gains"]((synth.kernel_state(),))
-            state, _ = synth.stream_tables()
-            self._body_gains(state)
-        ks, dr = synth.kernel_state(), synth._bank.direction
-        view = self._view
-        if view is None or self._view_of[0] is not ks or self._view_of[1] is not dr:
-            view = self._view = scene_view(ks, dr)
-            self._view_of = (ks, dr)
-        track = self._sim.pulses.track
+        if synth.on_regain is not None and not synth.poses_current:
+            synth.on_regain()  # (the poses and microphones now)
+        if self._dv_of is not d:
+            self._dv, self._dv_of = (d.qvel, d.actuator_force, d.xanchor, d.xaxis), d
         if self._force.shape[1] != L:
             self._force = np.empty((len(self.ids), L))
+        call, io, resume = self._calls["lines"], self._io, False
         while True:
-            nl, self.modes_kept = call["step"]((view, act, lw, self._bg, state, track.state), k0, L, self._fs, fresh,
-                                               code == 2, self._force)
-            if nl >= 0:
+            ks, dr = synth.kernel_state(), synth._bank.direction
+            view = self._view
+            if view is None or self._view_of[0] is not ks or self._view_of[1] is not dr:
+                view = self._view = scene_view(ks, dr)
+                self._view_of = (ks, dr)
+            bg = self._bg
+            if bg is None or bg.gr.shape[1:] != ks.streams.gr.shape[1:]:
+                bg = self._body_gains(ks.streams)
+            call((self._rd, self._act, self.weights, bg, view, ks, self._sim.pulses.track.state, self._dv, io), k0, L,
+                 self._fs, fresh, resume, self._force)
+            if io[0] == DONE:
                 break
-            track._grow(0, -nl - 1)  # (the ring holds the block and the delays)
-        self.lines_rendered = nl
-        if lw.exact.any():
-            while True:
-                st, consts = synth.stream_tables()
-                need = call["broadband"]((st, consts, act, lw), k0, self._force)
-                if need == 0:
-                    break
-                synth.grow_stream_ring(need)
+            resume = True
+            if io[0] == GROW_TRACK:
+                self._sim.pulses.track._grow(0, int(io[1]) - 1)  # (the ring holds the block and the delays)
+            else:
+                synth.grow_stream_ring(int(io[1]))
+        self.lines_rendered, self.modes_kept = int(io[2]), int(io[3])

@@ -22,9 +22,9 @@ import numpy as np
 
 from ..jit import njit
 from .drive_tones import noise_cutoff_hz
-from .streams import SQRT3, noise_draw, ring_need, stream_written
+from .streams import SQRT3, noise_draw, ring_need, stream_gains, stream_written
 
-__all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "gains_copy", "broadband_modes", "broadband_force",
+__all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "broadband_modes", "broadband_force",
            "broadband_write"]
 
 #: Fraction of an actuator's heard power in the modes' resonant response to its broadband
@@ -37,32 +37,22 @@ RESONANT_REST = 0.01
 
 
 @njit(cache=True)
-def gains_copy(streams, act, bg):
-    """The driven bodies' streams' gains ``streams.gr, gi[act.sidx[b]]`` into ``bg.gr, gi[b]``
-    (as computed: :func:`broadband_modes` leaves only some modes in the streams' own)."""
-    gr, gi, sidx = streams.gr, streams.gi, act.sidx
-    for b in range(sidx.shape[0]):
-        s = sidx[b]
-        if s < 0:
-            continue
-        for m in range(bg.gr.shape[1]):
-            for k in range(bg.gr.shape[2]):
-                bg.gr[b, m, k] = gr[s, m, k]
-                bg.gi[b, m, k] = gi[s, m, k]
-
-
-@njit(cache=True)
-def broadband_modes(streams, act, lw, bg):
+def broadband_modes(ks, act, lw, bg):
     """The modes that carry the broadband parts of the actuators ``lw.exact``: on each body
-    with one, the fewest modes holding all but :data:`RESONANT_REST` of the body's resonant
-    power (``bg.resonant``, :func:`.drive_lines.line_weights`) keep their gains in the stream
-    (``streams.gr, gi`` from ``bg.gr, gi``), the others get 0 (they do not run); their static
-    part stays with the lines: ``lw.B1[j]`` of an exact actuator is the static response of
-    its bodies' other modes. Returns the modes kept."""
-    gr, gi, Gr, Gi = streams.gr, streams.gi, bg.gr, bg.gi
+    with one, its stream's gains are made now (:func:`.streams.stream_gains`, at the point and
+    along the direction :func:`.drive_gains.bodies_gains` set) and the fewest modes holding all
+    but :data:`RESONANT_REST` of the body's resonant power (``bg.resonant``,
+    :func:`.drive_lines.line_weights`) keep them, the others get 0 (they do not run); their
+    static part stays with the lines: ``lw.B1[j]`` of an exact actuator is the static
+    response of its bodies' other modes. Every driven stream's gains are marked done (none
+    is made elsewhere). Returns the modes kept."""
+    st, ob = ks.streams, ks.objects
+    gr, gi = st.gr, st.gi
     sidx, sign, ptr, rows = act.sidx, act.sign, act.ptr, act.rows
     exact, static, resonant, keep, B = lw.exact, bg.static, bg.resonant, bg.keep, lw.B1
-    nb, M, nmax = Gr.shape
+    nb, M, nmax = bg.gr.shape
+    M = min(M, gr.shape[1])
+    nmax = min(nmax, gr.shape[2])
     J = B.shape[0]
     for j in range(J):
         if exact[j]:
@@ -71,33 +61,46 @@ def broadband_modes(streams, act, lw, bg):
     kept = 0
     for b in range(nb):
         s = sidx[b]
-        for k in range(nmax):
+        for k in range(keep.shape[1]):
             keep[b, k] = False
-        if s < 0 or sign[b] == 0.0:
+        if s < 0:
+            continue
+        st.table[s].due = 0
+        if sign[b] == 0.0:
             continue
         on = False
         for i in range(ptr[b], ptr[b + 1]):
             if exact[rows[i] // 2]:
                 on = True
-        if on:
-            total = 0.0
+        if not on:
+            continue  # (its stream is not written: its gains are not heard)
+        o = st.table[s].obj
+        if not st.table[s].live or o + 1 >= ob.pts_off.shape[0] or ob.pts_off[o + 1] <= ob.pts_off[o] \
+                or ob.mode_off[o + 1] <= ob.mode_off[o]:
+            continue
+        stream_gains(ks, s, o)
+        for m in range(st.D.shape[1]):
+            if st.D[s, m] > st.counts[0].dmax:
+                st.counts[0].dmax = st.D[s, m]
+        total = 0.0
+        for k in range(nmax):
+            total += resonant[b, k]
+        rest = total
+        while rest > RESONANT_REST * total:  # (the strongest left, until the rest is small)
+            best = -1
             for k in range(nmax):
-                total += resonant[b, k]
-            rest = total
-            while rest > RESONANT_REST * total:  # (the strongest left, until the rest is small)
-                best = -1
-                for k in range(nmax):
-                    if not keep[b, k] and (best < 0 or resonant[b, k] > resonant[b, best]):
-                        best = k
-                if best < 0 or resonant[b, best] <= 0.0:
-                    break
-                keep[b, best] = True
-                rest -= resonant[b, best]
-                kept += 1
+                if not keep[b, k] and (best < 0 or resonant[b, k] > resonant[b, best]):
+                    best = k
+            if best < 0 or resonant[b, best] <= 0.0:
+                break
+            keep[b, best] = True
+            rest -= resonant[b, best]
+            kept += 1
         for m in range(M):
             for k in range(nmax):
-                gr[s, m, k] = Gr[b, m, k] if keep[b, k] else 0.0
-                gi[s, m, k] = Gi[b, m, k] if keep[b, k] else 0.0
+                if not keep[b, k]:
+                    gr[s, m, k] = 0.0
+                    gi[s, m, k] = 0.0
         for i in range(ptr[b], ptr[b + 1]):
             j = rows[i] // 2
             if exact[j]:

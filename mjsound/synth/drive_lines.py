@@ -54,14 +54,15 @@ import numpy as np
 from ..jit import njit
 from .bank_loops import FAST
 from .directivity import _factor, real_sh
-from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, gains_copy
-from .drive_tones import audible_span, drive_direction, noise_cutoff_hz
+from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, broadband_write
+from .drive_gains import bodies_gains
+from .drive_tones import audible_span, noise_cutoff_hz
+from .packing import unpack
 from .records import AIR
-from .streams import SQRT3, noise_draw, stream_aim
+from .streams import SQRT3, noise_draw, ring_need
 
-__all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read", "lines_start",
-           "lines_step", "bodies_point", "line_weights",
-           "lines_render", "lines_block"]
+__all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read",
+           "line_weights", "lines_render", "lines_drive", "lines_drive_packed", "DONE", "GROW_TRACK", "GROW_STREAMS"]
 
 
 class Actuators(NamedTuple):
@@ -97,11 +98,16 @@ class LineWeights(NamedTuple):
 
 
 class BodyGains(NamedTuple):
-    """The driven bodies' streams' gains as computed and what is made of them (owner:
-    ``ActuatorSound``, shaped as the stream table's gains)."""
+    """The driven bodies' gains (:func:`.drive_gains.bodies_gains`) and what is made of them
+    (owner: ``ActuatorSound``, shaped as the stream table's gains)."""
 
-    gr: np.ndarray  # (B, M, nmax) the stream's per-mode gains, real part (its dtype)
+    gr: np.ndarray  # (B, M, nmax) float64: per-mode gains, real part (.drive_gains)
     gi: np.ndarray  # (B, M, nmax) ..., imaginary part
+    D: np.ndarray  # (B, M) int64: delay to each microphone [samples] (0: a contact microphone)
+    dts: np.ndarray  # (B, M) float64: the sub-sample delay [s] the factors dfac were made for (NaN: none)
+    dfac: np.ndarray  # (B, M, nmax) complex128: each mode's sub-sample delay factor e^{lam dts}
+    loc: np.ndarray  # (R, 3) float64: each drive side's anchor in its body's frame at the last search [m] (NaN: none)
+    near: np.ndarray  # (R,) int64: ... and its nearest surface sample
     static: np.ndarray  # (B, M, nmax) float64: each mode's static response Im g / (1 - p)
     resonant: np.ndarray  # (B, nmax) float64: each mode's resonant broadband power
     keep: np.ndarray  # (B, nmax) bool: the modes carrying a broadband part
@@ -111,13 +117,12 @@ class BodyGains(NamedTuple):
 
 class SceneView(NamedTuple):
     """What :func:`line_weights` reads of the synthesizer (owner: ``ActuatorSound``, made
-    again when one of the synthesizer's arrays is replaced): the streams' delays and records,
-    the objects' poles, poses, the microphones, the channels and the direction fits (the
+    again when one of the synthesizer's arrays is replaced): the streams' records, the
+    objects' poles, poses, the microphones, the channels and the direction fits (the
     fields of :class:`.records.DirectionState` of those names)."""
 
-    D: np.ndarray  # (S, M) int64
     table: np.ndarray  # (S,) STREAM
-    lam: np.ndarray  # (modes,) complex128 [1/s]
+    poles: np.ndarray  # (modes,) complex128: each mode's pole per sample e^{lam / fs}
     mode_off: np.ndarray  # (objects + 1,) int64
     mics: np.ndarray  # (M, 3) [m]
     pos: np.ndarray  # (objects, 3) [m]
@@ -133,9 +138,11 @@ class SceneView(NamedTuple):
 
 
 def scene_view(synth, dr) -> SceneView:
-    """:class:`SceneView` of a :class:`.records.SynthState` and :class:`.records.DirectionState`."""
+    """:class:`SceneView` of a :class:`.records.SynthState` and :class:`.records.DirectionState`
+    (the poles made here, once)."""
     st, ob = synth.streams, synth.objects
-    return SceneView(st.D, st.table, ob.lam, ob.mode_off, synth.mics, synth.pos, synth.R, synth.channels, dr.order,
+    poles = np.exp(ob.lam / float(synth.consts[0]["fs"]))
+    return SceneView(st.table, poles, ob.mode_off, synth.mics, synth.pos, synth.R, synth.channels, dr.order,
                      dr.msh_off, dr.coef_r, dr.coef_i, dr.sh, dr.sh_tab, dr.params)
 
 
@@ -147,46 +154,8 @@ class DriveRead(NamedTuple):
     ratio: np.ndarray  # (J,) float64: rotor radians per joint unit
     gear: np.ndarray  # (J,) float64: MJCF gear
     inv_radius: np.ndarray  # (J,) float64: 1 / the preset's radius (1: a slide)
-    gate: float  # joint speed at full level
+    gate: np.ndarray  # (1,) float64: joint speed at full level
 
-
-
-@njit(cache=True)
-def bodies_point(streams, sidx, ptr, rows, k0, acting, a, anchor, axis, drives, regain, sign):
-    """Point and direction of each driven body's stream for the gains, as
-    :func:`.drive_tones.streams_write` sets them (the strongest acting drive's anchor and
-    direction, times its side's sign), its gains marked due every ``regain`` samples; no ring
-    samples are written. ``sign[b]`` (written): the strongest drive's side sign (+1: the
-    joint's body, -1: the parent), 0 where no drive acts on body ``b``. Returns whether some
-    gains are due.
-
-    Parameters
-    ----------
-    acting : (J,) bool, whether actuator ``j`` drives in this block (others as in
-        :func:`.drive_tones.streams_write`)
-    """
-    nrm = np.empty(3)
-    due = False
-    for b in range(sidx.shape[0]):
-        sign[b] = 0.0
-        s = sidx[b]
-        if s < 0:
-            continue
-        best = -1
-        for i in range(ptr[b], ptr[b + 1]):
-            j = rows[i] // 2
-            if acting[j] and (best < 0 or a[j] > a[rows[best] // 2]):
-                best = i
-        if best < 0:
-            continue
-        jb = rows[best] // 2
-        sg = 1.0 if rows[best] % 2 == 0 else -1.0
-        sign[b] = sg
-        jt = drives[jb].joint
-        drive_direction(axis[jt], drives[jb].slide, nrm)
-        if stream_aim(streams.table[s], anchor[jt], nrm, sg, k0, regain):
-            due = True
-    return due
 
 
 @njit(cache=True)
@@ -202,7 +171,7 @@ def drive_read(rd, act, qvel, force, fresh):
         act.a0[j] = a[j]
         qd = qvel[rd.dof[j]]
         w[j] = qd * rd.ratio[j]
-        a[j] = abs(force[rd.ids[j]] * rd.gear[j]) * rd.inv_radius[j] * min(1.0, abs(qd) / rd.gate)
+        a[j] = abs(force[rd.ids[j]] * rd.gear[j]) * rd.inv_radius[j] * min(1.0, abs(qd) / rd.gate[0])
         if not (math.isfinite(w[j]) and math.isfinite(a[j])):
             w[j] = 0.0 if not math.isfinite(w[j]) else w[j]
             a[j] = 0.0
@@ -220,26 +189,25 @@ def line_weights(view, act, lw, bg, fs):
     ``lw.B1[j, m]`` (the static ``Im H(0)``), each microphone's delay ``lw.Dm[m]`` [samples],
     whether each actuator's broadband part goes through the modes (``lw.exact``, ``lw.power``:
     :mod:`.drive_broadband`) and, per driven body, its modes' static response and resonant
-    broadband power (``bg.static``, ``bg.resonant``). The bodies' gains are ``bg.gr, gi``
-    (:func:`.drive_broadband.gains_copy`); an air microphone hears a directional object's
-    modes times their direction factor towards it now (as the exact rendering's forcing rows;
-    ``bg.U, Fd`` the factors' cache).
+    broadband power (``bg.static``, ``bg.resonant``). The bodies' gains and delays are
+    ``bg.gr, gi, D`` (:func:`.drive_gains.bodies_gains`); an air microphone hears a
+    directional object's modes times their direction factor towards it now (as the exact
+    rendering's forcing rows; ``bg.U, Fd`` the factors' cache).
 
     Parameters
     ----------
-    view : :class:`SceneView` (the streams' delays and objects, poles, poses, microphones,
-        channels, direction fits)
+    view : :class:`SceneView` (the streams' records, poles, poses, microphones, channels,
+        direction fits)
     act : :class:`Actuators`; lw : :class:`LineWeights`; bg : :class:`BodyGains`
     fs : float [Hz]
 
     Returns the largest of ``lw.Dm``.
     """
-    gr, gi, static, resonant, U, Fd = bg.gr, bg.gi, bg.static, bg.resonant, bg.U, bg.Fd
+    gr, gi, D, static, resonant, U, Fd = bg.gr, bg.gi, bg.D, bg.static, bg.resonant, bg.U, bg.Fd
     W, B, Dm, exact, power = lw.W1, lw.B1, lw.Dm, lw.exact, lw.power
     sidx, sign, ptr, rows, comp_off, tones, noise, w, a = (act.sidx, act.sign, act.ptr, act.rows, act.comp_off,
                                                            act.tones, act.noise, act.w1, act.a1)
-    D, table, lam, mode_off = view.D, view.table, view.lam, view.mode_off
-    mics, pos, R, channels = view.mics, view.pos, view.R, view.channels
+    table, poles, mode_off = view.table, view.poles, view.mode_off
     C, M = W.shape
     J = B.shape[0]
     for c in range(C):
@@ -251,12 +219,11 @@ def line_weights(view, act, lw, bg, fs):
     for m in range(M):
         Dm[m] = -1
     for b in range(sidx.shape[0]):
-        s = sidx[b]
-        if s < 0 or sign[b] == 0.0:
+        if sidx[b] < 0 or sign[b] == 0.0:
             continue
         for m in range(M):
-            if Dm[m] < 0 or D[s, m] < Dm[m]:
-                Dm[m] = D[s, m]
+            if Dm[m] < 0 or D[b, m] < Dm[m]:
+                Dm[m] = D[b, m]
     for m in range(M):
         if Dm[m] < 0:
             Dm[m] = 0
@@ -265,12 +232,23 @@ def line_weights(view, act, lw, bg, fs):
     for b in range(sidx.shape[0]):
         for k in range(nmax):
             resonant[b, k] = 0.0
+    # each component's phase step per sample and its cosine and sine, once (0 above the cut-off)
+    th = np.empty(C)
+    cth = np.empty(C)
+    sth = np.empty(C)
+    for j in range(J):
+        for c in range(comp_off[j], comp_off[j + 1]):
+            t = tones[c].order * w[j] / fs
+            th[c] = t if abs(t) < limit else 0.0
+            cth[c] = math.cos(t)
+            sth[c] = math.sin(t)
     pr = np.empty(nmax)
     pi = np.empty(nmax)
     g = np.empty((M, nmax), np.complex128)
     h0 = np.empty(M)
     Hp = np.empty(M, np.complex128)
     Hn = np.empty(M, np.complex128)
+    sh = np.empty(M, np.complex128)
     two_pi = 2.0 * math.pi
     res = np.zeros(J)  # the resonant broadband power per unit force scale
     alpha = np.empty(J)
@@ -285,7 +263,7 @@ def line_weights(view, act, lw, bg, fs):
         m0 = mode_off[o]
         n = mode_off[o + 1] - m0
         for k in range(n):
-            p = np.exp(lam[m0 + k] / fs)
+            p = poles[m0 + k]
             pr[k] = p.real
             pi[k] = p.imag
             resonant[b, k] = 0.0
@@ -301,7 +279,7 @@ def line_weights(view, act, lw, bg, fs):
             h0[m] = h
         for i in range(ptr[b], ptr[b + 1]):
             j = rows[i] // 2
-            coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)  # (this side's force along the stream's direction)
+            coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)  # (this side's force along the body's direction)
             for m in range(M):
                 B[j, m] += coef * h0[m]
             bb = noise[j].broadband
@@ -319,14 +297,16 @@ def line_weights(view, act, lw, bg, fs):
                         res[j] += e
                         resonant[b, k] += e * a[j] * a[j]
             for c in range(comp_off[j], comp_off[j + 1]):
-                th = tones[c].order * w[j] / fs
-                if abs(th) >= limit:
+                t = th[c]
+                if t == 0.0:
                     continue
-                cr = math.cos(th)
-                ci = math.sin(th)
+                cr = cth[c]
+                ci = sth[c]
                 for m in range(M):
                     Hp[m] = 0.0
                     Hn[m] = 0.0
+                    dd = D[b, m] - Dm[m]  # (this body's delay beyond the microphone's: a phase)
+                    sh[m] = complex(math.cos(t * dd), -math.sin(t * dd)) if dd != 0 else complex(1.0, 0.0)
                 for k in range(n):
                     # 1 / (1 - p e^{-j th}) and 1 / (1 - p e^{+j th}), once for every microphone
                     xr = 1.0 - (pr[k] * cr + pi[k] * ci)
@@ -341,11 +321,7 @@ def line_weights(view, act, lw, bg, fs):
                         Hp[m] += g[m, k] * ip
                         Hn[m] += g[m, k] * iq
                 for m in range(M):
-                    hp = Hp[m]
-                    hn = Hn[m]
-                    dd = D[s, m] - Dm[m]
-                    sh = complex(math.cos(th * dd), -math.sin(th * dd))
-                    W[c, m] += coef * tones[c].amp * sh * (hp - hn.conjugate()) * -0.5j
+                    W[c, m] += coef * tones[c].amp * sh[m] * (Hp[m] - Hn[m].conjugate()) * -0.5j
     for j in range(J):
         bb = noise[j].broadband
         b2 = 0.0
@@ -592,48 +568,67 @@ def lines_render(track, act, lw, n0, L, fs, F):
     return nl
 
 
-@njit(cache=True)
-def lines_block(streams, act, k0, anchor, axis, regain):
-    """:func:`bodies_point` for the block from synth sample ``k0``, ``act.acting`` set from
-    the force scales at its ends. Returns whether some gains are due."""
-    for j in range(act.a1.shape[0]):
-        act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
-    return bodies_point(streams, act.sidx, act.ptr, act.rows, k0, act.acting, act.a1, anchor, axis, act.drives, regain,
-                        act.sign)
+#: :func:`lines_drive`'s outcome (``io[0]``): done, or the pulse track's ring or the streams'
+#: ring must first grow to ``io[1]`` (then call again with ``resume``: the block's read is kept).
+DONE, GROW_TRACK, GROW_STREAMS = 0, 1, 2
 
 
 @njit(cache=True)
-def lines_start(rd, act, streams, qvel, force, fresh, k0, anchor, axis, regain):
-    """A block's start in one call: :func:`drive_read`, then (unless every joint is still)
-    :func:`lines_block`. Returns 0 (every joint still: nothing to do), 1, or 2 (the driven
-    streams' gains are due: compute them, then :func:`lines_step` with ``fresh_gains``)."""
-    if not drive_read(rd, act, qvel, force, fresh):
-        return 0
-    return 2 if lines_block(streams, act, k0, anchor, axis, regain) else 1
+def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, F):
+    """One block of the drives in one call: :func:`drive_read` of ``dv`` (unless ``resume``:
+    the block's read is kept), the driven bodies' gains (:func:`.drive_gains.bodies_gains`),
+    :func:`line_weights`, the broadband's modes where some actuator's goes through them
+    (:func:`.drive_broadband.broadband_modes`, :func:`.drive_broadband.broadband_force` into
+    ``F`` (J, L) and :func:`.drive_broadband.broadband_write` into the streams), the weights'
+    start (``fresh``: the same as the end) and :func:`lines_render` into ``track``.
 
-
-@njit(cache=True)
-def lines_step(view, act, lw, bg, streams, track, k0, L, fs, fresh, fresh_gains, F):
-    """The rest of a block in one call: the bodies' gains copied when ``fresh_gains``
-    (:func:`.drive_broadband.gains_copy`), :func:`line_weights`, the broadband's modes
-    (:func:`.drive_broadband.broadband_modes` and the force ``F`` (J, L),
-    :func:`.drive_broadband.broadband_force`, where some actuator's goes through them), the
-    weights' start (``fresh``: the same as the end) and :func:`lines_render` into ``track``.
-    Returns ``(lines rendered, modes kept)``, or ``(-(last + 1), 0)`` without rendering when
-    the track's ring must first hold sample ``last`` (grow it and call again: nothing is done
-    twice but the weights)."""
-    if fresh_gains:
-        gains_copy(streams, act, bg)
+    Parameters
+    ----------
+    dv : (qvel, actuator_force, xanchor, xaxis), MuJoCo's ``data`` arrays
+    io : (4,) int64 (written): outcome (:data:`DONE`, :data:`GROW_TRACK`,
+        :data:`GROW_STREAMS`), the length to grow to, lines rendered, modes kept
+    k0 : int, the block's first synth sample; L : int, its samples; fs : float [Hz]
+    """
+    qvel, force, anchor, axis = dv
+    io[0] = DONE
+    io[2] = 0
+    io[3] = 0
+    if not resume:
+        if not drive_read(rd, act, qvel, force, fresh):
+            io[1] = 0  # (every joint still: nothing to do, the phases wait)
+            return
+        io[1] = 1
+        for j in range(act.a1.shape[0]):
+            act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
+        bodies_gains(ks, act, bg, anchor, axis)
+    elif io[1] == 0:
+        return
     dmax = line_weights(view, act, lw, bg, fs)
     last = k0 + L + dmax
     if last - track.rec[0].start > track.acc.shape[1]:
-        return -(last + 1), 0
-    kept = 0
+        io[0] = GROW_TRACK
+        io[1] = last + 1
+        return
+    some = False
     for j in range(lw.exact.shape[0]):
-        if lw.exact[j]:
-            kept = broadband_modes(streams, act, lw, bg)
-            broadband_force(act, lw, fs, F)
-            break
+        some = some or lw.exact[j]
+    st = ks.streams
+    if some:
+        io[3] = broadband_modes(ks, act, lw, bg)
+        cap = st.ring.shape[1]
+        for b in range(act.sidx.shape[0]):
+            if act.sidx[b] >= 0 and act.sign[b] != 0.0:
+                need = ring_need(st, ks.consts, act.sidx[b], k0 + L)
+                if need > cap:
+                    io[0] = GROW_STREAMS
+                    io[1] = need
+                    return
+        broadband_force(act, lw, fs, F)
+        broadband_write(st, ks.consts, act, lw, k0, F)
+    else:
+        for b in range(act.sidx.shape[0]):
+            if act.sidx[b] >= 0:
+                st.table[act.sidx[b]].due = 0  # (no gains are made elsewhere)
     if fresh:
         for c in range(lw.W1.shape[0]):
             for m in range(lw.W1.shape[1]):
@@ -641,4 +636,14 @@ def lines_step(view, act, lw, bg, streams, track, k0, L, fs, fresh, fresh_gains,
         for j in range(lw.B1.shape[0]):
             for m in range(lw.B1.shape[1]):
                 lw.B0[j, m] = lw.B1[j, m]
-    return lines_render(track, act, lw, k0, L, fs, F), kept
+    io[2] = lines_render(track, act, lw, k0, L, fs, F)
+    io[1] = 1
+
+
+@njit(cache=True)
+def lines_drive_packed(table, layout, k0, L, fs, fresh, resume, F):
+    """:func:`lines_drive` with its state ``(rd, act, lw, bg, view, ks, track, dv, io)``
+    packed (:func:`.packing.unpack`; called through :class:`.dispatch.PackedEntry`: one
+    table crosses into numba instead of every array)."""
+    rd, act, lw, bg, view, ks, track, dv, io = unpack(table, layout)
+    lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, F)
