@@ -141,7 +141,7 @@ def broadband_force(act, lw, fs, F):
 def broadband_write(streams, consts, act, lw, k0, F):
     """The broadband forces ``F`` (J, L) of the actuators ``lw.exact`` (:func:`broadband_force`)
     summed per driven body with its side's sign along the body's stream direction
-    (``act.sign``, :func:`.drive_lines.bodies_point`) into the stream's ring on synth samples
+    (``act.sign``, :func:`.drive_gains.bodies_gains`) into the stream's ring on synth samples
     ``[k0, k0 + L)``. Returns 0, or the ring length needed first (nothing written then)."""
     sidx, ptr, rows, sign, exact, a0, a1 = act.sidx, act.ptr, act.rows, act.sign, lw.exact, act.a0, act.a1
     J, L = F.shape
