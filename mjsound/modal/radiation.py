@@ -24,6 +24,9 @@ Cost and accuracy
   objects at high frequency) are solved on that level regardless, at most ``max_solves``
   factorisations in all (wider clusters above): ``info['radiation']`` reports how many modes
   that concerns and an error estimate from the same modes solved one level coarser.
+* Directions: each cluster's far field is sampled on the quadrature of its own degree,
+  ``ceil(k a) + 3`` for its highest mode (at most ``degree``), and fitted there; the
+  model's coefficients are those of the highest cluster, zero above a lower one's degree.
 * Budget: the solves are counted (:func:`solve_cost`) against ``budget``; a cluster is solved
   on the finest level its solve and the coarser check fit in what is left, is refined only
   within its share of what is left (so a mode that converges slowly cannot starve the later
@@ -231,8 +234,7 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     n = len(omega)
     k = omega / SPEED_OF_SOUND
     ka = k * plan.radius
-    L = int(min(s["degree"], max(2, np.ceil(ka.max(initial=0.0)) + 3)))
-    dirs, w = sphere_quadrature(L)
+    L = _degree(ka.max(initial=0.0), s["degree"])
     un_levels = plan.split(np.asarray(u_n, float))
     n_levels = len(plan.levels)
     # the coarsest level with epw elements per wavelength, acoustic and on the surface
@@ -243,7 +245,8 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
         level[plan.h[j] * s["epw"] <= lam] = j
     level = np.maximum(level, min(int(np.searchsorted([len(m) for m in plan.levels], s["n_min"])), n_levels - 1))
     under = np.zeros(n, bool)
-    F = np.zeros((len(dirs), n), complex)
+    coef = np.zeros((n, (L + 1) ** 2), complex)
+    rms = np.zeros(n)
     error_db = np.full(n, np.nan)
     groups = _clusters(ka, level, s["dka"], s["max_solves"]) if n else []
     solves = []
@@ -257,14 +260,14 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
         return spent[0] + solve_cost(n_el[j]) + extra <= s["budget"]
 
     def solve(j, g, kc):
-        out = _solve_group(plan.levels[j], kc, k[g], omega[g], un_levels[j][:, g], dirs, plan.centre)
+        out = _solve_group(plan.levels[j], kc, k[g], omega[g], un_levels[j][:, g], dirs_g, plan.centre)
         spent[0] += solve_cost(n_el[j])
         solves.append(dict(level=j, elements=len(plan.levels[j]), ka=round(kc * plan.radius, 3), modes=len(g)))
         return out
 
     def step_db(Fa, Fb):  # change of each mode's radiated power from one level to the next
-        pa = w @ (np.abs(Fa) ** 2)
-        pb = w @ (np.abs(Fb) ** 2)
+        pa = w_g @ (np.abs(Fa) ** 2)
+        pb = w_g @ (np.abs(Fb) ** 2)
         return np.abs(10 * np.log10(np.maximum(pb, 1e-300) / np.maximum(pa, 1e-300)))
 
     limited = 0
@@ -275,6 +278,10 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
             j -= 1
         limited += int(j < level[g[0]])
         kc = float(np.sqrt(k[g].min() * k[g].max()))
+        # the far field on the quadrature of the cluster's own degree (a low cluster's pattern
+        # needs a few directions, not the highest mode's hundreds)
+        L_g = _degree(ka[g].max(), s["degree"])
+        dirs_g, w_g = sphere_quadrature(L_g)
         Fg = solve(j, g, kc)
         est = None
         # refine while the next level changes the power by more than tol_db and the steps shrink.
@@ -293,14 +300,13 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
         elif est is None and j + 1 < n_levels:  # on the coarsest level: one step up, kept
             Fn = solve(j + 1, g, kc)
             est, Fg, j = step_db(Fg, Fn), Fn, j + 1
-        F[:, g] = Fg
+        coef[np.ix_(g, np.arange((L_g + 1) ** 2))] = fit_coefficients(L_g, Fg)
+        rms[g] = np.sqrt((w_g[:, None] * np.abs(Fg) ** 2).sum(axis=0) / (4 * np.pi))
         if est is not None:
             error_db[g] = est
         under[g] = under[g] | (plan.h[j] * s["epw"] > lam[g])
         if progress is not None:
             progress((gi + 1) / len(groups))
-    coef = fit_coefficients(L, F)
-    rms = np.sqrt((w[:, None] * np.abs(F) ** 2).sum(axis=0) / (4 * np.pi))
     # a pattern finer than degree L (high k a beyond the setting's degree) loses the power above
     # L in the fit: the coefficients are scaled to the solved power, so that the stored pattern's
     # RMS is ``radiation`` (sqrt(sum |c|^2 / 4 pi)) and the damping the power it radiates
@@ -312,6 +318,12 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
                 error_db=[None if not np.isfinite(e) else round(float(e), 3) for e in error_db],
                 radius_m=plan.radius, seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0)
     return rms, coef, info
+
+
+def _degree(ka, most: int) -> int:
+    """Spherical-harmonic degree of a far field up to ``k a``: ``ceil(k a) + 3`` (at least 2),
+    at most ``most``."""
+    return int(min(most, max(2, np.ceil(ka) + 3)))
 
 
 def surface_wavelength(mesh: BemMesh, u_n, neighbours: int = 6):
@@ -353,8 +365,8 @@ def _solve_group(mesh: BemMesh, kc, k, omega, u_n, dirs, centre):
     A, Bq = assemble_mesh(mesh, kc)
     p = refined_solve(A, Bq @ q)
     # the element integrals at kc, each mode's own wavenumber through the centroids' phase
-    local, proj, dn = far_field_parts(mesh, kc, dirs, centre)
-    return far_fields_per_mode(local, proj, dn, np.ascontiguousarray(p.T), np.ascontiguousarray(q.T.astype(complex)),
+    lr, li, proj, dn = far_field_parts(mesh, kc, dirs, centre)
+    return far_fields_per_mode(lr, li, proj, dn, np.ascontiguousarray(p.T), np.ascontiguousarray(q.T.astype(complex)),
                                np.asarray(k, float))
 
 
