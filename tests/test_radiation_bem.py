@@ -231,3 +231,31 @@ def test_the_budget_bounds_the_solves_and_every_mode_keeps_an_error_estimate():
     # the default budget on the same modes: fewer limited clusters, finer levels
     full = analyze("box:0.15,0.1,0.004", "aluminium", radiation="default", **kw).info["radiation"]
     assert full["budget_limited_clusters"] < limited and full["cost"] > 3 * info["cost"]
+
+
+def test_widened_clusters_report_their_wavenumber_shift(monkeypatch):
+    # max_solves=1 puts every mode of a level into one cluster solved at its middle
+    # wavenumber: modes far from it are off by dB. Their error estimate says so: the shift
+    # measured on the level below at the cluster's ends, against the same modes each solved at
+    # its own wavenumber on the same levels (refinement off, budget unlimited, no cap)
+    import mjsound.modal.analyze as an
+    import mjsound.modal.radiation as rad
+
+    monkeypatch.setattr(an, "cap_radiation", lambda rms, coef, limit: (rms, coef, np.zeros(len(rms))))
+    kw = dict(f_max=8000, quality="draft", cache=False, error_estimate=False, progress=False)
+    fixed = dict(budget=1e12, tol_db=100.0)
+    wide = analyze("box:0.15,0.1,0.004", "aluminium", radiation=dict(fixed, max_solves=1), **kw)
+    # the reference: one cluster per mode (the clustering replaced, nothing else)
+    monkeypatch.setattr(rad, "_clusters", lambda ka, level, dka, most: [[i] for i in np.lexsort((ka, level))])
+    own = analyze("box:0.15,0.1,0.004", "aluminium", radiation=fixed, **kw)
+    d, w = sphere_quadrature(12)
+    actual = 10 * np.log10((w @ np.abs(wide.radiation_pattern(d)) ** 2) / (w @ np.abs(own.radiation_pattern(d)) ** 2))
+    info = wide.info["radiation"]
+    shift = np.array(info["shift_db"])
+    est = np.array(info["error_db"], float)
+    assert any(c.get("shift_check") for c in info["clusters"]) and own.info["radiation"]["shift_db"] == [0.0] * own.n_modes
+    assert np.all(est >= shift - 1e-9)
+    off = np.abs(actual) >= 1.0  # modes the shift moved by a dB or more
+    assert off.sum() >= 4, actual
+    assert np.all(shift[off] >= 0.5 * np.abs(actual[off])), (shift, actual)
+    assert np.all(shift[off] <= 2.0 * np.abs(actual[off]) + 1.0), (shift, actual)

@@ -509,7 +509,9 @@ def _mark_capped(rad_info: dict, over_db, kept) -> dict:
     ``capped_db`` (the solve was at least that far off; the capped value is an upper bound)."""
     over = [round(float(x), 2) for x in np.asarray(over_db, float)[kept]]
     info = dict(rad_info, capped=int(sum(o > 0 for o in over)), capped_db=over)
+    for key in ("error_db", "shift_db"):
+        if key in info:
+            info[key] = [e for e, k in zip(info[key], kept) if k]
     if "error_db" in info:
-        est = [e for e, k in zip(info["error_db"], kept) if k]
-        info["error_db"] = [e if o <= 0 else max(o, e or 0.0) for e, o in zip(est, over)]
+        info["error_db"] = [e if o <= 0 else max(o, e or 0.0) for e, o in zip(info["error_db"], over)]
     return info

@@ -304,7 +304,7 @@ class ModalModel:
 
 
 #: per-mode lists in ``info['radiation']`` that :meth:`ModalModel.select` keeps aligned
-PER_MODE_RADIATION_INFO = ("error_db", "capped_db")
+PER_MODE_RADIATION_INFO = ("error_db", "capped_db", "shift_db")
 
 
 def _select_info(info: dict, keep, n_modes: int) -> dict:

@@ -24,6 +24,12 @@ Cost and accuracy
   objects at high frequency) are solved on that level regardless, at most ``max_solves``
   factorisations in all (wider clusters above): ``info['radiation']`` reports how many modes
   that concerns and an error estimate from the same modes solved one level coarser.
+* Widened clusters (wider than ``dka``, or 15 % of ``k a``, to stay within ``max_solves``) put
+  modes farther from the solve's wavenumber than the bounds above: the cluster is solved again
+  on the level below at its lowest and its highest mode's wavenumber, and each mode's change
+  of power from the middle towards its own end, scaled to its distance (linear in ``log k``),
+  is its shift error (``info['radiation']['shift_db']``), combined with the level step in
+  ``error_db`` (``hypot``). These checks are outside the budget (the model does not use them).
 * Directions: each cluster's far field is sampled on the quadrature of its own degree,
   ``ceil(k a) + 3`` for its highest mode (at most ``degree``), and fitted there; the
   model's coefficients are those of the highest cluster, zero above a lower one's degree.
@@ -248,10 +254,11 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     coef = np.zeros((n, (L + 1) ** 2), complex)
     rms = np.zeros(n)
     error_db = np.full(n, np.nan)
+    shift_db = np.zeros(n)
     groups = _clusters(ka, level, s["dka"], s["max_solves"]) if n else []
     solves = []
 
-    spent = [0.0]
+    spent = [0.0, 0.0]  # solves counted against the budget, and the shift checks
     n_el = [len(m) for m in plan.levels]
     j_min = min(int(np.searchsorted(n_el, s["n_min"])), n_levels - 1)
 
@@ -259,10 +266,11 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
         extra = solve_cost(n_el[j - 1]) if check and j > 0 else 0.0
         return spent[0] + solve_cost(n_el[j]) + extra <= s["budget"]
 
-    def solve(j, g, kc):
+    def solve(j, g, kc, check=False):  # check: a shift check, outside the budget (the model does not use it)
         out = _solve_group(plan.levels[j], kc, k[g], omega[g], un_levels[j][:, g], dirs_g, plan.centre)
-        spent[0] += solve_cost(n_el[j])
-        solves.append(dict(level=j, elements=len(plan.levels[j]), ka=round(kc * plan.radius, 3), modes=len(g)))
+        spent[1 if check else 0] += solve_cost(n_el[j])
+        solves.append(dict(level=j, elements=len(plan.levels[j]), ka=round(kc * plan.radius, 3), modes=len(g),
+                           **({"shift_check": True} if check else {})))
         return out
 
     def step_db(Fa, Fb):  # change of each mode's radiated power from one level to the next
@@ -283,7 +291,7 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
         L_g = _degree(ka[g].max(), s["degree"])
         dirs_g, w_g = sphere_quadrature(L_g)
         Fg = solve(j, g, kc)
-        est = None
+        est = below = None  # (below: the cluster at kc one level under its own, once solved)
         # refine while the next level changes the power by more than tol_db and the steps shrink.
         # A refinement step also stays within the cluster's share of the budget left (a mode
         # converging slowly, such as a thin plate's torsion, whose radiation is the remainder
@@ -294,12 +302,24 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
                and affordable(j + 1) and spent[0] + solve_cost(n_el[j + 1]) <= share):
             prev = np.inf if est is None else est.max()
             Fn = solve(j + 1, g, kc)
-            est, Fg, j = step_db(Fg, Fn), Fn, j + 1
+            est, below, Fg, j = step_db(Fg, Fn), Fg, Fn, j + 1
         if est is None and j > 0:  # not refined (finest level, or the budget): the step from below
-            est = step_db(solve(j - 1, g, kc), Fg)
+            below = solve(j - 1, g, kc)
+            est = step_db(below, Fg)
         elif est is None and j + 1 < n_levels:  # on the coarsest level: one step up, kept
             Fn = solve(j + 1, g, kc)
-            est, Fg, j = step_db(Fg, Fn), Fn, j + 1
+            est, below, Fg, j = step_db(Fg, Fn), Fg, Fn, j + 1
+        if len(g) > 1 and ka[g].max() - ka[g].min() > max(s["dka"], 0.15 * ka[g].min()):
+            # widened beyond dka (max_solves): the modes' shift from kc is measured on the level
+            # below, solved again at the lowest and at the highest mode's wavenumber; the change
+            # of each mode's power from kc towards its own side, scaled to its own distance
+            # from kc (linear in log k), is its shift error (the end modes' exactly, there)
+            jc, ref = (j - 1, below) if below is not None else (j, Fg)
+            dist = np.log(k[g] / kc)
+            for end, side in ((int(np.argmin(dist)), dist < 0), (int(np.argmax(dist)), dist > 0)):
+                moved = step_db(ref, solve(jc, g, float(k[g][end]), check=True))
+                shift_db[g[side]] = moved[side] * dist[side] / dist[end]
+            est = shift_db[g] if est is None else np.hypot(est, shift_db[g])
         coef[np.ix_(g, np.arange((L_g + 1) ** 2))] = fit_coefficients(L_g, Fg)
         rms[g] = np.sqrt((w_g[:, None] * np.abs(Fg) ** 2).sum(axis=0) / (4 * np.pi))
         if est is not None:
@@ -315,7 +335,9 @@ def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     info = dict(method="bem-burton-miller", degree=L, levels=[len(m) for m in plan.levels],
                 h_m=[round(h, 5) for h in plan.h], epw=s["epw"], solves=len(solves), clusters=solves,
                 under_resolved=int(under.sum()), budget_limited_clusters=limited, cost=spent[0],
+                shift_check_cost=spent[1],
                 error_db=[None if not np.isfinite(e) else round(float(e), 3) for e in error_db],
+                shift_db=[round(float(e), 3) for e in shift_db],
                 radius_m=plan.radius, seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0)
     return rms, coef, info
 
