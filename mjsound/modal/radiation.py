@@ -44,6 +44,7 @@ Radiated power ``W = (1 / 2 rho0 c) int |F|^2 dOmega`` makes the mode's radiatio
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass, field
 
@@ -224,12 +225,28 @@ def solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
     BLAS runs on one thread here: OpenBLAS's second thread on dense LUs of at most a few
     thousand unknowns gained no wall time on this 2-core machine and doubled the CPU time (its
     threads wait spinning beside the assembly's numba threads; the plate at 20 kHz, captured
-    inputs: 5.8 -> 3.1 s CPU, 3.1 s wall either way).
+    inputs: 5.8 -> 3.1 s CPU, 3.1 s wall either way). The numba kernels run on one thread
+    too, ``numba_threads``: their OpenMP workers spin through the serial LU that follows each
+    assembly (the plate: 2.0 s CPU for 1.0 s wall with two threads, 1.3 s either with one).
     """
     from .block_lanczos import single_threaded_blas
 
-    with single_threaded_blas():
+    with single_threaded_blas(), numba_threads(1):
         return _solve_radiation(plan, u_n, omega, progress)
+
+
+@contextlib.contextmanager
+def numba_threads(n: int):
+    """A context in which numba's parallel loops (of the calling thread) use ``n`` threads
+    (at most numba's own number); the previous number is restored after."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
 
 
 def _solve_radiation(plan: RadiationPlan, u_n, omega, progress=None):
