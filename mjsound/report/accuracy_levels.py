@@ -101,13 +101,13 @@ def levels_section(levels, command="mjsound report accuracy --sections levels") 
       "per mode), and in brackets the largest error over the directions where the reference is within "
       "20 dB of its maximum. *compact* is the monopole + dipole estimate mjsound used before "
       "(`radiation=False`); *est* is the default setting's own error estimate (its last refinement "
-      "step). Rows marked ~ are modes whose reference itself moved by more than 1 dB from 1500 to 3000 "
+      "step, combined with the wavenumber shift of a widened cluster, and at least what a mode capped "
+      "at radiation efficiency 1 was over). Rows marked ~ are modes whose reference itself moved by more than 1 dB from 1500 to 3000 "
       "elements (thin edges converge slowly): their errors are not meaningful. On these small "
       "objects *high* can reach the reference's own finest mesh (the bowl and the can do): an error near "
       "0.0 dB there says only that. "
-      "Times: wall and CPU seconds of the whole analysis (CPU counts both threads of the parallel "
-      "assembly; the machine is shared, so wall times carry the load), and the radiation solve's CPU "
-      "seconds. Method and formulas: `docs/radiation.md`.")
+      "Times: wall and CPU seconds of the whole analysis (CPU counts every thread; the machine is "
+      "shared, so wall times carry the load), and the radiation solve's CPU seconds (on one thread). Method and formulas: `docs/radiation.md`.")
     w("")
     for row in levels:
         labels = list(row["settings"])
