@@ -363,7 +363,7 @@ class ActuatorSound:
             if bg is None or bg.gr.shape[1:] != ks.streams.gr.shape[1:]:
                 bg = self._body_gains(ks.streams)
             call((self._rd, self._act, self.weights, bg, view, ks, self._sim.pulses.track.state, self._dv, io), k0, L,
-                 self._fs, fresh, resume, self._force)
+                 self._fs, fresh, resume, self._regain, self._force)
             if io[0] == DONE:
                 break
             resume = True

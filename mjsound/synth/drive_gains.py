@@ -28,7 +28,7 @@ import numpy as np
 from ..jit import njit
 from .drive_tones import drive_direction
 from .records import AIR
-from .streams import mic_distance, nearest_sorted
+from .streams import mic_distance, nearest_sorted, stream_aim
 
 __all__ = ["ANCHOR_TOL_M", "bodies_gains"]
 
@@ -39,7 +39,7 @@ ANCHOR_TOL_M = 1e-6
 
 
 @njit(cache=True)
-def bodies_gains(ks, act, bg, anchor, axis):
+def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
     """Per driven body ``b``: ``act.sign[b]`` (the strongest acting drive's side sign, +1 the
     joint's body, -1 its parent; 0 where no drive acts), its stream's point and direction
     (``streams.table[s].p, n``: what the exact broadband rendering's gains are made for), and
@@ -85,9 +85,9 @@ def bodies_gains(ks, act, bg, anchor, axis):
         jt = drives[jb].joint
         drive_direction(axis[jt], drives[jb].slide, nrm)
         rec = st.table[s]
-        for q in range(3):
-            rec.p[q] = anchor[jt, q]
-            rec.n[q] = sg * nrm[q]
+        if not stream_aim(rec, anchor[jt], nrm, sg, k0, regain):
+            continue  # (its gains are made every ``regain`` samples, as the exact rendering's)
+        rec.due = 0  # (made here, not by the synthesizer)
         o = rec.obj
         n = 0
         if rec.live and o + 1 < ob.pts_off.shape[0] and ob.pts_off[o + 1] > ob.pts_off[o]:

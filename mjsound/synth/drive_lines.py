@@ -385,37 +385,117 @@ def _direction_factors(g, n, o, m0, dr, U, Fd):
             g[m, k] *= Fd[m, k]
 
 
+#: Samples between the lines' exact restarts (a power of two: :func:`_lines_pass`).
+SUB = 64
+
+
 @njit(cache=True, fastmath=FAST)
-def _lines_pass(acc, first, off0, off1, two, L, S, V):
-    """The gathered lines over ``L`` samples into channels ``off0`` (and ``off1`` when
-    ``two``): rows of ``S`` (6, n) phasor, rate, rate's turn (re, im each; updated); of
-    ``V`` (8, n) channel 0's and 1's weight and its step per sample (re, im each)."""
+def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, S, V):
+    """``n_k`` samples of the gathered lines in float32 lanes, two samples per pass over them,
+    into channels ``c0`` (absolute sample ``k0 + k``) and ``c1`` (``k0 + k + (the second
+    channel's offset)``, passed as ``c1 = (channel, offset)``; only when ``two``): rows of
+    ``S`` (6, n) float32 phasor, rate, the rate's turn (re, im; updated); ``V`` (8, n)
+    float32 each channel's weight and step per sample (re, im), ramped from sample ``kf0``."""
     n = S.shape[1]
     mask = acc.shape[1] - 1
     ur, ui, rr, ri, er, ei = S[0], S[1], S[2], S[3], S[4], S[5]
     v0r, v0i, d0r, d0i, v1r, v1i, d1r, d1i = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
-    c0, k0 = off0
-    c1, k1 = off1
-    for k in range(L):
-        s0 = 0.0
-        s1 = 0.0
+    ch1, off1 = c1
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    k = 0
+    while k < n_k:
+        kf = kf0 + np.float32(k)
+        kg = kf + one
+        s0 = zero
+        s1 = zero
+        t0 = zero
+        t1 = zero
         for q in range(n):
             a = ur[q]
             b = ui[q]
-            s0 += (v0r[q] + d0r[q] * k) * b + (v0i[q] + d0i[q] * k) * a
-            s1 += (v1r[q] + d1r[q] * k) * b + (v1i[q] + d1i[q] * k) * a
             c = rr[q]
             d = ri[q]
-            ur[q] = a * c - b * d
-            ui[q] = a * d + b * c
             e = er[q]
             f = ei[q]
-            rr[q] = c * e - d * f
-            ri[q] = c * f + d * e
-        if k0 + k >= first:
-            acc[c0, (k0 + k) & mask] += s0
-        if two and k1 + k >= first:
-            acc[c1, (k1 + k) & mask] += s1
+            s0 += (v0r[q] + d0r[q] * kf) * b + (v0i[q] + d0i[q] * kf) * a
+            s1 += (v1r[q] + d1r[q] * kf) * b + (v1i[q] + d1i[q] * kf) * a
+            a2 = a * c - b * d
+            b2 = a * d + b * c
+            c2 = c * e - d * f
+            d2 = c * f + d * e
+            t0 += (v0r[q] + d0r[q] * kg) * b2 + (v0i[q] + d0i[q] * kg) * a2
+            t1 += (v1r[q] + d1r[q] * kg) * b2 + (v1i[q] + d1i[q] * kg) * a2
+            ur[q] = a2 * c2 - b2 * d2
+            ui[q] = a2 * d2 + b2 * c2
+            rr[q] = c2 * e - d2 * f
+            ri[q] = c2 * f + d2 * e
+        for i in range(2):
+            if k + i < n_k:
+                u = k0 + k + i
+                if u >= first:
+                    acc[c0, u & mask] += s0 if i == 0 else t0
+                if two and u + off1 >= first:
+                    acc[ch1, (u + off1) & mask] += s1 if i == 0 else t1
+        k += 2
+
+
+@njit(cache=True, inline="always")
+def _csq(r, i, times):
+    """``(r + j i)^(2^times)`` by squaring."""
+    for _ in range(times):
+        r, i = r * r - i * i, 2.0 * r * i
+    return r, i
+
+
+@njit(cache=True)
+def _lines_pass(acc, first, off0, off1, two, L, S, V):
+    """The gathered lines over ``L`` samples into channels ``off0`` (and ``off1`` when
+    ``two``), each ``(channel, absolute sample of the block's first)``: rows of ``S`` (6, n)
+    float64 phasor, rate, the rate's turn per sample (re, im each; left as they are); of
+    ``V`` (8, n) channel 0's and 1's weight and its step per sample (re, im each).
+
+    The samples run in float32 lanes (:func:`_sub_pass`), restarted every :data:`SUB`
+    samples from a float64 recursion over the restarts (phasor ``z`` times the product of the
+    rates over ``SUB`` samples ``P``; ``P`` turned by ``e^{j ds SUB^2}``, the rate by
+    ``e^{j ds SUB}``; the powers by squaring), so float32's rounding does not accumulate past
+    ``SUB`` samples (relative error ~1e-5)."""
+    n = S.shape[1]
+    c0, k0 = off0
+    c1, k1 = off1
+    T = np.empty((6, n))  # (float64 at each restart: phasor, rate, the rates' product over SUB samples)
+    G = np.empty((4, n))  # (their turns per restart: the rate's, the product's)
+    S32 = np.empty((6, n), np.float32)
+    V32 = np.empty((8, n), np.float32)
+    lg = 0
+    while (1 << lg) < SUB:
+        lg += 1
+    for q in range(n):
+        e1r, e1i = S[4, q], S[5, q]
+        hr, hi = _csq(e1r, e1i, lg - 1)  # e^{j ds SUB / 2}
+        eSr, eSi = _csq(hr, hi, 1)  # e^{j ds SUB}
+        br, bi = _csq(eSr, eSi, lg - 1)  # e^{j ds SUB^2 / 2}
+        Qr, Qi = _csq(br, bi, 1)  # e^{j ds SUB^2}
+        rr, ri = _csq(S[2, q], S[3, q], lg)  # e^{j SUB s0}
+        # P_0 = e^{j (SUB s0 + ds SUB (SUB - 1) / 2)}, SUB (SUB - 1) / 2 = SUB^2 / 2 - SUB / 2
+        pr, pi = rr * br - ri * bi, rr * bi + ri * br
+        pr, pi = pr * hr + pi * hi, pi * hr - pr * hi
+        T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q] = S[0, q], S[1, q], S[2, q], S[3, q], pr, pi
+        G[0, q], G[1, q], G[2, q], G[3, q] = eSr, eSi, Qr, Qi
+        S32[4, q] = e1r
+        S32[5, q] = e1i
+        for i in range(8):
+            V32[i, q] = V[i, q]
+    for s in range(0, L, SUB):
+        for q in range(n):
+            for i in range(4):
+                S32[i, q] = T[i, q]
+        _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, min(SUB, L - s), np.float32(s), S32, V32)
+        for q in range(n):
+            zr, zi, rr, ri, pr, pi = T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q]
+            T[0, q], T[1, q] = zr * pr - zi * pi, zr * pi + zi * pr
+            T[2, q], T[3, q] = rr * G[0, q] - ri * G[1, q], rr * G[1, q] + ri * G[0, q]
+            T[4, q], T[5, q] = pr * G[2, q] - pi * G[3, q], pr * G[3, q] + pi * G[2, q]
 
 
 @njit(cache=True)
@@ -503,10 +583,9 @@ def lines_render(track, act, lw, n0, L, fs, F):
     if nl:
         S0 = S[:, :nl].copy()
         for m in range(0, M, 2):  # (two channels per pass over the phasors)
-            Sm = S0.copy() if m + 2 < M else S0
             two = m + 1 < M
             _lines_pass(acc, first, (m, n0 + Dm[m]), (m + 1 if two else m, n0 + Dm[m + 1 if two else m]), two, L,
-                        Sm, V[4 * m:4 * m + 8, :nl].copy())
+                        S0, V[4 * m:4 * m + 8, :nl].copy())
     # broadband: the static response of the low-passed noises, generated every R samples,
     # summed per channel there and interpolated linearly in between
     R = 64
@@ -574,7 +653,7 @@ DONE, GROW_TRACK, GROW_STREAMS = 0, 1, 2
 
 
 @njit(cache=True)
-def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, F):
+def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, regain, F):
     """One block of the drives in one call: :func:`drive_read` of ``dv`` (unless ``resume``:
     the block's read is kept), the driven bodies' gains (:func:`.drive_gains.bodies_gains`),
     :func:`line_weights`, the broadband's modes where some actuator's goes through them
@@ -588,6 +667,7 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
     io : (4,) int64 (written): outcome (:data:`DONE`, :data:`GROW_TRACK`,
         :data:`GROW_STREAMS`), the length to grow to, lines rendered, modes kept
     k0 : int, the block's first synth sample; L : int, its samples; fs : float [Hz]
+    regain : int, samples between the driven bodies' gains (:func:`.drive_gains.bodies_gains`)
     """
     qvel, force, anchor, axis = dv
     io[0] = DONE
@@ -600,7 +680,7 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
         io[1] = 1
         for j in range(act.a1.shape[0]):
             act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
-        bodies_gains(ks, act, bg, anchor, axis)
+        bodies_gains(ks, act, bg, anchor, axis, k0, regain)
     elif io[1] == 0:
         return
     dmax = line_weights(view, act, lw, bg, fs)
@@ -641,9 +721,9 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
 
 
 @njit(cache=True)
-def lines_drive_packed(table, layout, k0, L, fs, fresh, resume, F):
+def lines_drive_packed(table, layout, k0, L, fs, fresh, resume, regain, F):
     """:func:`lines_drive` with its state ``(rd, act, lw, bg, view, ks, track, dv, io)``
     packed (:func:`.packing.unpack`; called through :class:`.dispatch.PackedEntry`: one
     table crosses into numba instead of every array)."""
     rd, act, lw, bg, view, ks, track, dv, io = unpack(table, layout)
-    lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, F)
+    lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, regain, F)
