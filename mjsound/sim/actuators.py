@@ -37,7 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..synth.dispatch import EntryPoint, PackedEntry
-from ..synth.drive_lines import (DONE, GROW_TRACK, Actuators, BodyGains, DriveRead, LineWeights, drive_read,
+from ..synth.drive_lines import (DONE, Actuators, BodyGains, DriveRead, LineWeights, drive_read,
                                  lines_drive_packed, scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
@@ -251,7 +251,7 @@ class ActuatorSound:
         # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python;
         # the lines' one call per block takes its state packed, :mod:`mjsound.synth.packing`)
         self._calls = {"read": EntryPoint(drive_read), "lines": PackedEntry(lines_drive_packed)}
-        self._io = np.zeros(4, np.int64)
+        self._io = np.zeros(5, np.int64)
         self._dv, self._dv_of = None, None  # (the data's arrays the drives read, and the data they view)
         self._regain, self._fs = sim.regain_samples, float(sim.sample_rate)
 
@@ -319,6 +319,7 @@ class ActuatorSound:
             bg = self._bg = BodyGains(z((nb, M, nmax)), z((nb, M, nmax)), z((nb, M), np.int64), np.full((nb, M), np.nan),
                                       z((nb, M, nmax), np.complex128), np.full((R, 3), np.nan), z(R, np.int64),
                                       z((nb, M, nmax)), z((nb, nmax)), z((nb, nmax), np.bool_),
+                                      z((nb, M, nmax), np.complex128), z((nb, nmax)),
                                       np.full((nb, M, 3), np.nan), z((nb, M, nmax), np.complex128))
         return bg
 
@@ -367,8 +368,5 @@ class ActuatorSound:
             if io[0] == DONE:
                 break
             resume = True
-            if io[0] == GROW_TRACK:
-                self._sim.pulses.track._grow(0, int(io[1]) - 1)  # (the ring holds the block and the delays)
-            else:
-                synth.grow_stream_ring(int(io[1]))
+            self._sim.pulses.track._grow(0, int(io[1]) - 1)  # (GROW_TRACK: the ring holds the block and the delays)
         self.lines_rendered, self.modes_kept = int(io[2]), int(io[3])

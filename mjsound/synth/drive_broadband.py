@@ -9,9 +9,13 @@ power spectrum ``S``: ``S(theta) = alpha^2 / |1 - (1 - alpha) e^{-j theta}|^2`` 
 one-pole low-pass, ``alpha = 1 - e^{-2 pi f_c / fs}``). Where that resonant power exceeds
 :data:`RESONANT_ON` of everything the actuator makes heard (summed over the microphones;
 back below :data:`RESONANT_OFF`), the actuator's broadband part goes through the modes as the
-exact rendering does (:func:`broadband_write`), but only through the fewest modes of each body
-holding all but :data:`RESONANT_REST` of its resonant power (:func:`broadband_modes`: the
-stream's other gains are 0, so those modes do not run); their static part stays with the lines.
+exact rendering does, but only through the fewest modes of each body holding all but
+:data:`RESONANT_REST` of its resonant power (:func:`broadband_modes`); their static part stays
+with the lines. Those modes run here, in the lines' kernel (:func:`broadband_resonant`: the
+exact rendering's recursion ``z <- p z + f``, heard as ``Im(g z)`` at each microphone's
+delay, into the pulse track); a mode whose force stops rings on over one more block, faded
+out linearly (the exact rendering's modes ring out freely: the lines leave out that ring-out
+for the tones too).
 """
 
 from __future__ import annotations
@@ -21,11 +25,13 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .bank_loops import FAST
 from .drive_tones import noise_cutoff_hz
-from .streams import SQRT3, noise_draw, ring_need, stream_gains, stream_written
+from .records import AIR
+from .streams import SQRT3, noise_draw
 
 __all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "broadband_modes", "broadband_force",
-           "broadband_write"]
+           "broadband_resonant"]
 
 #: Fraction of an actuator's heard power in the modes' resonant response to its broadband
 #: part above which that part goes through the modes (-10 dB) ...
@@ -37,22 +43,15 @@ RESONANT_REST = 0.01
 
 
 @njit(cache=True)
-def broadband_modes(ks, act, lw, bg):
+def broadband_modes(act, lw, bg):
     """The modes that carry the broadband parts of the actuators ``lw.exact``: on each body
-    with one, its stream's gains are made now (:func:`.streams.stream_gains`, at the point and
-    along the direction :func:`.drive_gains.bodies_gains` set) and the fewest modes holding all
-    but :data:`RESONANT_REST` of the body's resonant power (``bg.resonant``,
-    :func:`.drive_lines.line_weights`) keep them, the others get 0 (they do not run); their
-    static part stays with the lines: ``lw.B1[j]`` of an exact actuator is the static
-    response of its bodies' other modes. Every driven stream's gains are marked done (none
-    is made elsewhere). Returns the modes kept."""
-    st, ob = ks.streams, ks.objects
-    gr, gi = st.gr, st.gi
+    with one, the fewest modes holding all but :data:`RESONANT_REST` of the body's resonant
+    power (``bg.resonant``, :func:`.drive_lines.line_weights`) are kept (``bg.keep``: they run,
+    :func:`broadband_resonant`); their static part stays with the lines: ``lw.B1[j]`` of an
+    exact actuator is the static response of its bodies' other modes. Returns the modes kept."""
     sidx, sign, ptr, rows = act.sidx, act.sign, act.ptr, act.rows
     exact, static, resonant, keep, B = lw.exact, bg.static, bg.resonant, bg.keep, lw.B1
     nb, M, nmax = bg.gr.shape
-    M = min(M, gr.shape[1])
-    nmax = min(nmax, gr.shape[2])
     J = B.shape[0]
     for j in range(J):
         if exact[j]:
@@ -60,28 +59,16 @@ def broadband_modes(ks, act, lw, bg):
                 B[j, m] = 0.0
     kept = 0
     for b in range(nb):
-        s = sidx[b]
-        for k in range(keep.shape[1]):
+        for k in range(nmax):
             keep[b, k] = False
-        if s < 0:
-            continue
-        st.table[s].due = 0
-        if sign[b] == 0.0:
+        if sidx[b] < 0 or sign[b] == 0.0:
             continue
         on = False
         for i in range(ptr[b], ptr[b + 1]):
             if exact[rows[i] // 2]:
                 on = True
         if not on:
-            continue  # (its stream is not written: its gains are not heard)
-        o = st.table[s].obj
-        if not st.table[s].live or o + 1 >= ob.pts_off.shape[0] or ob.pts_off[o + 1] <= ob.pts_off[o] \
-                or ob.mode_off[o + 1] <= ob.mode_off[o]:
             continue
-        stream_gains(ks, s, o)
-        for m in range(st.D.shape[1]):
-            if st.D[s, m] > st.counts[0].dmax:
-                st.counts[0].dmax = st.D[s, m]
         total = 0.0
         for k in range(nmax):
             total += resonant[b, k]
@@ -96,11 +83,6 @@ def broadband_modes(ks, act, lw, bg):
             keep[b, best] = True
             rest -= resonant[b, best]
             kept += 1
-        for m in range(M):
-            for k in range(nmax):
-                if not keep[b, k]:
-                    gr[s, m, k] = 0.0
-                    gi[s, m, k] = 0.0
         for i in range(ptr[b], ptr[b + 1]):
             j = rows[i] // 2
             if exact[j]:
@@ -137,49 +119,189 @@ def broadband_force(act, lw, fs, F):
         noise[j].lp = y
 
 
-@njit(cache=True)
-def broadband_write(streams, consts, act, lw, k0, F):
-    """The broadband forces ``F`` (J, L) of the actuators ``lw.exact`` (:func:`broadband_force`)
-    summed per driven body with its side's sign along the body's stream direction
-    (``act.sign``, :func:`.drive_gains.bodies_gains`) into the stream's ring on synth samples
-    ``[k0, k0 + L)``. Returns 0, or the ring length needed first (nothing written then)."""
-    sidx, ptr, rows, sign, exact, a0, a1 = act.sidx, act.ptr, act.rows, act.sign, lw.exact, act.a0, act.a1
-    J, L = F.shape
-    k1 = k0 + L
-    cap = streams.ring.shape[1]
-    for b in range(sidx.shape[0]):
-        if sidx[b] >= 0 and sign[b] != 0.0:
-            need = ring_need(streams, consts, sidx[b], k1)
-            if need > cap:
-                return need
-    ring = streams.ring
-    mask = cap - 1
-    for b in range(sidx.shape[0]):
-        s = sidx[b]
-        if s < 0 or sign[b] == 0.0:
-            continue
-        live = False
-        for i in range(ptr[b], ptr[b + 1]):
-            j = rows[i] // 2
-            if exact[j] and (a0[j] != 0.0 or a1[j] != 0.0):
-                live = True
-        if not live:
-            continue
-        st = streams.table[s]
-        k = st.gen
-        if k < k1 - cap:
-            k = k1 - cap
-        while k < k0:
-            ring[s, k & mask] = 0.0
-            k += 1
+@njit(cache=True, fastmath=FAST)
+def _resonant_run(out, f, K, pr, pi, gr, gi, dr, di, wr, wi, u):
+    """``K`` modes at one microphone over ``f``'s samples, as :func:`.bank_loops.bank_forced`:
+    per sample ``w += g f``, ``out += Im(d w)``, ``w *= p`` (the modes' states ``wr + j wi``
+    updated). A mode with ``u = 0`` fades out linearly over the samples (1 to 0), one with
+    ``u = 1`` does not. Four modes at a time, their states held in registers, so that their
+    recursions overlap."""
+    L = f.shape[0]
+    inv = 1.0 / L
+    r = 0
+    while r < K:
+        n = min(4, K - r)
+        # (absent modes of a short group: zero gains, state and weights)
+        a0r = wr[r]
+        a0i = wi[r]
+        a1r = wr[r + 1] if n > 1 else 0.0
+        a1i = wi[r + 1] if n > 1 else 0.0
+        a2r = wr[r + 2] if n > 2 else 0.0
+        a2i = wi[r + 2] if n > 2 else 0.0
+        a3r = wr[r + 3] if n > 3 else 0.0
+        a3i = wi[r + 3] if n > 3 else 0.0
+        p0r, p0i = pr[r], pi[r]
+        p1r = pr[r + 1] if n > 1 else 0.0
+        p1i = pi[r + 1] if n > 1 else 0.0
+        p2r = pr[r + 2] if n > 2 else 0.0
+        p2i = pi[r + 2] if n > 2 else 0.0
+        p3r = pr[r + 3] if n > 3 else 0.0
+        p3i = pi[r + 3] if n > 3 else 0.0
+        g0r, g0i = gr[r], gi[r]
+        g1r = gr[r + 1] if n > 1 else 0.0
+        g1i = gi[r + 1] if n > 1 else 0.0
+        g2r = gr[r + 2] if n > 2 else 0.0
+        g2i = gi[r + 2] if n > 2 else 0.0
+        g3r = gr[r + 3] if n > 3 else 0.0
+        g3i = gi[r + 3] if n > 3 else 0.0
+        # heard as Im(d w): the steady modes' weights and the fading ones' apart
+        h0r, h0i, e0r, e0i = u[r] * dr[r], u[r] * di[r], (1.0 - u[r]) * dr[r], (1.0 - u[r]) * di[r]
+        h1r = h1i = e1r = e1i = 0.0
+        h2r = h2i = e2r = e2i = 0.0
+        h3r = h3i = e3r = e3i = 0.0
+        if n > 1:
+            h1r, h1i, e1r, e1i = u[r + 1] * dr[r + 1], u[r + 1] * di[r + 1], (1.0 - u[r + 1]) * dr[r + 1], \
+                (1.0 - u[r + 1]) * di[r + 1]
+        if n > 2:
+            h2r, h2i, e2r, e2i = u[r + 2] * dr[r + 2], u[r + 2] * di[r + 2], (1.0 - u[r + 2]) * dr[r + 2], \
+                (1.0 - u[r + 2]) * di[r + 2]
+        if n > 3:
+            h3r, h3i, e3r, e3i = u[r + 3] * dr[r + 3], u[r + 3] * di[r + 3], (1.0 - u[r + 3]) * dr[r + 3], \
+                (1.0 - u[r + 3]) * di[r + 3]
         for q in range(L):
-            ring[s, (k0 + q) & mask] = 0.0
-        for i in range(ptr[b], ptr[b + 1]):
-            j = rows[i] // 2
-            if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
-                continue
-            f = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
+            fq = f[q]
+            b0r = a0r + g0r * fq
+            b0i = a0i + g0i * fq
+            b1r = a1r + g1r * fq
+            b1i = a1i + g1i * fq
+            b2r = a2r + g2r * fq
+            b2i = a2i + g2i * fq
+            b3r = a3r + g3r * fq
+            b3i = a3i + g3i * fq
+            y = h0r * b0i + h0i * b0r + h1r * b1i + h1i * b1r + h2r * b2i + h2i * b2r + h3r * b3i + h3i * b3r
+            z = e0r * b0i + e0i * b0r + e1r * b1i + e1i * b1r + e2r * b2i + e2i * b2r + e3r * b3i + e3i * b3r
+            out[q] += y + z * ((L - q) * inv)
+            a0r, a0i = b0r * p0r - b0i * p0i, b0i * p0r + b0r * p0i
+            a1r, a1i = b1r * p1r - b1i * p1i, b1i * p1r + b1r * p1i
+            a2r, a2i = b2r * p2r - b2i * p2i, b2i * p2r + b2r * p2i
+            a3r, a3i = b3r * p3r - b3i * p3i, b3i * p3r + b3r * p3i
+        wr[r], wi[r] = a0r, a0i
+        if n > 1:
+            wr[r + 1], wi[r + 1] = a1r, a1i
+        if n > 2:
+            wr[r + 2], wi[r + 2] = a2r, a2i
+        if n > 3:
+            wr[r + 3], wi[r + 3] = a3r, a3i
+        r += n
+
+
+@njit(cache=True)
+def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
+    """The kept modes (``bg.keep``, :func:`broadband_modes`) driven by their body's broadband
+    force, and the modes still ringing out, over the block ``F`` covers (J, L), into the pulse
+    track (:class:`.records.TrackState`; microphone ``m`` hears body ``b``'s sample ``n0 + q``
+    at ``n0 + q + bg.D[b, m]``; ring samples before the track's start are not written).
+
+    A mode ``k`` of body ``b`` (pole ``p``, gain ``g_m`` at microphone ``m``) runs as the exact
+    rendering's voice does (:func:`.bank_loops.bank_forced`): ``w_m <- p (w_m + g_m f)``, ``f``
+    the body's force (the sum of its exact actuators' ``F[j]`` with their sides' signs along
+    its direction, :func:`.drive_tones.streams_write`), heard as ``Im(d_m w_m)`` with ``d_m``
+    its direction factor towards an air microphone (``bg.Fd``; 1 elsewhere); ``bg.z`` carries
+    the states over blocks (``fresh``: from 0). A mode no longer forced (kept and pushed in
+    the last block: ``bg.level`` 1) runs one more block without force, faded out linearly
+    over it, and stops.
+    Returns the largest delay written [samples]."""
+    acc, rec = track.acc, track.rec
+    sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
+    keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
+    nb, M, nmax = bg.gr.shape
+    M = min(M, acc.shape[0])
+    J, L = F.shape
+    mask = acc.shape[1] - 1
+    first = rec[0].start
+    f = np.empty(L)
+    out = np.empty((M, L))
+    idx = np.empty(nmax, np.int64)
+    u = np.empty(nmax)
+    pr = np.empty(nmax)
+    pi = np.empty(nmax)
+    gr = np.empty((M, nmax))
+    gi = np.empty((M, nmax))
+    dr = np.empty((M, nmax))
+    di = np.empty((M, nmax))
+    wr = np.empty((M, nmax))
+    wi = np.empty((M, nmax))
+    dmax = 0
+    for b in range(nb):
+        s = sidx[b]
+        if s < 0:
+            continue
+        if fresh:
+            for k in range(nmax):
+                level[b, k] = 0.0
+                for m in range(M):
+                    z[b, m, k] = 0.0
+        running = False
+        for k in range(nmax):
+            running = running or keep[b, k] or level[b, k] > 0.0
+        if not running:
+            continue
+        forced = False
+        for q in range(L):
+            f[q] = 0.0
+        for m in range(M):
             for q in range(L):
-                ring[s, (k0 + q) & mask] += f * F[j, q]
-        stream_written(st, k0, k1)
-    return 0
+                out[m, q] = 0.0
+        if sign[b] != 0.0:
+            for i in range(ptr[b], ptr[b + 1]):
+                j = rows[i] // 2
+                if not exact[j] or (act.a0[j] == 0.0 and act.a1[j] == 0.0):
+                    continue
+                forced = True
+                coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
+                for q in range(L):
+                    f[q] += coef * F[j, q]
+        o = view.table[s].obj
+        m0 = view.mode_off[o]
+        directional = view.order[o] >= 0
+        K = 0
+        for k in range(nmax):
+            if keep[b, k] or level[b, k] > 0.0:
+                idx[K] = k
+                K += 1
+        for r in range(K):
+            k = idx[r]
+            p = view.poles[m0 + k]
+            pr[r] = p.real
+            pi[r] = p.imag
+            on = forced and keep[b, k]
+            for m in range(M):
+                gr[m, r] = bg.gr[b, m, k] if on else 0.0
+                gi[m, r] = bg.gi[b, m, k] if on else 0.0
+                d = Fd[b, m, k] if (directional and view.channels[m].owner == AIR) else complex(1.0, 0.0)
+                dr[m, r] = d.real
+                di[m, r] = d.imag
+                wr[m, r] = z[b, m, k].real
+                wi[m, r] = z[b, m, k].imag
+        for r in range(K):
+            u[r] = 1.0 if forced and keep[b, idx[r]] else 0.0
+        for m in range(M):
+            _resonant_run(out[m], f, K, pr, pi, gr[m], gi[m], dr[m], di[m], wr[m], wi[m], u)
+        for r in range(K):
+            k = idx[r]
+            on = u[r] == 1.0
+            level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
+            for m in range(M):
+                z[b, m, k] = complex(wr[m, r], wi[m, r]) if on else 0.0
+        for m in range(M):
+            off = n0 + D[b, m]
+            dmax = max(dmax, D[b, m])
+            lo = max(off, first)
+            if off + L > lo:
+                rr = rec[0]
+                rr.pending_from = lo if rr.pending_until <= first else min(rr.pending_from, lo)
+                rr.pending_until = max(rr.pending_until, off + L)
+            for q in range(L):
+                if off + q >= first:
+                    acc[m, (off + q) & mask] += out[m, q]
+    return dmax

@@ -54,15 +54,15 @@ import numpy as np
 from ..jit import njit
 from .bank_loops import FAST
 from .directivity import _factor, real_sh
-from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, broadband_write
+from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, broadband_resonant
 from .drive_gains import bodies_gains
 from .drive_tones import audible_span, noise_cutoff_hz
 from .packing import unpack
 from .records import AIR
-from .streams import SQRT3, noise_draw, ring_need
+from .streams import SQRT3, noise_draw
 
 __all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read",
-           "line_weights", "lines_render", "lines_drive", "lines_drive_packed", "DONE", "GROW_TRACK", "GROW_STREAMS"]
+           "line_weights", "lines_render", "lines_drive", "lines_drive_packed", "DONE", "GROW_TRACK"]
 
 
 class Actuators(NamedTuple):
@@ -111,6 +111,8 @@ class BodyGains(NamedTuple):
     static: np.ndarray  # (B, M, nmax) float64: each mode's static response Im g / (1 - p)
     resonant: np.ndarray  # (B, nmax) float64: each mode's resonant broadband power
     keep: np.ndarray  # (B, nmax) bool: the modes carrying a broadband part
+    z: np.ndarray  # (B, M, nmax) complex128: their states per microphone (.drive_broadband.broadband_resonant)
+    level: np.ndarray  # (B, nmax) float64: 1 where a mode was forced in the last block (it fades out next), else 0
     U: np.ndarray  # (B, M, 3) float64: the direction the factors Fd were made for (NaN: none)
     Fd: np.ndarray  # (B, M, nmax) complex128: the direction factors
 
@@ -498,6 +500,23 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V):
             T[4, q], T[5, q] = pr * G[2, q] - pi * G[3, q], pr * G[3, q] + pi * G[2, q]
 
 
+@njit(cache=True, fastmath=FAST)
+def _line_span(acc, first, n0, Dm, M, lo, hi, cr, ci, tr, ti, fr, fi, v):
+    """One line over its samples ``[lo, hi)`` alone (one crossing the cut-off), into every
+    channel ``m`` at ``n0 + k + Dm[m]``: phasor ``cr + j ci`` and rate ``tr + j ti`` at ``lo``,
+    the rate's turn ``fr + j fi``; ``v`` (4 M,) each channel's weight and step per sample
+    from sample 0 (re, im)."""
+    mask = acc.shape[1] - 1
+    zr, zi, xr, xi = cr, ci, tr, ti
+    for k in range(lo, hi):
+        for m in range(M):
+            u = n0 + k + Dm[m]
+            if u >= first:
+                acc[m, u & mask] += (v[4 * m] + v[4 * m + 2] * k) * zi + (v[4 * m + 1] + v[4 * m + 3] * k) * zr
+        zr, zi = zr * xr - zi * xi, zr * xi + zi * xr
+        xr, xi = xr * fr - xi * fi, xr * fi + xi * fr
+
+
 @njit(cache=True)
 def lines_render(track, act, lw, n0, L, fs, F):
     """Add the block's lines and broadband part (module docstring) into the pulse track
@@ -514,8 +533,8 @@ def lines_render(track, act, lw, n0, L, fs, F):
     act : :class:`Actuators` (speeds and force scales at the block's start and end)
     lw : :class:`LineWeights` (the actuators ``exact``: their broadband force is ``F[j]`` (J,
         L), :func:`.drive_broadband.broadband_force`, heard here through their bodies' modes
-        left out of the modal route, ``lw.B``; the rest goes through the modes,
-        :func:`.drive_broadband.broadband_write`)
+        left out of the resonant route, ``lw.B``; the rest goes through the modes,
+        :func:`.drive_broadband.broadband_resonant`)
     Returns the number of lines rendered.
     """
     acc, rec = track.acc, track.rec
@@ -564,19 +583,12 @@ def lines_render(track, act, lw, n0, L, fs, F):
             for m in range(M):
                 v0 = a0[j] * W0[c, m]
                 d = (a1[j] * W1[c, m] - v0) / L
-                if whole:
-                    V[4 * m, nl] = v0.real
-                    V[4 * m + 1, nl] = v0.imag
-                    V[4 * m + 2, nl] = d.real
-                    V[4 * m + 3, nl] = d.imag
-                else:  # (a line crossing the cut-off: its audible samples alone, one sample at a time)
-                    zr, zi, xr, xi = cr, ci, tr, ti
-                    for k in range(lo, hi):
-                        v = v0 + d * k
-                        if n0 + k + Dm[m] >= first:
-                            acc[m, (n0 + k + Dm[m]) & mask] += v.real * zi + v.imag * zr
-                        zr, zi = zr * xr - zi * xi, zr * xi + zi * xr
-                        xr, xi = xr * fr - xi * fi, xr * fi + xi * fr
+                V[4 * m, nl] = v0.real
+                V[4 * m + 1, nl] = v0.imag
+                V[4 * m + 2, nl] = d.real
+                V[4 * m + 3, nl] = d.imag
+            if not whole:  # (a line crossing the cut-off: its audible samples alone, one sample at a time)
+                _line_span(acc, first, n0, Dm, M, lo, hi, cr, ci, tr, ti, fr, fi, V[:, nl])
             if whole:
                 S[0, nl], S[1, nl], S[2, nl], S[3, nl], S[4, nl], S[5, nl] = cr, ci, tr, ti, fr, fi
                 nl += 1
@@ -647,9 +659,9 @@ def lines_render(track, act, lw, n0, L, fs, F):
     return nl
 
 
-#: :func:`lines_drive`'s outcome (``io[0]``): done, or the pulse track's ring or the streams'
-#: ring must first grow to ``io[1]`` (then call again with ``resume``: the block's read is kept).
-DONE, GROW_TRACK, GROW_STREAMS = 0, 1, 2
+#: :func:`lines_drive`'s outcome (``io[0]``): done, or the pulse track's ring must first grow
+#: to hold sample ``io[1] - 1`` (then call again with ``resume``: the block's read is kept).
+DONE, GROW_TRACK = 0, 1
 
 
 @njit(cache=True)
@@ -658,14 +670,14 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
     the block's read is kept), the driven bodies' gains (:func:`.drive_gains.bodies_gains`),
     :func:`line_weights`, the broadband's modes where some actuator's goes through them
     (:func:`.drive_broadband.broadband_modes`, :func:`.drive_broadband.broadband_force` into
-    ``F`` (J, L) and :func:`.drive_broadband.broadband_write` into the streams), the weights'
-    start (``fresh``: the same as the end) and :func:`lines_render` into ``track``.
+    ``F`` (J, L)), the weights' start (``fresh``: the same as the end), :func:`lines_render`
+    and :func:`.drive_broadband.broadband_resonant` into ``track``.
 
     Parameters
     ----------
     dv : (qvel, actuator_force, xanchor, xaxis), MuJoCo's ``data`` arrays
-    io : (4,) int64 (written): outcome (:data:`DONE`, :data:`GROW_TRACK`,
-        :data:`GROW_STREAMS`), the length to grow to, lines rendered, modes kept
+    io : (5,) int64 (written): outcome (:data:`DONE`, :data:`GROW_TRACK`), the length to
+        grow to, lines rendered, modes kept, whether some joint moves (kept for ``resume``)
     k0 : int, the block's first synth sample; L : int, its samples; fs : float [Hz]
     regain : int, samples between the driven bodies' gains (:func:`.drive_gains.bodies_gains`)
     """
@@ -674,16 +686,37 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
     io[2] = 0
     io[3] = 0
     if not resume:
-        if not drive_read(rd, act, qvel, force, fresh):
-            io[1] = 0  # (every joint still: nothing to do, the phases wait)
+        io[4] = 1 if drive_read(rd, act, qvel, force, fresh) else 0
+        if io[4] == 1:
+            for j in range(act.a1.shape[0]):
+                act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
+            bodies_gains(ks, act, bg, anchor, axis, k0, regain)
+    if io[4] == 0:  # (every joint still: no lines, the phases wait; the resonant modes ring out)
+        ringing = False
+        for b in range(bg.level.shape[0]):
+            for k in range(bg.level.shape[1]):
+                ringing = ringing or bg.level[b, k] > 0.0
+        if not ringing:
             return
-        io[1] = 1
-        for j in range(act.a1.shape[0]):
-            act.acting[j] = act.a0[j] != 0.0 or act.a1[j] != 0.0
-        bodies_gains(ks, act, bg, anchor, axis, k0, regain)
-    elif io[1] == 0:
+        for b in range(bg.keep.shape[0]):
+            act.sign[b] = 0.0
+            for k in range(bg.keep.shape[1]):
+                bg.keep[b, k] = False
+        dmax = 0
+        for b in range(bg.D.shape[0]):
+            for m in range(bg.D.shape[1]):
+                dmax = max(dmax, bg.D[b, m])
+        if k0 + L + dmax - track.rec[0].start > track.acc.shape[1]:
+            io[0] = GROW_TRACK
+            io[1] = k0 + L + dmax + 1
+            return
+        broadband_resonant(view, act, lw, bg, track, k0, F, False)
         return
     dmax = line_weights(view, act, lw, bg, fs)
+    for b in range(bg.D.shape[0]):  # (the resonant modes are heard at their own body's delays)
+        if act.sidx[b] >= 0:
+            for m in range(bg.D.shape[1]):
+                dmax = max(dmax, bg.D[b, m])
     last = k0 + L + dmax
     if last - track.rec[0].start > track.acc.shape[1]:
         io[0] = GROW_TRACK
@@ -692,23 +725,13 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
     some = False
     for j in range(lw.exact.shape[0]):
         some = some or lw.exact[j]
-    st = ks.streams
     if some:
-        io[3] = broadband_modes(ks, act, lw, bg)
-        cap = st.ring.shape[1]
-        for b in range(act.sidx.shape[0]):
-            if act.sidx[b] >= 0 and act.sign[b] != 0.0:
-                need = ring_need(st, ks.consts, act.sidx[b], k0 + L)
-                if need > cap:
-                    io[0] = GROW_STREAMS
-                    io[1] = need
-                    return
+        io[3] = broadband_modes(act, lw, bg)
         broadband_force(act, lw, fs, F)
-        broadband_write(st, ks.consts, act, lw, k0, F)
     else:
-        for b in range(act.sidx.shape[0]):
-            if act.sidx[b] >= 0:
-                st.table[act.sidx[b]].due = 0  # (no gains are made elsewhere)
+        for b in range(bg.keep.shape[0]):
+            for k in range(bg.keep.shape[1]):
+                bg.keep[b, k] = False
     if fresh:
         for c in range(lw.W1.shape[0]):
             for m in range(lw.W1.shape[1]):
@@ -717,7 +740,7 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
             for m in range(lw.B1.shape[1]):
                 lw.B0[j, m] = lw.B1[j, m]
     io[2] = lines_render(track, act, lw, k0, L, fs, F)
-    io[1] = 1
+    broadband_resonant(view, act, lw, bg, track, k0, F, fresh)
 
 
 @njit(cache=True)
