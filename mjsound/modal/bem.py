@@ -53,8 +53,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["QUAD_BARY", "QUAD_WEIGHTS", "BemMesh", "near_laplace_parts", "assemble", "assemble_mesh", "solve_far_field", "far_field_matrix",
-           "far_field_parts", "far_fields_per_mode", "far_row", "near_rows", "gather_near"]
+__all__ = ["QUAD_BARY", "QUAD_WEIGHTS", "BemMesh", "near_laplace_parts", "assemble", "assemble_mesh", "solve_far_field",
+           "far_field_matrix", "far_field_parts", "far_fields_per_mode", "far_row", "near_rows", "gather_near"]
 
 FOUR_PI = 4.0 * np.pi
 
@@ -207,31 +207,31 @@ def _cis(theta):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _near_point(x0, x1, x2, n0, n1, n2, px, py, pz, t0, t1, t2, nn, k):
-    """One point ``y = (px, py, pz)`` of a near triangle (normal ``t``, ``nn = n_x . t``) seen
-    from ``x``: 4 pi times the bounded Helmholtz remainders (module docstring) as they enter
-    ``S``, ``K``, ``K'`` and ``W``, each (real, imaginary):
+def _near_point(x, n, y, t, nn, k):
+    """One point ``y`` of a near triangle (normal ``t``, ``nn = n . t``) seen from ``x`` (normal
+    ``n``; all three-tuples): 4 pi times the bounded Helmholtz remainders (module docstring)
+    as they enter ``S``, ``K``, ``K'`` and ``W``, each (real, imaginary):
     ``G_r``, ``-A c_y``, ``A c_x``, ``-(n_x . n_y) a_b - c_x c_y a2_b``, with
     ``a_b = A + k^2 / 8 pi R`` and ``a2_b = A'/R - k^2 / 8 pi R^3``.
 
-    In real arithmetic (``t = kR``, ``e^{it} = c + i s``), and without a series for small
-    ``t``: the closed forms lose their relative accuracy there (``1 - c - t s + t^2 / 2`` is
-    ``t^4 / 8``), but their absolute error stays at rounding of the Laplace kernel's own size
-    (``eps / R^3``), which is what the sums need."""
-    dx, dy, dz = x0 - px, x1 - py, x2 - pz
+    In real arithmetic (``kR``, ``e^{ikR} = c + i s``), and without a series for small ``kR``:
+    the closed forms lose their relative accuracy there (``1 - c - kR s + (kR)^2 / 2`` is
+    ``(kR)^4 / 8``), but their absolute error stays at rounding of the Laplace kernel's own
+    size (``eps / R^3``), which is what the sums need."""
+    dx, dy, dz = x[0] - y[0], x[1] - y[1], x[2] - y[2]
     R = np.sqrt(dx * dx + dy * dy + dz * dz)
-    t = k * R
-    c, s = _cis(t)
+    kr = k * R
+    c, s = _cis(kr)
     iR = 1.0 / R
     iR3 = iR * iR * iR
     gr, gi = (c - 1.0) * iR, s * iR
-    Ar, Ai = (1.0 - c - t * s) * iR3, (t * c - s) * iR3
+    Ar, Ai = (1.0 - c - kr * s) * iR3, (kr * c - s) * iR3
     half = 0.5 * k * k * iR
     abr, abi = Ar + half, Ai
     a2r = ((-k * k * c * iR - 3.0 * Ar) * iR - half * iR) * iR
     a2i = (-k * k * s * iR - 3.0 * Ai) * iR * iR
-    cy = dx * t0 + dy * t1 + dz * t2
-    cx = dx * n0 + dy * n1 + dz * n2
+    cy = dx * t[0] + dy * t[1] + dz * t[2]
+    cx = dx * n[0] + dy * n[1] + dz * n[2]
     cc = cx * cy
     return (gr, gi, -Ar * cy, -Ai * cy, Ar * cx, Ai * cx, -nn * abr - cc * a2r, -nn * abi - cc * a2i)
 
@@ -249,20 +249,20 @@ def _near_three(x, nx, pairs, k, a, first, sums):
     summed, as they enter ``4 pi (-K + alpha W)`` and ``4 pi (-S + alpha K')`` (real, imaginary),
     for every pair. Three points at a time into four rows: the compiler vectorises neither a
     loop over all six unrolled nor one that stores eight rows (or reads what it writes)."""
-    x0, x1, x2 = x[0], x[1], x[2]
-    n0, n1, n2 = nx[0], nx[1], nx[2]
+    xs = (x[0], x[1], x[2])
+    ns = (nx[0], nx[1], nx[2])
     b0, b1, b2 = 3 * first, 3 * first + 3, 3 * first + 6
     w0, w1, w2 = 18 + first, 19 + first, 20 + first
     for p in range(pairs.shape[1]):
-        t0, t1, t2 = pairs[24, p], pairs[25, p], pairs[26, p]
-        nn = n0 * t0 + n1 * t1 + n2 * t2
+        t = (pairs[24, p], pairs[25, p], pairs[26, p])
+        nn = ns[0] * t[0] + ns[1] * t[1] + ns[2] * t[2]
         r = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        r = _accumulate(r, pairs[w0, p], _near_point(x0, x1, x2, n0, n1, n2, pairs[b0, p], pairs[b0 + 1, p],
-                                                     pairs[b0 + 2, p], t0, t1, t2, nn, k))
-        r = _accumulate(r, pairs[w1, p], _near_point(x0, x1, x2, n0, n1, n2, pairs[b1, p], pairs[b1 + 1, p],
-                                                     pairs[b1 + 2, p], t0, t1, t2, nn, k))
-        r = _accumulate(r, pairs[w2, p], _near_point(x0, x1, x2, n0, n1, n2, pairs[b2, p], pairs[b2 + 1, p],
-                                                     pairs[b2 + 2, p], t0, t1, t2, nn, k))
+        y0 = (pairs[b0, p], pairs[b0 + 1, p], pairs[b0 + 2, p])
+        y1 = (pairs[b1, p], pairs[b1 + 1, p], pairs[b1 + 2, p])
+        y2 = (pairs[b2, p], pairs[b2 + 1, p], pairs[b2 + 2, p])
+        r = _accumulate(r, pairs[w0, p], _near_point(xs, ns, y0, t, nn, k))
+        r = _accumulate(r, pairs[w1, p], _near_point(xs, ns, y1, t, nn, k))
+        r = _accumulate(r, pairs[w2, p], _near_point(xs, ns, y2, t, nn, k))
         sums[0, p], sums[1, p] = -r[2] - a * r[7], -r[3] + a * r[6]  # alpha W = i a W
         sums[2, p], sums[3, p] = -r[0] - a * r[5], -r[1] + a * r[4]
 
@@ -312,25 +312,26 @@ def gather_near(cols, parts, geo6, pairs):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _far_point(x0, x1, x2, n0, n1, n2, px, py, pz, t0, t1, t2, k):
-    """One point ``y = (px, py, pz)`` of :func:`far_row`'s rule, seen from ``x``: the kernels'
+def _far_point(x, n, y, t, k):
+    """One point ``y`` of :func:`far_row`'s rule on a triangle of normal ``t``, seen from ``x``
+    (normal ``n``; all three-tuples): the kernels'
     pieces ``G``, ``G'/R (x-y).n_T``, ``G'/R (x-y).n_x``, ``G'/R``, ``(G''/R^2 - G'/R^3) c_x c_y``,
     each as (real, imaginary), times 4 pi.
 
-    In real arithmetic (``t = kR``, ``e^{it} = c + i s``): ``G' / R = e^{it}(it - 1) / R^3`` and
-    ``G'' / R^2 - G' / R^3 = e^{it}(3 - t^2 - 3it) / R^5``."""
-    dx, dy, dz = x0 - px, x1 - py, x2 - pz
+    In real arithmetic (``e^{ikR} = c + i s``): ``G' / R = e^{ikR}(ikR - 1) / R^3`` and
+    ``G'' / R^2 - G' / R^3 = e^{ikR}(3 - (kR)^2 - 3ikR) / R^5``."""
+    dx, dy, dz = x[0] - y[0], x[1] - y[1], x[2] - y[2]
     R2 = dx * dx + dy * dy + dz * dz
     R = np.sqrt(R2)
     iR = 1.0 / R
     iR3 = iR / R2
-    t = k * R
-    c, s = _cis(t)
-    g1r, g1i = (-c - s * t) * iR3, (c * t - s) * iR3  # G' / R
-    u = 3.0 - t * t
-    g2r, g2i = (c * u + 3.0 * s * t) * iR3 / R2, (s * u - 3.0 * c * t) * iR3 / R2  # G''/R^2 - G'/R^3
-    cy = dx * t0 + dy * t1 + dz * t2
-    cx = dx * n0 + dy * n1 + dz * n2
+    kr = k * R
+    c, s = _cis(kr)
+    g1r, g1i = (-c - s * kr) * iR3, (c * kr - s) * iR3  # G' / R
+    u = 3.0 - kr * kr
+    g2r, g2i = (c * u + 3.0 * s * kr) * iR3 / R2, (s * u - 3.0 * c * kr) * iR3 / R2  # G''/R^2 - G'/R^3
+    cy = dx * t[0] + dy * t[1] + dz * t[2]
+    cx = dx * n[0] + dy * n[1] + dz * n[2]
     return c * iR, s * iR, g1r * cy, g1i * cy, g1r * cx, g1i * cx, g1r, g1i, cx * cy * g2r, cx * cy * g2i
 
 
@@ -352,15 +353,15 @@ def far_row(x, nx, geo, k, a, out):
     out : (4, N) written: ``-K + alpha W`` and ``-S + alpha K'`` as (real, imaginary) rows
     """
     N = geo.shape[1]
-    x0, x1, x2 = x[0], x[1], x[2]
-    n0, n1, n2 = nx[0], nx[1], nx[2]
+    xs = (x[0], x[1], x[2])
+    ns = (nx[0], nx[1], nx[2])
     for j in range(N):
-        t0, t1, t2 = geo[9, j], geo[10, j], geo[11, j]
-        nn = n0 * t0 + n1 * t1 + n2 * t2
+        t = (geo[9, j], geo[10, j], geo[11, j])
+        nn = ns[0] * t[0] + ns[1] * t[1] + ns[2] * t[2]
         w = geo[12, j]
-        a0 = _far_point(x0, x1, x2, n0, n1, n2, geo[0, j], geo[1, j], geo[2, j], t0, t1, t2, k)
-        a1 = _far_point(x0, x1, x2, n0, n1, n2, geo[3, j], geo[4, j], geo[5, j], t0, t1, t2, k)
-        a2 = _far_point(x0, x1, x2, n0, n1, n2, geo[6, j], geo[7, j], geo[8, j], t0, t1, t2, k)
+        a0 = _far_point(xs, ns, (geo[0, j], geo[1, j], geo[2, j]), t, k)
+        a1 = _far_point(xs, ns, (geo[3, j], geo[4, j], geo[5, j]), t, k)
+        a2 = _far_point(xs, ns, (geo[6, j], geo[7, j], geo[8, j]), t, k)
         Sr = w * (a0[0] + a1[0] + a2[0])
         Si = w * (a0[1] + a1[1] + a2[1])
         Kr = -w * (a0[2] + a1[2] + a2[2])
