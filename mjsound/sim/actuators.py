@@ -316,10 +316,11 @@ class ActuatorSound:
         if bg is None or bg.gr.shape != (nb, M, nmax):
             z = np.zeros
             R = len(self.body_rows)
-            bg = self._bg = BodyGains(z((nb, M, nmax)), z((nb, M, nmax)), z((nb, M), np.int64), np.full((nb, M), np.nan),
+            bg = self._bg = BodyGains(z((nb, M, nmax)), z((nb, M, nmax)), z((nb, nmax)), z((nb, M, nmax), np.complex128),
+                                      z((nb, M), np.int64), np.full((nb, M), np.nan),
                                       z((nb, M, nmax), np.complex128), np.full((R, 3), np.nan), z(R, np.int64),
                                       z((nb, M, nmax)), z((nb, nmax)), z((nb, nmax), np.bool_),
-                                      z((nb, M, nmax), np.complex128), z((nb, nmax)),
+                                      z((nb, nmax), np.complex128), z((nb, nmax)),
                                       np.full((nb, M, 3), np.nan), z((nb, M, nmax), np.complex128))
         return bg
 

@@ -120,71 +120,53 @@ def broadband_force(act, lw, fs, F):
 
 
 @njit(cache=True, fastmath=FAST)
-def _resonant_run(out, f, K, pr, pi, gr, gi, dr, di, wr, wi, u):
-    """``K`` modes at one microphone over ``f``'s samples, as :func:`.bank_loops.bank_forced`:
-    per sample ``w += g f``, ``out += Im(d w)``, ``w *= p`` (the modes' states ``wr + j wi``
-    updated). A mode with ``u = 0`` fades out linearly over the samples (1 to 0), one with
-    ``u = 1`` does not. Four modes at a time, their states held in registers, so that their
-    recursions overlap."""
-    L = f.shape[0]
+def _resonant_run(out, f, K, pr, pi, gin, hr, hi, ur, wr, wi):
+    """``K`` modes over ``f``'s samples (L,): per sample ``w <- p (w + g f)`` (``g = gin``,
+    the input gain), heard at microphone ``m`` as ``out[m] += Im(h_m w)`` (``h = hr + j hi``
+    (M, K), its output factor), their states ``wr + j wi`` updated. A mode with ``ur = 0``
+    fades out linearly over the samples (1 to 0), one with ``ur = 1`` does not. Four modes at
+    a time, their states held in registers, so that their recursions overlap."""
+    M, L = out.shape
     inv = 1.0 / L
     r = 0
     while r < K:
         n = min(4, K - r)
-        # (absent modes of a short group: zero gains, state and weights)
-        a0r = wr[r]
-        a0i = wi[r]
-        a1r = wr[r + 1] if n > 1 else 0.0
-        a1i = wi[r + 1] if n > 1 else 0.0
-        a2r = wr[r + 2] if n > 2 else 0.0
-        a2i = wi[r + 2] if n > 2 else 0.0
-        a3r = wr[r + 3] if n > 3 else 0.0
-        a3i = wi[r + 3] if n > 3 else 0.0
-        p0r, p0i = pr[r], pi[r]
-        p1r = pr[r + 1] if n > 1 else 0.0
-        p1i = pi[r + 1] if n > 1 else 0.0
-        p2r = pr[r + 2] if n > 2 else 0.0
-        p2i = pi[r + 2] if n > 2 else 0.0
-        p3r = pr[r + 3] if n > 3 else 0.0
-        p3i = pi[r + 3] if n > 3 else 0.0
-        g0r, g0i = gr[r], gi[r]
-        g1r = gr[r + 1] if n > 1 else 0.0
-        g1i = gi[r + 1] if n > 1 else 0.0
-        g2r = gr[r + 2] if n > 2 else 0.0
-        g2i = gi[r + 2] if n > 2 else 0.0
-        g3r = gr[r + 3] if n > 3 else 0.0
-        g3i = gi[r + 3] if n > 3 else 0.0
-        # heard as Im(d w): the steady modes' weights and the fading ones' apart
-        h0r, h0i, e0r, e0i = u[r] * dr[r], u[r] * di[r], (1.0 - u[r]) * dr[r], (1.0 - u[r]) * di[r]
-        h1r = h1i = e1r = e1i = 0.0
-        h2r = h2i = e2r = e2i = 0.0
-        h3r = h3i = e3r = e3i = 0.0
+        a0r, a0i, p0r, p0i, g0 = wr[r], wi[r], pr[r], pi[r], gin[r]
+        a1r = a1i = p1r = p1i = g1 = 0.0  # (absent modes of a short group: all 0)
+        a2r = a2i = p2r = p2i = g2 = 0.0
+        a3r = a3i = p3r = p3i = g3 = 0.0
         if n > 1:
-            h1r, h1i, e1r, e1i = u[r + 1] * dr[r + 1], u[r + 1] * di[r + 1], (1.0 - u[r + 1]) * dr[r + 1], \
-                (1.0 - u[r + 1]) * di[r + 1]
+            a1r, a1i, p1r, p1i, g1 = wr[r + 1], wi[r + 1], pr[r + 1], pi[r + 1], gin[r + 1]
         if n > 2:
-            h2r, h2i, e2r, e2i = u[r + 2] * dr[r + 2], u[r + 2] * di[r + 2], (1.0 - u[r + 2]) * dr[r + 2], \
-                (1.0 - u[r + 2]) * di[r + 2]
+            a2r, a2i, p2r, p2i, g2 = wr[r + 2], wi[r + 2], pr[r + 2], pi[r + 2], gin[r + 2]
         if n > 3:
-            h3r, h3i, e3r, e3i = u[r + 3] * dr[r + 3], u[r + 3] * di[r + 3], (1.0 - u[r + 3]) * dr[r + 3], \
-                (1.0 - u[r + 3]) * di[r + 3]
+            a3r, a3i, p3r, p3i, g3 = wr[r + 3], wi[r + 3], pr[r + 3], pi[r + 3], gin[r + 3]
+        # (each microphone's output factors: the steady modes' and the fading ones' apart)
+        H = np.zeros((M, 16))
+        for m in range(M):
+            for i in range(n):
+                u = ur[r + i]
+                H[m, 2 * i] = u * hr[m, r + i]
+                H[m, 2 * i + 1] = u * hi[m, r + i]
+                H[m, 8 + 2 * i] = (1.0 - u) * hr[m, r + i]
+                H[m, 9 + 2 * i] = (1.0 - u) * hi[m, r + i]
         for q in range(L):
             fq = f[q]
-            b0r = a0r + g0r * fq
-            b0i = a0i + g0i * fq
-            b1r = a1r + g1r * fq
-            b1i = a1i + g1i * fq
-            b2r = a2r + g2r * fq
-            b2i = a2i + g2i * fq
-            b3r = a3r + g3r * fq
-            b3i = a3i + g3i * fq
-            y = h0r * b0i + h0i * b0r + h1r * b1i + h1i * b1r + h2r * b2i + h2i * b2r + h3r * b3i + h3i * b3r
-            z = e0r * b0i + e0i * b0r + e1r * b1i + e1i * b1r + e2r * b2i + e2i * b2r + e3r * b3i + e3i * b3r
-            out[q] += y + z * ((L - q) * inv)
-            a0r, a0i = b0r * p0r - b0i * p0i, b0i * p0r + b0r * p0i
-            a1r, a1i = b1r * p1r - b1i * p1i, b1i * p1r + b1r * p1i
-            a2r, a2i = b2r * p2r - b2i * p2i, b2i * p2r + b2r * p2i
-            a3r, a3i = b3r * p3r - b3i * p3i, b3i * p3r + b3r * p3i
+            b0r = a0r + g0 * fq
+            b1r = a1r + g1 * fq
+            b2r = a2r + g2 * fq
+            b3r = a3r + g3 * fq
+            fade = (L - q) * inv
+            for m in range(M):
+                h = H[m]
+                y = h[0] * a0i + h[1] * b0r + h[2] * a1i + h[3] * b1r + h[4] * a2i + h[5] * b2r + h[6] * a3i + h[7] * b3r
+                z = h[8] * a0i + h[9] * b0r + h[10] * a1i + h[11] * b1r + h[12] * a2i + h[13] * b2r + h[14] * a3i \
+                    + h[15] * b3r
+                out[m, q] += y + z * fade
+            a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
+            a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
+            a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
+            a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
         wr[r], wi[r] = a0r, a0i
         if n > 1:
             wr[r + 1], wi[r + 1] = a1r, a1i
@@ -198,19 +180,21 @@ def _resonant_run(out, f, K, pr, pi, gr, gi, dr, di, wr, wi, u):
 @njit(cache=True)
 def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     """The kept modes (``bg.keep``, :func:`broadband_modes`) driven by their body's broadband
-    force, and the modes still ringing out, over the block ``F`` covers (J, L), into the pulse
-    track (:class:`.records.TrackState`; microphone ``m`` hears body ``b``'s sample ``n0 + q``
-    at ``n0 + q + bg.D[b, m]``; ring samples before the track's start are not written).
+    force, and the modes fading out, over the block ``F`` covers (J, L), into the pulse track
+    (:class:`.records.TrackState`; microphone ``m`` hears body ``b``'s sample ``n0 + q`` at
+    ``n0 + q + bg.D[b, m]``; ring samples before the track's start are not written).
 
-    A mode ``k`` of body ``b`` (pole ``p``, gain ``g_m`` at microphone ``m``) runs as the exact
-    rendering's voice does (:func:`.bank_loops.bank_forced`): ``w_m <- p (w_m + g_m f)``, ``f``
-    the body's force (the sum of its exact actuators' ``F[j]`` with their sides' signs along
-    its direction, :func:`.drive_tones.streams_write`), heard as ``Im(d_m w_m)`` with ``d_m``
-    its direction factor towards an air microphone (``bg.Fd``; 1 elsewhere); ``bg.z`` carries
-    the states over blocks (``fresh``: from 0). A mode no longer forced (kept and pushed in
-    the last block: ``bg.level`` 1) runs one more block without force, faded out linearly
-    over it, and stops.
-    Returns the largest delay written [samples]."""
+    A mode ``k`` of body ``b`` (pole ``p``) runs as the exact rendering's voices do
+    (:func:`.bank_loops.bank_forced`), in the force's units: ``w <- p (w + g f)``, ``g`` its
+    input gain (``bg.gin``: ``phi(x) . n / (fs wd)``), ``f`` the body's force (the sum of its
+    exact actuators' ``F[j]`` with their sides' signs along its direction,
+    :func:`.drive_tones.streams_write`), heard at microphone ``m`` as ``Im(h_m w)``, ``h_m``
+    its output factor (``bg.gout``, times its direction factor towards an air microphone,
+    ``bg.Fd``); a change of the output factor (the body moved) applies to the whole state, as
+    it physically does, where the exact rendering's voices keep it per microphone. ``bg.z``
+    carries the states over blocks (``fresh``: from 0). A mode no longer forced (kept and
+    pushed in the last block: ``bg.level`` 1) runs one more block without force, faded out
+    linearly over it, and stops. Returns the largest delay written [samples]."""
     acc, rec = track.acc, track.rec
     sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
     keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
@@ -225,12 +209,11 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     u = np.empty(nmax)
     pr = np.empty(nmax)
     pi = np.empty(nmax)
-    gr = np.empty((M, nmax))
-    gi = np.empty((M, nmax))
-    dr = np.empty((M, nmax))
-    di = np.empty((M, nmax))
-    wr = np.empty((M, nmax))
-    wi = np.empty((M, nmax))
+    gin = np.empty(nmax)
+    hr = np.empty((M, nmax))
+    hi = np.empty((M, nmax))
+    wr = np.empty(nmax)
+    wi = np.empty(nmax)
     dmax = 0
     for b in range(nb):
         s = sidx[b]
@@ -239,19 +222,17 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
         if fresh:
             for k in range(nmax):
                 level[b, k] = 0.0
-                for m in range(M):
-                    z[b, m, k] = 0.0
-        running = False
+                z[b, k] = 0.0
+        K = 0
         for k in range(nmax):
-            running = running or keep[b, k] or level[b, k] > 0.0
-        if not running:
+            if keep[b, k] or level[b, k] > 0.0:
+                idx[K] = k
+                K += 1
+        if K == 0:
             continue
         forced = False
         for q in range(L):
             f[q] = 0.0
-        for m in range(M):
-            for q in range(L):
-                out[m, q] = 0.0
         if sign[b] != 0.0:
             for i in range(ptr[b], ptr[b + 1]):
                 j = rows[i] // 2
@@ -264,35 +245,31 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
         o = view.table[s].obj
         m0 = view.mode_off[o]
         directional = view.order[o] >= 0
-        K = 0
-        for k in range(nmax):
-            if keep[b, k] or level[b, k] > 0.0:
-                idx[K] = k
-                K += 1
         for r in range(K):
             k = idx[r]
             p = view.poles[m0 + k]
             pr[r] = p.real
             pi[r] = p.imag
             on = forced and keep[b, k]
+            u[r] = 1.0 if on else 0.0
+            gin[r] = bg.gin[b, k] if on else 0.0
+            wr[r] = z[b, k].real
+            wi[r] = z[b, k].imag
             for m in range(M):
-                gr[m, r] = bg.gr[b, m, k] if on else 0.0
-                gi[m, r] = bg.gi[b, m, k] if on else 0.0
-                d = Fd[b, m, k] if (directional and view.channels[m].owner == AIR) else complex(1.0, 0.0)
-                dr[m, r] = d.real
-                di[m, r] = d.imag
-                wr[m, r] = z[b, m, k].real
-                wi[m, r] = z[b, m, k].imag
-        for r in range(K):
-            u[r] = 1.0 if forced and keep[b, idx[r]] else 0.0
+                h = bg.gout[b, m, k]
+                if directional and view.channels[m].owner == AIR:
+                    h *= Fd[b, m, k]
+                hr[m, r] = h.real
+                hi[m, r] = h.imag
         for m in range(M):
-            _resonant_run(out[m], f, K, pr, pi, gr[m], gi[m], dr[m], di[m], wr[m], wi[m], u)
+            for q in range(L):
+                out[m, q] = 0.0
+        _resonant_run(out, f, K, pr, pi, gin, hr, hi, u, wr, wi)
         for r in range(K):
             k = idx[r]
             on = u[r] == 1.0
             level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
-            for m in range(M):
-                z[b, m, k] = complex(wr[m, r], wi[m, r]) if on else 0.0
+            z[b, k] = complex(wr[r], wi[r]) if on else 0.0
         for m in range(M):
             off = n0 + D[b, m]
             dmax = max(dmax, D[b, m])

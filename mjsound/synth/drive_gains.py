@@ -10,7 +10,8 @@ sliding streams' (:func:`.streams.stream_gains`, the exact rendering's):
     g_mk = G_k / (fs wd_k) w_k / r_m e^{lam_k dts_m}   (air; an image microphone times its reflection),
     g_mk = G_k / (fs wd_k) c_mk                        (a contact microphone on o, c its weights; 0 on others),
 
-with the integer delay ``D_m = ceil(r_m fs / c)`` [samples] (0 at a contact microphone) and
+(an input gain ``G_k / (fs wd_k)`` times an output factor per microphone), with the integer
+delay ``D_m = ceil(r_m fs / c)`` [samples] (0 at a contact microphone) and
 the sub-sample rest ``dts_m = D_m / fs - r_m / c`` [s] as each mode's factor (its exp, cosine
 and sine made again only when ``dts_m`` changed: a body at rest keeps them).
 
@@ -43,7 +44,8 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
     """Per driven body ``b``: ``act.sign[b]`` (the strongest acting drive's side sign, +1 the
     joint's body, -1 its parent; 0 where no drive acts), its stream's point and direction
     (``streams.table[s].p, n``: what the exact broadband rendering's gains are made for), and
-    its gains ``bg.gr + j bg.gi`` (B, M, nmax) and integer delays ``bg.D`` (B, M) [samples]
+    its gains ``bg.gr + j bg.gi`` (B, M, nmax), as the input gain ``bg.gin`` (B, nmax) times
+    the output factor ``bg.gout`` (B, M, nmax), and integer delays ``bg.D`` (B, M) [samples]
     (module docstring; 0 beyond its modes, and everywhere for a body whose object has no
     points or modes). Returns whether some body is driven.
 
@@ -58,7 +60,7 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
     """
     ob, cst, st = ks.objects, ks.consts[0], ks.streams
     sidx, ptr, rows, sign, drives = act.sidx, act.ptr, act.rows, act.sign, act.drives
-    gr, gi, D, dfac, loc, near = bg.gr, bg.gi, bg.D, bg.dfac, bg.loc, bg.near
+    gr, gi, gout, D, dfac, loc, near = bg.gr, bg.gi, bg.gout, bg.D, bg.dfac, bg.loc, bg.near
     nmax = gr.shape[2]
     M = min(gr.shape[1], ks.mics.shape[0])
     fs, c, rmin = cst.fs, cst.c, cst.rmin
@@ -97,11 +99,10 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
             for k in range(n, nmax):
                 gr[b, m, k] = 0.0
                 gi[b, m, k] = 0.0
+                gout[b, m, k] = 0.0
+        for k in range(n, nmax):
+            bg.gin[b, k] = 0.0
         if n == 0:
-            for m in range(gr.shape[1]):
-                for k in range(nmax):
-                    gr[b, m, k] = 0.0
-                    gi[b, m, k] = 0.0
             continue
         m0 = ob.mode_off[o]
         pos = ks.pos[o]
@@ -130,19 +131,23 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
         for k in range(n):
             G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
             gq[k] = G / (fs * ob.wd[m0 + k])
+            bg.gin[b, k] = gq[k] if np.isfinite(gq[k]) else 0.0
         for m in range(M):
             owner = ks.channels[m].owner
             if owner != AIR:  # (a contact microphone: its own object only, no delay)
                 w_off = ks.channels[m].w_off
                 for k in range(n):
                     if owner == o:
-                        a = gq[k] * ks.chan_w[w_off + k]
+                        h = ks.chan_w[w_off + k]
+                        a = gq[k] * h
                         ok = np.isfinite(a.real) and np.isfinite(a.imag)
                         gr[b, m, k] = a.real if ok else 0.0
                         gi[b, m, k] = a.imag if ok else 0.0
+                        gout[b, m, k] = h if ok else 0.0
                     else:
                         gr[b, m, k] = 0.0
                         gi[b, m, k] = 0.0
+                        gout[b, m, k] = 0.0
                 continue
             r = mic_distance(ks.mics, m, pos, rmin)
             ta = r / c
@@ -159,13 +164,14 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
                     z = ob.lam[m0 + k] * dts
                     e = np.exp(z.real)
                     dfac[b, m, k] = complex(e * np.cos(z.imag), e * np.sin(z.imag))
-                a = gq[k] * ob.w[m0 + k] / r
+                h = ob.w[m0 + k] / r
                 if refl >= 0:
-                    a *= ks.chan_w[refl + m0 + k].real
+                    h *= ks.chan_w[refl + m0 + k].real
                 f = dfac[b, m, k]
-                x = a * f.real
-                y = a * f.imag
+                x = gq[k] * h * f.real
+                y = gq[k] * h * f.imag
                 ok = np.isfinite(x) and np.isfinite(y)
                 gr[b, m, k] = x if ok else 0.0  # (a bad pose or point: silence, never NaN)
                 gi[b, m, k] = y if ok else 0.0
+                gout[b, m, k] = h * f if ok else 0.0
     return any_driven

@@ -103,6 +103,8 @@ class BodyGains(NamedTuple):
 
     gr: np.ndarray  # (B, M, nmax) float64: per-mode gains, real part (.drive_gains)
     gi: np.ndarray  # (B, M, nmax) ..., imaginary part
+    gin: np.ndarray  # (B, nmax) float64: ... as an input gain per mode (phi . n / (fs wd))
+    gout: np.ndarray  # (B, M, nmax) complex128: ... times an output factor per microphone
     D: np.ndarray  # (B, M) int64: delay to each microphone [samples] (0: a contact microphone)
     dts: np.ndarray  # (B, M) float64: the sub-sample delay [s] the factors dfac were made for (NaN: none)
     dfac: np.ndarray  # (B, M, nmax) complex128: each mode's sub-sample delay factor e^{lam dts}
@@ -111,7 +113,7 @@ class BodyGains(NamedTuple):
     static: np.ndarray  # (B, M, nmax) float64: each mode's static response Im g / (1 - p)
     resonant: np.ndarray  # (B, nmax) float64: each mode's resonant broadband power
     keep: np.ndarray  # (B, nmax) bool: the modes carrying a broadband part
-    z: np.ndarray  # (B, M, nmax) complex128: their states per microphone (.drive_broadband.broadband_resonant)
+    z: np.ndarray  # (B, nmax) complex128: their states (.drive_broadband.broadband_resonant)
     level: np.ndarray  # (B, nmax) float64: 1 where a mode was forced in the last block (it fades out next), else 0
     U: np.ndarray  # (B, M, 3) float64: the direction the factors Fd were made for (NaN: none)
     Fd: np.ndarray  # (B, M, nmax) complex128: the direction factors
@@ -184,6 +186,18 @@ def drive_read(rd, act, qvel, force, fresh):
     return live
 
 
+@njit(cache=True, inline="always")
+def _cpow(z, n):
+    """``z^n`` for an integer ``n >= 0`` (by squaring: a delay's phase without a sine)."""
+    out = complex(1.0, 0.0)
+    while n > 0:
+        if n & 1:
+            out *= z
+        z *= z
+        n >>= 1
+    return out
+
+
 @njit(cache=True)
 def line_weights(view, act, lw, bg, fs):
     """Each component's complex weight ``lw.W1[c, m]`` (without the force scale; see the
@@ -246,6 +260,7 @@ def line_weights(view, act, lw, bg, fs):
             sth[c] = math.sin(t)
     pr = np.empty(nmax)
     pi = np.empty(nmax)
+    q0 = np.empty(nmax)
     g = np.empty((M, nmax), np.complex128)
     h0 = np.empty(M)
     Hp = np.empty(M, np.complex128)
@@ -273,10 +288,14 @@ def line_weights(view, act, lw, bg, fs):
                 g[m, k] = complex(gr[b, m, k], gi[b, m, k])
         if view.order[o] >= 0:
             _direction_factors(g, n, o, m0, view, U[b], Fd[b])
+        for k in range(n):
+            qr = 1.0 - pr[k]
+            q0[k] = 1.0 / (qr * qr + pi[k] * pi[k])
         for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
             h = 0.0
             for k in range(n):
-                static[b, m, k] = (g[m, k] / complex(1.0 - pr[k], -pi[k])).imag
+                x = g[m, k]
+                static[b, m, k] = (x.imag * (1.0 - pr[k]) + x.real * pi[k]) * q0[k]
                 h += static[b, m, k]
             h0[m] = h
         for i in range(ptr[b], ptr[b + 1]):
@@ -307,16 +326,19 @@ def line_weights(view, act, lw, bg, fs):
                 for m in range(M):
                     Hp[m] = 0.0
                     Hn[m] = 0.0
-                    dd = D[b, m] - Dm[m]  # (this body's delay beyond the microphone's: a phase)
-                    sh[m] = complex(math.cos(t * dd), -math.sin(t * dd)) if dd != 0 else complex(1.0, 0.0)
+                    # (this body's delay beyond the microphone's, dd >= 0 samples: the phase e^{-j th dd})
+                    sh[m] = _cpow(complex(cr, -ci), D[b, m] - Dm[m])
                 for k in range(n):
                     # 1 / (1 - p e^{-j th}) and 1 / (1 - p e^{+j th}), once for every microphone
                     xr = 1.0 - (pr[k] * cr + pi[k] * ci)
                     xi = pr[k] * ci - pi[k] * cr
                     yr = 1.0 - (pr[k] * cr - pi[k] * ci)
                     yi = -(pi[k] * cr + pr[k] * ci)
-                    u = 1.0 / (xr * xr + xi * xi)
-                    v = 1.0 / (yr * yr + yi * yi)
+                    x2 = xr * xr + xi * xi
+                    y2 = yr * yr + yi * yi
+                    inv = 1.0 / (x2 * y2)  # (one division for both)
+                    u = y2 * inv
+                    v = x2 * inv
                     ip = complex(xr * u, -xi * u)
                     iq = complex(yr * v, -yi * v)
                     for m in range(M):
