@@ -64,8 +64,9 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
 #: several objects and is built before the first sound, so its default is the boundary-element
 #: solve's ``draft`` setting: on the reference objects at most 1.3 dB RMS error of a mode's
 #: radiated power (largest 1.6 dB on converged modes; a few directions of weak modes several
-#: dB), at 0.1-0.4 times the modal analysis's own cost at 20 kHz, where ``default`` costs
-#: 0.8-1.5 times it (docs/radiation.md "Cost", reports/accuracy.md "Levels").
+#: dB), at 0.04-0.16 times the modal analysis's own cost at 20 kHz, where ``default`` costs
+#: 0.4-0.8 times it (docs/radiation.md "Cost", reports/accuracy.md "Levels"; the demo scene's
+#: cold construction 5.9 s with ``draft``, 10.7 s with ``default``).
 #: ``quality="high"`` scenes take the converged setting.
 SCENE_RADIATION = {"draft": "draft", "default": "draft", "high": "default"}
 
