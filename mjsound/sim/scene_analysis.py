@@ -60,15 +60,15 @@ def _sphere_inaudible(model, g, mat, sample_rate) -> str | None:
     return None
 
 
-#: The radiation setting a scene analyses its objects with, by analysis quality. A scene holds
-#: several objects and is built before the first sound, so its default is the boundary-element
-#: solve's ``draft`` setting: on the reference objects at most 1.3 dB RMS error of a mode's
-#: radiated power (largest 1.6 dB on converged modes; a few directions of weak modes several
-#: dB), at 0.04-0.16 times the modal analysis's own cost at 20 kHz, where ``default`` costs
-#: 0.4-0.8 times it (docs/radiation.md "Cost", reports/accuracy.md "Levels"; the demo scene's
-#: cold construction 5.9 s with ``draft``, 10.7 s with ``default``).
-#: ``quality="high"`` scenes take the converged setting.
-SCENE_RADIATION = {"draft": "draft", "default": "draft", "high": "default"}
+#: The radiation setting a scene analyses its objects with, by analysis quality: the boundary-
+#: element solve at the scene's own quality, but ``draft`` radiation for ``draft`` scenes (the
+#: env wrappers' default, for training at scale). On the reference objects (reports/accuracy.md
+#: "Levels") ``default`` gives each converged mode's radiated power within 0.6 dB and every
+#: direction within 2.7 dB of the converged reference, at 0.4-0.8 times the modal analysis's own
+#: cost at 20 kHz; ``draft`` 1.6 dB in power but up to 12 dB in some directions of weak modes,
+#: at 0.04-0.16 times it (docs/radiation.md "Cost"). ``quality="high"`` scenes take ``default``
+#: too (the converged setting; ``high`` refines further at several times the cost).
+SCENE_RADIATION = {"draft": "draft", "default": "default", "high": "default"}
 
 #: Process-wide memo of modal models by (surface, material, analysis options), so that several
 #: copies of one env (SyncVectorEnv, repeated gym.make) analyse each object once.
