@@ -54,6 +54,7 @@ from .scene_analysis import (AUTO_MAX_MODES, MASS_TOLERANCE, AnalysisOptions, _a
                              _finite_or_none, _mode_cap, _sphere_inaudible, _surface_notes, check_masses,
                              object_model, warn_unheard)  # (re-exported)
 from .scene_budget import share_budget
+from .scene_levels import loudest_modes
 from .scene_materials import CANNOT_COLLIDE, NO_MATERIAL, assign_materials, warn_unknown_texts
 from .scene_masses import decide, decide_masses, masses_option
 from .scene_mics import place_microphones
@@ -333,8 +334,9 @@ class SoundScene:
                     "mass_kg": float(s.model.mass_kg),
                     "error_estimate_cents": _finite_or_none(s.model.error_estimate_cents),
                     "notes": list(s.notes),
+                    "loudest_mode": levels,
                 }
-                for s in self.sounding
+                for s, levels in zip(self.sounding, loudest_modes(self))
             ],
             "silent": dict(self.silent),
             "n_modes": self.n_modes,
@@ -347,7 +349,10 @@ class SoundScene:
 
     def report(self, details: bool = False) -> str:
         """Human-readable summary: what sounds (modes, range, error estimate, flagged ``(!)``
-        above 50 cents), what each object is made of, every budget and note, what is silent.
+        above 50 cents), what each object is made of, its loudest mode at each microphone for
+        a reference tap (a 10 g steel ball at 1 m/s, :func:`.scene_levels.loudest_modes`: free
+        field, the initial pose), every
+        budget and note, what is silent.
 
         Geoms that are silent for a reason of no interest (they cannot collide: visual
         geoms; they have no acoustic material) are counted in one line per reason, with the
@@ -356,7 +361,8 @@ class SoundScene:
         """
         lines = [f"{len(self.sounding)} sounding object(s), {self.n_modes} modes, mics: {', '.join(self.mic_names)}"]
         flagged = 0
-        for s in self.sounding:
+        loudest = loudest_modes(self)
+        for s, levels in zip(self.sounding, loudest):
             f = s.model.frequencies_hz
             rng = f"{f[0]:.0f}-{f[-1]:.0f} Hz" if len(f) else "-"
             cut = f" (of {s.n_modes_analysed})" if s.model.n_modes != s.n_modes_analysed else ""
@@ -370,6 +376,10 @@ class SoundScene:
             geoms = f" {len(s.geom_ids)} geoms," if len(s.geom_ids) > 1 and not s.mesh.startswith("union") else ""
             lines.append(f"  {s.name:<20s} {s.material.name:<14s} {s.model.n_modes:4d} modes{cut}  {rng}  {est}  "
                          f"{s.model.mass_kg:.3g} kg  [{geoms} {s.mesh}]".replace("[ ", "["))
+            if levels and all(lv["spl_db"] is not None for lv in levels):
+                at = ", ".join(f"{lv['frequency_hz']:.0f} Hz {lv['spl_db']:.0f} dB at {lv['mic']} ({lv['distance_m']:.2g} m)"
+                               for lv in levels)
+                lines.append(f"      loudest mode, a 10 g steel ball's tap at 1 m/s: {at}")
             for note in s.notes:
                 lines.append(f"      {note}")
         if flagged:
