@@ -150,23 +150,73 @@ def _resonant_run(out, f, K, pr, pi, gin, hr, hi, ur, wr, wi):
                 H[m, 2 * i + 1] = u * hi[m, r + i]
                 H[m, 8 + 2 * i] = (1.0 - u) * hr[m, r + i]
                 H[m, 9 + 2 * i] = (1.0 - u) * hi[m, r + i]
-        for q in range(L):
-            fq = f[q]
-            b0r = a0r + g0 * fq
-            b1r = a1r + g1 * fq
-            b2r = a2r + g2 * fq
-            b3r = a3r + g3 * fq
-            fade = (L - q) * inv
+        fading = False
+        for i in range(n):
+            fading = fading or ur[r + i] != 1.0
+        if n == 1 and not fading:  # (a lone steady mode: its own loop)
             for m in range(M):
-                h = H[m]
-                y = h[0] * a0i + h[1] * b0r + h[2] * a1i + h[3] * b1r + h[4] * a2i + h[5] * b2r + h[6] * a3i + h[7] * b3r
-                z = h[8] * a0i + h[9] * b0r + h[10] * a1i + h[11] * b1r + h[12] * a2i + h[13] * b2r + h[14] * a3i \
-                    + h[15] * b3r
-                out[m, q] += y + z * fade
-            a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
-            a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
-            a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
-            a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
+                c = H[m]
+                o = out[m]
+                h0r, h0i = c[0], c[1]
+                xr, xi = a0r, a0i
+                for q in range(L):
+                    br = xr + g0 * f[q]
+                    o[q] += h0r * xi + h0i * br
+                    xr, xi = br * p0r - xi * p0i, xi * p0r + br * p0i
+            for q in range(L):
+                br = a0r + g0 * f[q]
+                a0r, a0i = br * p0r - a0i * p0i, a0i * p0r + br * p0i
+        elif not fading and M == 2:  # (the common case, two microphones: their factors in registers)
+            c0, c1, c2, c3, c4, c5, c6, c7 = H[0, 0], H[0, 1], H[0, 2], H[0, 3], H[0, 4], H[0, 5], H[0, 6], H[0, 7]
+            e0, e1, e2, e3, e4, e5, e6, e7 = H[1, 0], H[1, 1], H[1, 2], H[1, 3], H[1, 4], H[1, 5], H[1, 6], H[1, 7]
+            o0 = out[0]
+            o1 = out[1]
+            for q in range(L):
+                fq = f[q]
+                b0r = a0r + g0 * fq
+                b1r = a1r + g1 * fq
+                b2r = a2r + g2 * fq
+                b3r = a3r + g3 * fq
+                o0[q] += c0 * a0i + c1 * b0r + c2 * a1i + c3 * b1r + c4 * a2i + c5 * b2r + c6 * a3i + c7 * b3r
+                o1[q] += e0 * a0i + e1 * b0r + e2 * a1i + e3 * b1r + e4 * a2i + e5 * b2r + e6 * a3i + e7 * b3r
+                a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
+                a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
+                a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
+                a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
+        elif not fading:  # (every mode of the group steady)
+            for q in range(L):
+                fq = f[q]
+                b0r = a0r + g0 * fq
+                b1r = a1r + g1 * fq
+                b2r = a2r + g2 * fq
+                b3r = a3r + g3 * fq
+                for m in range(M):
+                    h = H[m]
+                    out[m, q] += h[0] * a0i + h[1] * b0r + h[2] * a1i + h[3] * b1r + h[4] * a2i + h[5] * b2r \
+                        + h[6] * a3i + h[7] * b3r
+                a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
+                a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
+                a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
+                a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
+        else:
+            for q in range(L):
+                fq = f[q]
+                b0r = a0r + g0 * fq
+                b1r = a1r + g1 * fq
+                b2r = a2r + g2 * fq
+                b3r = a3r + g3 * fq
+                fade = (L - q) * inv
+                for m in range(M):
+                    h = H[m]
+                    y = h[0] * a0i + h[1] * b0r + h[2] * a1i + h[3] * b1r + h[4] * a2i + h[5] * b2r + h[6] * a3i \
+                        + h[7] * b3r
+                    z = h[8] * a0i + h[9] * b0r + h[10] * a1i + h[11] * b1r + h[12] * a2i + h[13] * b2r \
+                        + h[14] * a3i + h[15] * b3r
+                    out[m, q] += y + z * fade
+                a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
+                a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
+                a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
+                a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
         wr[r], wi[r] = a0r, a0i
         if n > 1:
             wr[r + 1], wi[r + 1] = a1r, a1i

@@ -473,11 +473,14 @@ def _csq(r, i, times):
 
 
 @njit(cache=True)
-def _lines_pass(acc, first, off0, off1, two, L, S, V):
+def _lines_pass(acc, first, off0, off1, two, L, S, V, span):
     """The gathered lines over ``L`` samples into channels ``off0`` (and ``off1`` when
     ``two``), each ``(channel, absolute sample of the block's first)``: rows of ``S`` (6, n)
-    float64 phasor, rate, the rate's turn per sample (re, im each; left as they are); of
-    ``V`` (8, n) channel 0's and 1's weight and its step per sample (re, im each).
+    float64 phasor, rate (at the block's first sample), the rate's turn per sample (re, im
+    each; left as they are); of ``V`` (8, n) channel 0's and 1's weight and its step per
+    sample (re, im each); line ``q`` sounds on samples ``span[0, q] <= k < span[1, q]`` only
+    (a line crossing the cut-off: in the restarts it covers partly, its samples there run
+    one at a time, :func:`_span_part`).
 
     The samples run in float32 lanes (:func:`_sub_pass`), restarted every :data:`SUB`
     samples from a float64 recursion over the restarts (phasor ``z`` times the product of the
@@ -511,10 +514,21 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V):
         for i in range(8):
             V32[i, q] = V[i, q]
     for s in range(0, L, SUB):
+        nk = min(SUB, L - s)
         for q in range(n):
             for i in range(4):
                 S32[i, q] = T[i, q]
-        _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, min(SUB, L - s), np.float32(s), S32, V32)
+            lo, hi = span[0, q], span[1, q]
+            if lo > 0 or hi < L:  # (a partial line: in full here, or 0 and its part one sample at a time)
+                full = lo <= s and s + nk <= hi
+                for i in range(8):
+                    V32[i, q] = V[i, q] if full else 0.0
+                a = max(lo, s)
+                b = min(hi, s + nk)
+                if not full and b > a:
+                    _span_part(acc, first, c0, k0, c1, k1, two, s, a, b, T[0, q], T[1, q], T[2, q], T[3, q],
+                               S[4, q], S[5, q], V[:, q])
+        _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, nk, np.float32(s), S32, V32)
         for q in range(n):
             zr, zi, rr, ri, pr, pi = T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q]
             T[0, q], T[1, q] = zr * pr - zi * pi, zr * pi + zi * pr
@@ -523,18 +537,20 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V):
 
 
 @njit(cache=True, fastmath=FAST)
-def _line_span(acc, first, n0, Dm, M, lo, hi, cr, ci, tr, ti, fr, fi, v):
-    """One line over its samples ``[lo, hi)`` alone (one crossing the cut-off), into every
-    channel ``m`` at ``n0 + k + Dm[m]``: phasor ``cr + j ci`` and rate ``tr + j ti`` at ``lo``,
-    the rate's turn ``fr + j fi``; ``v`` (4 M,) each channel's weight and step per sample
-    from sample 0 (re, im)."""
+def _span_part(acc, first, c0, k0, c1, k1, two, s, a, b, zr, zi, xr, xi, fr, fi, v):
+    """One line's samples ``a <= k < b`` (of the block) one at a time, into channel ``c0`` at
+    ``k0 + k`` and (``two``) ``c1`` at ``k1 + k``: its phasor ``zr + j zi`` and rate
+    ``xr + j xi`` at sample ``s <= a``, the rate's turn ``fr + j fi``, ``v`` (8,) each
+    channel's weight and step per sample from sample 0 (re, im)."""
     mask = acc.shape[1] - 1
-    zr, zi, xr, xi = cr, ci, tr, ti
-    for k in range(lo, hi):
-        for m in range(M):
-            u = n0 + k + Dm[m]
+    for k in range(s, b):
+        if k >= a:
+            u = k0 + k
             if u >= first:
-                acc[m, u & mask] += (v[4 * m] + v[4 * m + 2] * k) * zi + (v[4 * m + 1] + v[4 * m + 3] * k) * zr
+                acc[c0, u & mask] += (v[0] + v[2] * k) * zi + (v[1] + v[3] * k) * zr
+            u = k1 + k
+            if two and u >= first:
+                acc[c1, u & mask] += (v[4] + v[6] * k) * zi + (v[5] + v[7] * k) * zr
         zr, zi = zr * xr - zi * xi, zr * xi + zi * xr
         xr, xi = xr * fr - xi * fi, xr * fi + xi * fr
 
@@ -579,9 +595,10 @@ def lines_render(track, act, lw, n0, L, fs, F):
         r = rec[0]
         r.pending_from = lo if r.pending_until <= first else min(r.pending_from, lo)
         r.pending_until = max(r.pending_until, hi)
-    # the lines that sound over the whole block, gathered (others: one at a time)
+    # the lines gathered, each over its audible samples
     S = np.empty((6, C))
     V = np.zeros((4 * M + 4, C))
+    span = np.empty((2, C), np.int64)
     nl = 0
     for j in range(J):
         silent = a0[j] == 0.0 and a1[j] == 0.0
@@ -596,12 +613,9 @@ def lines_render(track, act, lw, n0, L, fs, F):
             lo, hi = audible_span(s0, ds, limit, L)
             if hi <= lo:
                 continue
-            ph0 = ph + s0 * lo + ds * (0.5 * lo * (lo - 1))  # (the phase at the first audible sample)
-            th0 = s0 + ds * lo
-            cr, ci = math.cos(ph0), math.sin(ph0)
-            tr, ti = math.cos(th0), math.sin(th0)
+            cr, ci = math.cos(ph), math.sin(ph)  # (phasor and rate at the block's first sample)
+            tr, ti = math.cos(s0), math.sin(s0)
             fr, fi = math.cos(ds), math.sin(ds)
-            whole = lo == 0 and hi == L
             for m in range(M):
                 v0 = a0[j] * W0[c, m]
                 d = (a1[j] * W1[c, m] - v0) / L
@@ -609,17 +623,16 @@ def lines_render(track, act, lw, n0, L, fs, F):
                 V[4 * m + 1, nl] = v0.imag
                 V[4 * m + 2, nl] = d.real
                 V[4 * m + 3, nl] = d.imag
-            if not whole:  # (a line crossing the cut-off: its audible samples alone, one sample at a time)
-                _line_span(acc, first, n0, Dm, M, lo, hi, cr, ci, tr, ti, fr, fi, V[:, nl])
-            if whole:
-                S[0, nl], S[1, nl], S[2, nl], S[3, nl], S[4, nl], S[5, nl] = cr, ci, tr, ti, fr, fi
-                nl += 1
+            S[0, nl], S[1, nl], S[2, nl], S[3, nl], S[4, nl], S[5, nl] = cr, ci, tr, ti, fr, fi
+            span[0, nl] = lo  # (a line crossing the cut-off sounds on its audible samples alone)
+            span[1, nl] = hi
+            nl += 1
     if nl:
         S0 = S[:, :nl].copy()
         for m in range(0, M, 2):  # (two channels per pass over the phasors)
             two = m + 1 < M
             _lines_pass(acc, first, (m, n0 + Dm[m]), (m + 1 if two else m, n0 + Dm[m + 1 if two else m]), two, L,
-                        S0, V[4 * m:4 * m + 8, :nl].copy())
+                        S0, V[4 * m:4 * m + 8, :nl].copy(), span[:, :nl])
     # broadband: the static response of the low-passed noises, generated every R samples,
     # summed per channel there and interpolated linearly in between
     R = 64
