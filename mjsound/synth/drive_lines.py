@@ -526,8 +526,8 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V, span):
                 a = max(lo, s)
                 b = min(hi, s + nk)
                 if not full and b > a:
-                    _span_part(acc, first, c0, k0, c1, k1, two, s, a, b, T[0, q], T[1, q], T[2, q], T[3, q],
-                               S[4, q], S[5, q], V[:, q])
+                    _span_part(acc, first, (c0, k0, c1, k1), two, s, a, b,
+                               (T[0, q], T[1, q], T[2, q], T[3, q], S[4, q], S[5, q]), V[:, q])
         _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, nk, np.float32(s), S32, V32)
         for q in range(n):
             zr, zi, rr, ri, pr, pi = T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q]
@@ -537,11 +537,14 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V, span):
 
 
 @njit(cache=True, fastmath=FAST)
-def _span_part(acc, first, c0, k0, c1, k1, two, s, a, b, zr, zi, xr, xi, fr, fi, v):
+def _span_part(acc, first, offs, two, s, a, b, ph, v):
     """One line's samples ``a <= k < b`` (of the block) one at a time, into channel ``c0`` at
-    ``k0 + k`` and (``two``) ``c1`` at ``k1 + k``: its phasor ``zr + j zi`` and rate
-    ``xr + j xi`` at sample ``s <= a``, the rate's turn ``fr + j fi``, ``v`` (8,) each
-    channel's weight and step per sample from sample 0 (re, im)."""
+    ``k0 + k`` and (``two``) ``c1`` at ``k1 + k`` (``offs = (c0, k0, c1, k1)``): ``ph = (zr,
+    zi, xr, xi, fr, fi)`` its phasor ``zr + j zi`` and rate ``xr + j xi`` at sample
+    ``s <= a`` and the rate's turn ``fr + j fi``; ``v`` (8,) each channel's weight and step
+    per sample from sample 0 (re, im)."""
+    c0, k0, c1, k1 = offs
+    zr, zi, xr, xi, fr, fi = ph
     mask = acc.shape[1] - 1
     for k in range(s, b):
         if k >= a:
@@ -700,8 +703,11 @@ DONE, GROW_TRACK = 0, 1
 
 
 @njit(cache=True)
-def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, regain, F):
-    """One block of the drives in one call: :func:`drive_read` of ``dv`` (unless ``resume``:
+def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
+    """One block of the drives in one call (``state = (rd, act, lw, bg, view, ks, track, dv,
+    io)``: :class:`DriveRead`, :class:`Actuators`, :class:`LineWeights`, :class:`BodyGains`,
+    :class:`SceneView`, :class:`.records.SynthState`, :class:`.records.TrackState`, and):
+    :func:`drive_read` of ``dv`` (unless ``resume``:
     the block's read is kept), the driven bodies' gains (:func:`.drive_gains.bodies_gains`),
     :func:`line_weights`, the broadband's modes where some actuator's goes through them
     (:func:`.drive_broadband.broadband_modes`, :func:`.drive_broadband.broadband_force` into
@@ -716,6 +722,7 @@ def lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resu
     k0 : int, the block's first synth sample; L : int, its samples; fs : float [Hz]
     regain : int, samples between the driven bodies' gains (:func:`.drive_gains.bodies_gains`)
     """
+    rd, act, lw, bg, view, ks, track, dv, io = state
     qvel, force, anchor, axis = dv
     io[0] = DONE
     io[2] = 0
@@ -783,5 +790,4 @@ def lines_drive_packed(table, layout, k0, L, fs, fresh, resume, regain, F):
     """:func:`lines_drive` with its state ``(rd, act, lw, bg, view, ks, track, dv, io)``
     packed (:func:`.packing.unpack`; called through :class:`.dispatch.PackedEntry`: one
     table crosses into numba instead of every array)."""
-    rd, act, lw, bg, view, ks, track, dv, io = unpack(table, layout)
-    lines_drive(rd, act, lw, bg, view, ks, track, dv, io, k0, L, fs, fresh, resume, regain, F)
+    lines_drive(unpack(table, layout), k0, L, fs, fresh, resume, regain, F)
