@@ -63,7 +63,8 @@ KERNEL_GROUPS = {
             "sim/images.py", "sim/impulses.py", "sim/pairs.py", "sim/records.py", "sim/step.py", "sim/surfaces.py",
             "synth/bandlimited.py",
             "synth/bank_loops.py", "synth/constants.py", "synth/contact_coupling.py", "synth/directivity.py",
-            "synth/dispatch.py", "synth/drive_broadband.py", "synth/drive_gains.py", "synth/drive_lines.py",
+            "synth/dispatch.py", "synth/drive_broadband.py", "synth/drive_gains.py", "synth/drive_housing.py",
+            "synth/drive_lines.py",
             "synth/drive_tones.py", "synth/impact_energy.py", "synth/interrupt.py", "synth/kernels.py", "synth/packing.py", "synth/pulse.py", "synth/queue.py",
             "synth/records.py", "synth/reverb.py", "synth/sorting.py", "synth/streams.py"),
 }

@@ -12,8 +12,9 @@ from mjsound.sim.actuators import PRESETS
 from mjsound.sim.simulator import AudioSimulator
 from test_actuators import FS, arm_xml
 
-#: the servo's tones (no broadband: the lines' static broadband is not the exact one's)
-TONES = replace(PRESETS["servo"], broadband=0.0)
+#: the servo's tones (no broadband: the lines' static broadband is not the exact one's; no housing:
+#: the exact rendering has none)
+TONES = replace(PRESETS["servo"], broadband=0.0, housing=0.0)
 STEPS = 1500  # 1.5 s at 1 ms
 
 

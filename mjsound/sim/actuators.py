@@ -41,7 +41,8 @@ from ..synth.drive_lines import (DONE, Actuators, BodyGains, DriveRead, LineWeig
                                  lines_drive_packed, scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
-__all__ = ["ActuatorPreset", "PRESETS", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "DRIVE_BLOCK_S", "RENDERINGS",
+__all__ = ["ActuatorPreset", "PRESETS", "HOUSING_POINTS", "housing_coefficient", "housing_level_dba",
+           "a_weighting_db", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "DRIVE_BLOCK_S", "RENDERINGS",
            "ActuatorSound", "actuator_config"]
 
 #: MJCF custom text prefix naming an actuator's preset.
@@ -75,6 +76,12 @@ class ActuatorPreset:
         Broadband noise level relative to the force scale.
     lead : float
         A slide's travel per rotor turn before the reduction [m].
+    housing : float
+        The motor housing's direct airborne part [Pa m / N]: each line's force ``f`` [N]
+        (and the broadband force) heard at an air microphone at distance ``r`` [m] from the
+        joint's anchor as the pressure ``housing f(t - r / c) / r`` [Pa]
+        (:mod:`mjsound.synth.drive_housing`; :func:`housing_coefficient` makes one from a
+        level at 1 m). 0: none (only the links' rings are heard in air).
     """
 
     reduction: float
@@ -82,6 +89,12 @@ class ActuatorPreset:
     tones: tuple = field(default_factory=tuple)
     broadband: float = 0.0
     lead: float = 0.01
+    housing: float = 0.0
+
+    def __post_init__(self):
+        if not (math.isfinite(self.housing) and self.housing >= 0.0):
+            raise ValueError(f"ActuatorPreset housing={self.housing!r}: give a finite coefficient >= 0 [Pa m / N] "
+                             "(0: no airborne part)")
 
 
 def _mesh(teeth_and_ratios, frac, harmonics=3):
@@ -97,20 +110,82 @@ def _mesh(teeth_and_ratios, frac, harmonics=3):
     return tuple(out)
 
 
+def a_weighting_db(f):
+    """The A-weighting [dB] at frequencies ``f`` [Hz] (IEC 61672-1: ``20 log10 R_A(f) + 2.00``,
+    ``R_A = 12194^2 f^4 / ((f^2 + 20.6^2) sqrt((f^2 + 107.7^2)(f^2 + 737.9^2)) (f^2 + 12194^2))``;
+    0.0 dB at 1 kHz within 0.01).
+
+    >>> round(float(a_weighting_db(1000.0)), 2), round(float(a_weighting_db(100.0)), 1)
+    (0.0, -19.1)
+    """
+    f2 = np.asarray(f, dtype=float) ** 2
+    ra = 12194.0 ** 2 * f2 ** 2 / ((f2 + 20.6 ** 2) * np.sqrt((f2 + 107.7 ** 2) * (f2 + 737.9 ** 2)) * (f2 + 12194.0 ** 2))
+    with np.errstate(divide="ignore"):
+        return 20.0 * np.log10(ra) + 2.0
+
+
+#: Reference pressure of sound pressure levels [Pa].
+P_REF = 20e-6
+
+
+def housing_level_dba(preset: ActuatorPreset, torque: float, joint_speed: float, distance: float = 1.0) -> float:
+    """The A-weighted level [dB(A) re 20 uPa] of a preset's housing tones (its direct airborne
+    part, no links) at ``distance`` [m] from the anchor, its hinge at ``joint_speed`` [rad/s]
+    (at or above the speed gate) under ``torque`` [N m]: the lines' forces ``a A_c``, ``a =
+    torque / radius``, at ``f_c = order_c N joint_speed / (2 pi)`` as the pressures ``housing
+    a A_c / distance`` (amplitudes; those of one order add, being in phase), summed in power: ``10 log10(sum_c (p_c 10^(A(f_c) / 20))^2
+    / 2 / P_REF^2)`` (:func:`a_weighting_db`). The broadband part is left out."""
+    a = abs(torque) / preset.radius * min(1.0, abs(joint_speed) / GATE_RAD_S)
+    amp: dict = {}
+    for o, A in preset.tones:  # (components of one order turn in phase from the start: amplitudes add)
+        amp[o] = amp.get(o, 0.0) + A
+    f = np.array(list(amp)) * preset.reduction * abs(joint_speed) / (2.0 * math.pi)
+    p = preset.housing * a * np.array(list(amp.values())) / distance * 10.0 ** (a_weighting_db(f) / 20.0)
+    return float(10.0 * np.log10(np.sum(p ** 2) / 2.0 / P_REF ** 2))
+
+
+def housing_coefficient(preset: ActuatorPreset, torque: float, joint_speed: float, level_dba: float) -> float:
+    """The housing coefficient [Pa m / N] that makes :func:`housing_level_dba` at 1 m equal to
+    ``level_dba`` [dB(A)] at the operating point ``torque`` [N m], ``joint_speed`` [rad/s] (the
+    level is linear in the coefficient: one division).
+
+    >>> p = PRESETS["servo"]
+    >>> round(housing_level_dba(p, *HOUSING_POINTS["servo"][:2]), 6) == HOUSING_POINTS["servo"][2]
+    True
+    """
+    unit = housing_level_dba(replace(preset, housing=1.0), torque, joint_speed)
+    return float(10.0 ** ((level_dba - unit) / 20.0))
+
+
+#: Each preset's housing calibration (:func:`housing_coefficient`): (output torque [N m], joint
+#: speed [rad/s], A-weighted level of its tones at 1 m [dB(A)]); see ``docs/actuators.md``,
+#: "Airborne part", for where each level comes from (``servo`` and ``harmonic``: assumptions;
+#: ``qdd``: a planetary gearbox maker's running noise).
+HOUSING_POINTS = {
+    "servo": (0.1, 5.0, 45.0),  # (hobby servo under load; rotor 1500 rad/s)
+    "harmonic": (20.0, 2.0, 50.0),  # (arm joint; wave generator at 200 rad/s, 1900 rpm)
+    "qdd": (10.0, 20.0, 58.0),  # (leg joint; rotor 120 rad/s, 1150 rpm)
+}
+
+_DRIVES = {
+    "servo": ActuatorPreset(300.0, 0.01, _mesh(((10, 5.0), (10, 6.0), (10, 10.0)), 0.05) + ((6.0, 0.05),), 0.02),
+    "harmonic": ActuatorPreset(100.0, 0.04, ((2.0, 0.03), (4.0, 0.015), (200.0, 0.02), (400.0, 0.01), (24.0, 0.02)),
+                               0.01),
+    "qdd": ActuatorPreset(6.0, 0.05, _mesh(((10, 6.0),), 0.03) + ((126.0, 0.02), (252.0, 0.01)), 0.01),
+}
+
 #: Named presets (``none``: silent). The numbers are assumptions of typical designs (see
 #: ``docs/actuators.md``): ``servo`` a small brushed DC servo (3-slot motor: commutation
 #: ripple at 6x the rotor rate; 10-tooth pinions, stages 5 x 6 x 10 = 300:1);
 #: ``harmonic`` a BLDC motor (12 slots, 8 poles: ripple / cogging at lcm = 24x) into a
 #: 100:1 harmonic drive (two-lobe wave generator at 2x, flexspline 200 teeth);
 #: ``qdd`` a quasi-direct-drive leg motor (36 slots, 42 poles: 126x ripple, cogging 252x)
-#: with one 6:1 planetary stage (12-tooth sun: mesh at 12 (1 - 1/6) = 10x).
-PRESETS = {
-    "none": None,
-    "servo": ActuatorPreset(300.0, 0.01, _mesh(((10, 5.0), (10, 6.0), (10, 10.0)), 0.05) + ((6.0, 0.05),), 0.02),
-    "harmonic": ActuatorPreset(100.0, 0.04, ((2.0, 0.03), (4.0, 0.015), (200.0, 0.02), (400.0, 0.01), (24.0, 0.02)),
-                               0.01),
-    "qdd": ActuatorPreset(6.0, 0.05, _mesh(((10, 6.0),), 0.03) + ((126.0, 0.02), (252.0, 0.01)), 0.01),
-}
+#: with one 6:1 planetary stage (12-tooth sun: mesh at 12 (1 - 1/6) = 10x). Each has a
+#: housing (direct airborne part) calibrated at :data:`HOUSING_POINTS`.
+PRESETS = {"none": None}
+for _name, _p in _DRIVES.items():
+    PRESETS[_name] = replace(_p, housing=housing_coefficient(_p, *HOUSING_POINTS[_name]))
+del _name, _p
 
 
 def _preset(value, where):
@@ -224,6 +299,8 @@ class ActuatorSound:
             warnings.warn(f"mjsound: actuators {silent} drive no sounding geom (neither the joint's body nor its "
                           "parent has one with an audible mode): they are silent; give those bodies' geoms a "
                           "material (materials=..., MJCF 'mjsound:GEOM') or a higher sample_rate to hear them", RuntimeWarning, stacklevel=user_stacklevel())
+        # the housing's airborne part (drive_housing), for the actuators heard through a body
+        self.housing = np.array([p.housing if j in heard else 0.0 for j, p in enumerate(presets)], np.float64)
         self.bodies = np.array(sorted(sides), np.int64)
         self.body_geom = np.array([sides[b][0] for b in self.bodies.tolist()], np.int64)
         self.body_ptr = np.zeros(len(self.bodies) + 1, np.int64)
@@ -242,7 +319,8 @@ class ActuatorSound:
         self._weights_for(M)
         z = np.zeros
         self._act = Actuators(self.comp_off, self.tones, self.noise, self.drives, self.body_ptr, self.body_rows,
-                              self._sidx, z(len(self.bodies)), z(J, np.bool_), z(J), z(J), z(J), z(J))
+                              self._sidx, z(len(self.bodies)), z(J, np.bool_), z(J), z(J), z(J), z(J),
+                              self.housing)
         self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, np.array([float(GATE_RAD_S)]))
         self._bg = None  # (the bodies' gains: _body_gains)
         self._view, self._view_of = None, None  # (scene_view of the synthesizer's state and directions)

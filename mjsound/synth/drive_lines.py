@@ -56,6 +56,7 @@ from .bank_loops import FAST
 from .directivity import _factor, real_sh
 from .drive_broadband import RESONANT_OFF, RESONANT_ON, broadband_force, broadband_modes, broadband_resonant
 from .drive_gains import bodies_gains
+from .drive_housing import housing_weights
 from .drive_tones import audible_span, noise_cutoff_hz
 from .packing import unpack
 from .records import AIR
@@ -82,6 +83,7 @@ class Actuators(NamedTuple):
     w1: np.ndarray  # (J,) ... at its end (now)
     a0: np.ndarray  # (J,) force scale [N] at the block's start
     a1: np.ndarray  # (J,) ... at its end
+    housing: np.ndarray  # (J,) float64: the housing's airborne coefficient [Pa m / N] (.drive_housing; 0: none)
 
 
 class LineWeights(NamedTuple):
@@ -709,7 +711,8 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
     :class:`SceneView`, :class:`.records.SynthState`, :class:`.records.TrackState`, and):
     :func:`drive_read` of ``dv`` (unless ``resume``:
     the block's read is kept), the driven bodies' gains (:func:`.drive_gains.bodies_gains`),
-    :func:`line_weights`, the broadband's modes where some actuator's goes through them
+    :func:`line_weights` and the housing's airborne part
+    (:func:`.drive_housing.housing_weights`), the broadband's modes where some actuator's goes through them
     (:func:`.drive_broadband.broadband_modes`, :func:`.drive_broadband.broadband_force` into
     ``F`` (J, L)), the weights' start (``fresh``: the same as the end), :func:`lines_render`
     and :func:`.drive_broadband.broadband_resonant` into ``track``.
@@ -755,6 +758,7 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
         broadband_resonant(view, act, lw, bg, track, k0, F, False)
         return
     dmax = line_weights(view, act, lw, bg, fs)
+    housing_weights(ks, act, lw, anchor, fs)  # (after the broadband's route is chosen: it leaves that alone)
     for b in range(bg.D.shape[0]):  # (the resonant modes are heard at their own body's delays)
         if act.sidx[b] >= 0:
             for m in range(bg.D.shape[1]):

@@ -1,0 +1,92 @@
+"""The motor housing's direct airborne part of a drive's lines (:mod:`.drive_lines`).
+
+A drive's motor and gearbox radiate from their housing as well as through the links they
+shake. The housing is a compact source at the joint's anchor ``x_a`` (MuJoCo's
+``data.xanchor``), a monopole whose pressure follows the drive's own force: per actuator
+``j`` with housing coefficient ``K_j`` [Pa m / N] (:attr:`mjsound.sim.actuators.
+ActuatorPreset.housing`), at an air microphone ``m`` at distance ``r = max(|x_m - x_a|, rmin)``,
+
+    p_m(t) = K_j f_j(t - r / c) / r        [Pa],
+
+``f_j = a (sum_c A_c sin(phi_c) + b y)`` the drive's force [N] (:mod:`.drive_tones`). In the
+lines' terms (a line at microphone ``m`` is ``Im(a W_cm e^{j phi_c})`` written ``D_m``
+samples after its source sample, :func:`.drive_lines.line_weights`) each tonal component's
+weight gains
+
+    W_cm += K_j A_c e^{-j theta_c (r fs / c - D_m)} / r,
+
+``theta_c`` its phase step per sample at the block's end (the housing's delay beyond the
+microphone's, possibly negative: exact for a steady speed, like the bodies' delays), and
+each actuator's static broadband gain ``B_jm += K_j / r`` (the noise heard at the
+microphone's delay ``D_m``, not its own: the low-passed noise is shifted by the difference,
+under a millisecond where the housing is within 30 cm of the nearest driven body's centre).
+
+Only air microphones hear it: not contact microphones (their channels are bit for bit those
+without it) and not image microphones (the room's reflections of the housing are left out).
+The weights are added after :func:`.drive_lines.line_weights` has decided which broadband
+parts ring the modes, so that decision, too, is the one without the housing. The modal
+rendering (``ActuatorSound.rendering == "modal"``) has no housing part.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..jit import njit
+from .records import AIR
+
+__all__ = ["housing_weights"]
+
+
+@njit(cache=True)
+def housing_weights(ks, act, lw, anchor, fs):
+    """Add each actuator's housing part (module docstring) to the lines' weights ``lw.W1``
+    (C, M) and static broadband gains ``lw.B1`` (J, M) at the air microphones, at the rotor
+    speeds ``act.w1`` and with the microphones' delays ``lw.Dm`` (both as
+    :func:`.drive_lines.line_weights` left them). An actuator with ``act.housing[j] == 0``
+    changes nothing.
+
+    Parameters
+    ----------
+    ks : :class:`.records.SynthState` (microphones, channels, constants: ``c`` [m/s], ``rmin`` [m])
+    act : :class:`.drive_lines.Actuators`; lw : :class:`.drive_lines.LineWeights`
+    anchor : (n_joints, 3) float64, MuJoCo's ``data.xanchor`` [m]
+    fs : float [Hz]
+
+    Example
+    -------
+    One tone (order 10, ``A = 0.05``) of a drive with ``K = 0.01`` Pa m/N at a microphone
+    1 m from the anchor whose delay is the housing's: ``W += 0.01 * 0.05 / 1``, real.
+    """
+    housing, comp_off, tones, w, drives = act.housing, act.comp_off, act.tones, act.w1, act.drives
+    W, B, Dm = lw.W1, lw.B1, lw.Dm
+    cst = ks.consts[0]
+    c, rmin = cst.c, cst.rmin
+    mics, channels = ks.mics, ks.channels
+    M = min(W.shape[1], mics.shape[0])
+    limit = 2.0 * math.pi * 0.45
+    for j in range(housing.shape[0]):
+        K = housing[j]
+        if K == 0.0:
+            continue
+        jt = drives[j].joint
+        for m in range(M):
+            if channels[m].owner != AIR or channels[m].w_off >= 0:  # (contact and image microphones)
+                continue
+            dx = mics[m, 0] - anchor[jt, 0]
+            dy = mics[m, 1] - anchor[jt, 1]
+            dz = mics[m, 2] - anchor[jt, 2]
+            r = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if not r >= rmin:  # (closer than the synthesizer's least distance, or NaN)
+                r = rmin if math.isfinite(r) else math.inf
+            if not math.isfinite(r):
+                continue
+            g = K / r
+            dd = r * fs / c - Dm[m]  # (samples of delay beyond the microphone's)
+            B[j, m] += g
+            for q in range(comp_off[j], comp_off[j + 1]):
+                t = tones[q].order * w[j] / fs
+                if not abs(t) < limit:
+                    continue
+                x = -t * dd
+                W[q, m] += g * tones[q].amp * complex(math.cos(x), math.sin(x))

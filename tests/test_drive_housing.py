@@ -1,0 +1,119 @@
+"""The motor housing's direct airborne part (mjsound.synth.drive_housing): a monopole at the
+joint's anchor whose pressure is the drive's force times ``housing / r``, delayed ``r / c``;
+air microphones only."""
+
+import math
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjsound.sim.actuators import (HOUSING_POINTS, PRESETS, ActuatorPreset, a_weighting_db, housing_coefficient,
+                                   housing_level_dba)
+from mjsound.sim.simulator import AudioSimulator
+from mjsound.synth.accel_noise import SPEED_OF_SOUND
+from test_actuators import FS, arm_xml
+
+ANCHOR = np.array([0.0, 0.0, 0.6])  # (the arm's hinge in arm_xml: base at 0.5, arm 0.1 above it)
+#: two air microphones straight above the anchor, 0.5 m and 1 m from it (clear of the link's sweep)
+MICS = [ANCHOR + [0.0, 0.0, 0.5], ANCHOR + [0.0, 0.0, 1.0]]
+K = 0.01  # [Pa m / N]
+ONE_TONE = ActuatorPreset(reduction=100.0, radius=0.01, tones=((10.0, 0.05),), broadband=0.0, housing=K)
+STEPS = 1000
+
+
+def render(preset, ctrl=2.0, damping=0.05):
+    """The arm at a steady speed; (audio (4, n) float64: the two air microphones, the link's
+    and the far body's contact microphones; joint speed [rad/s] and actuator force [N m] over
+    the last 0.5 s)."""
+    m = mujoco.MjModel.from_xml_string(arm_xml(damping))
+    d = mujoco.MjData(m)
+    sim = AudioSimulator(m, d, microphones=MICS, contact_mics=["s_link", "s_far"], progress=False, sample_rate=FS,
+                         quality="draft", actuators={"m": preset})
+    out, qv, fa = [], [], []
+    for _ in range(STEPS):
+        d.ctrl[0] = ctrl
+        mujoco.mj_step(m, d)
+        out.append(sim.step())
+        qv.append(d.qvel[0])
+        fa.append(d.actuator_force[0])
+    assert np.allclose(d.xanchor[0], ANCHOR)
+    return np.concatenate(out, axis=1).astype(np.float64), float(np.mean(qv[-500:])), float(np.mean(fa[-500:]))
+
+
+def projection(x, f):
+    """Complex amplitude of the tone ``f`` [Hz] in ``x``'s last 0.5 s: ``2 / n sum x e^{-j 2 pi f t}``."""
+    n = FS // 2
+    t = np.arange(n) / FS
+    return 2.0 / n * np.sum(x[-n:] * np.exp(-2j * math.pi * f * t))
+
+
+def test_the_housing_tone_is_a_monopole_at_the_anchor():
+    """One tone, the housing on against off (the links' part cancels): at each microphone the
+    tone's amplitude is ``K a A / r`` within 1 % (``a = |force| / radius``; measured within
+    0.1 %), and between the two the ratio is ``r1 / r2 e^{-j w (r2 - r1) / c}`` (1 / r and the
+    delay: phase within 0.02 rad)."""
+    on, qd, force = render(ONE_TONE)
+    off, _, _ = render(replace(ONE_TONE, housing=0.0))
+    f = 10.0 * 100.0 * qd / (2 * math.pi)
+    a = abs(force) / 0.01
+    P = [projection(on[i] - off[i], f) for i in range(2)]
+    for i, r in enumerate((0.5, 1.0)):
+        assert abs(abs(P[i]) / (K * a * 0.05 / r) - 1.0) < 0.01, (r, abs(P[i]), K * a * 0.05 / r)
+    ratio = P[1] / P[0]
+    assert abs(abs(ratio) - 0.5) < 0.005
+    c = SPEED_OF_SOUND  # (the synthesizer's)
+    expect = -2 * math.pi * f * 0.5 / c
+    assert abs(np.angle(ratio * np.exp(-1j * expect))) < 0.02, (np.angle(ratio), expect)
+
+
+def test_contact_microphones_do_not_hear_the_housing():
+    """The contact microphones' channels are the same bit for bit with the housing on or off
+    (and the air ones are not)."""
+    on, _, _ = render(ONE_TONE)
+    off, _, _ = render(replace(ONE_TONE, housing=0.0))
+    assert np.array_equal(on[2:], off[2:])
+    assert np.abs(on[1]).max() > 0 and not np.array_equal(on[:2], off[:2])
+
+
+def test_the_servo_housing_level_at_its_operating_point():
+    """The ``servo`` preset (tones only) near its calibration point (0.1 N m at 5 rad/s, 45
+    dB(A) at 1 m): the housing part's A-weighted level at the microphone 1 m away is the
+    model's (:func:`housing_level_dba` at the measured torque and speed, its lines under 0.45
+    fs) within 0.2 dB, and within 1 dB of 45 dB(A)."""
+    servo = replace(PRESETS["servo"], broadband=0.0)
+    torque, speed, level = HOUSING_POINTS["servo"]
+    damping = torque / speed  # (the velocity servo holds speed against the joint's damping)
+    ctrl = speed * (1.0 + damping / 5.0)  # (kv = 5: force = kv (ctrl - qdot) = damping qdot)
+    on, qd, force = render(servo, ctrl, damping)
+    off, _, _ = render(replace(servo, housing=0.0), ctrl, damping)
+    x = (on[1] - off[1])[-FS // 2:]
+    X = np.fft.rfft(x * np.hanning(len(x)))
+    fr = np.fft.rfftfreq(len(x), 1.0 / FS)
+    wA = 10.0 ** (a_weighting_db(np.maximum(fr, 1.0)) / 20.0)
+    # (Parseval through the window: mean power = 2 sum |X|^2 / (n sum w^2), one-sided bins, A-weighted per bin)
+    power = 2.0 * np.sum(np.abs(X * wA) ** 2) / (len(x) * np.sum(np.hanning(len(x)) ** 2))
+    measured = 10.0 * math.log10(power / (20e-6) ** 2)
+    audible = replace(servo, tones=tuple((o, A) for o, A in servo.tones if o * servo.reduction * qd / (2 * math.pi)
+                                         < 0.45 * FS))
+    model = housing_level_dba(audible, force, qd)
+    assert abs(measured - model) < 0.2, (measured, model)
+    assert abs(measured - level) < 1.0, (measured, level)
+
+
+def test_housing_coefficients_and_bad_input():
+    """Each motor preset's coefficient gives its stated level at its operating point (the
+    closed form, :func:`housing_level_dba`), the level rises 6.02 dB per doubling of torque,
+    ``none`` and a custom preset have none, and a negative coefficient is an error."""
+    for name, (torque, speed, level) in HOUSING_POINTS.items():
+        p = PRESETS[name]
+        assert p.housing > 0
+        assert abs(housing_level_dba(p, torque, speed) - level) < 1e-9
+        assert abs(housing_level_dba(p, 2 * torque, speed) - level - 20 * math.log10(2)) < 1e-9
+        assert housing_coefficient(replace(p, housing=0.0), torque, speed, level) == pytest.approx(p.housing)
+    assert PRESETS["none"] is None
+    assert ActuatorPreset(10.0, 0.01).housing == 0.0
+    with pytest.raises(ValueError, match="housing"):
+        ActuatorPreset(10.0, 0.01, housing=-1.0)
+    assert abs(float(a_weighting_db(1000.0))) < 0.01 and abs(float(a_weighting_db(100.0)) + 19.1) < 0.05
