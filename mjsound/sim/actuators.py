@@ -25,7 +25,10 @@ sounding geom gets one persistent stream of the synthesizer (the sliding contact
 machinery) carrying the sum of the forces on it (a link between two joints: both drives),
 at the anchor and along the direction of its strongest drive
 (:func:`mjsound.synth.drive_tones.streams_write`): air microphones hear the links ring, a
-contact microphone on a driven link hears it directly.
+contact microphone on a driven link hears it directly. Air microphones also hear the motor
+housing directly (``ActuatorPreset.housing``, :mod:`mjsound.synth.drive_housing`): a
+monopole at the anchor, the drive's force times ``housing / r`` delayed ``r / c``, each
+preset's coefficient calibrated to an A-weighted level at 1 m (:data:`HOUSING_POINTS`).
 See ``docs/actuators.md`` for the presets' numbers and where they come from.
 """
 
