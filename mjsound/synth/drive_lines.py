@@ -32,6 +32,8 @@ Per actuator ``j``, block ``[n0, n0 + L)``, component ``c`` (order ``o_c``, ampl
 - a microphone hears every body of the scene with one delay ``D_m`` (the least of the
   driven bodies' delays); a body's delay beyond it, ``dD``, is the phase
   ``e^{-j theta dD}`` of its lines (exact for a steady speed);
+- the motor housing's direct airborne part (:mod:`.drive_housing`: a monopole at the
+  joint's anchor) is one more term in ``W`` and the broadband gain at the air microphones;
 - the output (pressure at an air or image microphone, acceleration at a contact one) is
   added into the pulse track's ring (:class:`.bandlimited.PulseTrack`), which every rendered
   block takes in.
