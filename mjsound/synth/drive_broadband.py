@@ -46,7 +46,7 @@ RESONANT_REST = 0.01
 def broadband_modes(act, lw, bg):
     """The modes that carry the broadband parts of the actuators ``lw.exact``: on each body
     with one, the fewest modes holding all but :data:`RESONANT_REST` of the body's resonant
-    power (``bg.resonant``, :func:`.drive_lines.line_weights`) are kept (``bg.keep``: they run,
+    power (``bg.resonant``, :func:`.drive_weights.line_weights`) are kept (``bg.keep``: they run,
     :func:`broadband_resonant`); their static part stays with the lines: ``lw.B1[j]`` of an
     exact actuator is the static response of its bodies' other modes. Returns the modes kept."""
     sidx, sign, ptr, rows = act.sidx, act.sign, act.ptr, act.rows

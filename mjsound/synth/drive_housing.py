@@ -10,7 +10,7 @@ ActuatorPreset.housing`), at an air microphone ``m`` at distance ``r = max(|x_m 
 
 ``f_j = a (sum_c A_c sin(phi_c) + b y)`` the drive's force [N] (:mod:`.drive_tones`). In the
 lines' terms (a line at microphone ``m`` is ``Im(a W_cm e^{j phi_c})`` written ``D_m``
-samples after its source sample, :func:`.drive_lines.line_weights`) each tonal component's
+samples after its source sample, :func:`.drive_weights.line_weights`) each tonal component's
 weight gains
 
     W_cm += K_j A_c e^{-j theta_c (r fs / c - D_m)} / r,
@@ -23,7 +23,7 @@ under a millisecond where the housing is within 30 cm of the nearest driven body
 
 Only air microphones hear it: not contact microphones (their channels are bit for bit those
 without it) and not image microphones (the room's reflections of the housing are left out).
-The weights are added after :func:`.drive_lines.line_weights` has decided which broadband
+The weights are added after :func:`.drive_weights.line_weights` has decided which broadband
 parts ring the modes, so that decision, too, is the one without the housing. The modal
 rendering (``ActuatorSound.rendering == "modal"``) has no housing part.
 """
@@ -43,7 +43,7 @@ def housing_weights(ks, act, lw, anchor, fs):
     """Add each actuator's housing part (module docstring) to the lines' weights ``lw.W1``
     (C, M) and static broadband gains ``lw.B1`` (J, M) at the air microphones, at the rotor
     speeds ``act.w1`` and with the microphones' delays ``lw.Dm`` (both as
-    :func:`.drive_lines.line_weights` left them). An actuator with ``act.housing[j] == 0``
+    :func:`.drive_weights.line_weights` left them). An actuator with ``act.housing[j] == 0``
     changes nothing.
 
     Parameters
