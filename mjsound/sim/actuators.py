@@ -39,6 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..synth.constants import P_REF_PA
 from ..synth.dispatch import EntryPoint, PackedEntry
 from ..synth.drive_lines import (DONE, Actuators, BodyGains, DriveRead, LineWeights, drive_read,
                                  lines_drive_packed, scene_view)
@@ -127,24 +128,20 @@ def a_weighting_db(f):
         return 20.0 * np.log10(ra) + 2.0
 
 
-#: Reference pressure of sound pressure levels [Pa].
-P_REF = 20e-6
-
-
 def housing_level_dba(preset: ActuatorPreset, torque: float, joint_speed: float, distance: float = 1.0) -> float:
     """The A-weighted level [dB(A) re 20 uPa] of a preset's housing tones (its direct airborne
     part, no links) at ``distance`` [m] from the anchor, its hinge at ``joint_speed`` [rad/s]
     (at or above the speed gate) under ``torque`` [N m]: the lines' forces ``a A_c``, ``a =
     torque / radius``, at ``f_c = order_c N joint_speed / (2 pi)`` as the pressures ``housing
     a A_c / distance`` (amplitudes; those of one order add, being in phase), summed in power: ``10 log10(sum_c (p_c 10^(A(f_c) / 20))^2
-    / 2 / P_REF^2)`` (:func:`a_weighting_db`). The broadband part is left out."""
+    / 2 / P_REF_PA^2)`` (:func:`a_weighting_db`). The broadband part is left out."""
     a = abs(torque) / preset.radius * min(1.0, abs(joint_speed) / GATE_RAD_S)
     amp: dict = {}
     for o, A in preset.tones:  # (components of one order turn in phase from the start: amplitudes add)
         amp[o] = amp.get(o, 0.0) + A
     f = np.array(list(amp)) * preset.reduction * abs(joint_speed) / (2.0 * math.pi)
     p = preset.housing * a * np.array(list(amp.values())) / distance * 10.0 ** (a_weighting_db(f) / 20.0)
-    return float(10.0 * np.log10(np.sum(p ** 2) / 2.0 / P_REF ** 2))
+    return float(10.0 * np.log10(np.sum(p ** 2) / 2.0 / P_REF_PA ** 2))
 
 
 def housing_coefficient(preset: ActuatorPreset, torque: float, joint_speed: float, level_dba: float) -> float:

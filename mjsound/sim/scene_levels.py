@@ -35,18 +35,14 @@ import math
 
 import numpy as np
 
+from ..synth.constants import P_REF_PA, R_MIN_M  # (R_MIN_M: the synthesizer's least distance for 1/r)
+
 __all__ = ["REFERENCE_TAP_NS", "P_REF_PA", "loudest_modes"]
 
 #: The reference tap [N s]: a 10 g steel ball arriving at 1 m/s and stopping.
 REFERENCE_TAP_NS = 0.01
 TAP_MASS_KG, TAP_SPEED_M_S = 0.01, 1.0
 
-#: Reference sound pressure of dB SPL [Pa] (RMS).
-P_REF_PA = 20e-6
-
-#: Microphones nearer than this to a radiation centre are taken at it [m] (the far field's 1/r
-#: would diverge; the synthesizer floors distances likewise).
-R_FLOOR_M = 0.05
 
 
 def loudest_modes(scene) -> list[list[dict]]:
@@ -89,8 +85,9 @@ def loudest_modes(scene) -> list[list[dict]]:
         centre = np.zeros(3) if mm.radiation_centre is None else np.asarray(mm.radiation_centre, np.float64)
         world_centre = np.asarray(data.geom_xpos[s.geom_id], np.float64) + R @ centre
         to_mic = (mics - world_centre) @ R  # (m, 3) in the object's frame
-        dist = np.maximum(np.linalg.norm(to_mic, axis=1), R_FLOOR_M)
-        away = np.where(np.linalg.norm(to_mic, axis=1, keepdims=True) > 0, to_mic, [0.0, 0.0, 1.0])
+        norm = np.linalg.norm(to_mic, axis=1)
+        dist = np.maximum(norm, R_MIN_M)
+        away = np.where(norm[:, None] > 0, to_mic, [0.0, 0.0, 1.0])  # (a microphone at the centre: any)
         F = np.abs(mm.radiation_pattern(away))  # (m, n)
         phi_n = np.einsum("pcn,pc->pn", mm.shapes.astype(np.float64), mm.normals.astype(np.float64))
         antinode = np.abs(phi_n).max(axis=0)  # (n,)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 __all__ = ["GRID", "D_MIN_PER_S", "R_MIN_M", "TIME_TOLERANCE_S", "RHO_AIR", "FLOOR_PA", "MAX_AMPLITUDE",
-           "SLIDE_ROUGHNESS", "SLIDE_GRAIN_M", "ROLL_ROUGHNESS", "ROLL_PATCH_M", "SAMPLE_TOL"]
+           "SLIDE_ROUGHNESS", "SLIDE_GRAIN_M", "ROLL_ROUGHNESS", "ROLL_PATCH_M", "SAMPLE_TOL", "P_REF_PA"]
 
 #: Samples between exact-pole corrections / culling checks (absolute grid).
 GRID = 256
@@ -13,6 +13,8 @@ D_MIN_PER_S = 1e-3
 R_MIN_M = 0.01
 #: Events up to this much before the rendered time are accepted (and start now) [s].
 TIME_TOLERANCE_S = 1e-6
+#: Reference pressure of sound pressure levels, dB SPL [Pa] (RMS).
+P_REF_PA = 20e-6
 #: Air density [kg/m^3] (``radiation=False`` proxy).
 RHO_AIR = 1.2
 #: Absolute amplitude floor [Pa at the microphone]: modes below it are culled.

@@ -27,9 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..jit import njit
-from .drive_tones import drive_direction
+from .drive_tones import aim_at_drive
 from .records import AIR
-from .streams import mic_distance, nearest_sorted, stream_aim
+from .streams import mic_distance, nearest_sorted
 
 __all__ = ["ANCHOR_TOL_M", "bodies_gains"]
 
@@ -80,14 +80,11 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
                 best = i
         if best < 0:
             continue
-        jb = rows[best] // 2
-        sg = 1.0 if rows[best] % 2 == 0 else -1.0
+        rec = st.table[s]
+        sg, jt, due = aim_at_drive(rec, rows[best], drives, axis, anchor, k0, regain, nrm)
         sign[b] = sg
         any_driven = True
-        jt = drives[jb].joint
-        drive_direction(axis[jt], drives[jb].slide, nrm)
-        rec = st.table[s]
-        if not stream_aim(rec, anchor[jt], nrm, sg, k0, regain):
+        if not due:
             continue  # (its gains are made every ``regain`` samples, as the exact rendering's)
         rec.due = 0  # (made here, not by the synthesizer)
         o = rec.obj

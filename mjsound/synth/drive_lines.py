@@ -58,7 +58,7 @@ from .bank_loops import FAST
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant
 from .drive_gains import bodies_gains
 from .drive_housing import housing_weights
-from .drive_tones import audible_span, noise_cutoff_hz
+from .drive_tones import advance_phase, audible_span, noise_cutoff_hz
 from .drive_weights import line_weights
 from .packing import unpack
 from .streams import SQRT3, noise_draw
@@ -390,7 +390,7 @@ def lines_render(track, act, lw, n0, L, fs, F):
             s0 = tones[c].order * w0[j] / fs
             ds = tones[c].order * dw / fs
             ph = tones[c].phase
-            tones[c].phase = (ph + s0 * L + ds * (0.5 * L * (L - 1))) % two_pi  # (exact: as drive_tones)
+            tones[c].phase = advance_phase(ph, s0, ds, L)
             if silent:
                 continue
             lo, hi = audible_span(s0, ds, limit, L)

@@ -38,7 +38,8 @@ import numpy as np
 from ..jit import njit
 from .streams import SQRT3, noise_draw, ring_need, stream_aim, stream_written
 
-__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "noise_cutoff_hz", "streams_write", "DRIVE", "TONE", "NOISE"]
+__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "aim_at_drive", "advance_phase",
+           "noise_cutoff_hz", "streams_write", "DRIVE", "TONE", "NOISE"]
 
 #: A tonal component of an actuator's force: its multiple of the rotor's rate, its amplitude
 #: relative to the force scale and its phase [rad] (carried from block to block).
@@ -158,7 +159,7 @@ def drive_tones(w0, w1, a0, a1, comp_off, tones, noise, fs, out):
             s0 = tones[c].order * w0[j] / fs
             ds = tones[c].order * dw / fs
             ph = tones[c].phase
-            tones[c].phase = (ph + s0 * L + ds * (0.5 * L * (L - 1))) % two_pi  # (exact: the rotor turns when silent too)
+            tones[c].phase = advance_phase(ph, s0, ds, L)  # (the rotor turns when silent too)
             if silent:
                 continue
             lo, hi = audible_span(s0, ds, limit, L)
@@ -207,6 +208,28 @@ def drive_direction(axis, slide, out):
     out[e] = 0.0
     out[(e + 1) % 3] = y / nrm
     out[(e + 2) % 3] = -x / nrm
+
+
+@njit(cache=True, inline="always")
+def aim_at_drive(rec, row, drives, axis, anchor, k0, regain, nrm):
+    """Aim a driven body's stream ``rec`` at one of its drives, ``row`` of the bodies' drive
+    rows (actuator ``row // 2``; an even row is the side its force pushes along ``+nrm``):
+    the force's direction into ``nrm`` (:func:`drive_direction`) and
+    :func:`.streams.stream_aim` at the joint's anchor. Returns ``(sign, joint, due)``, ``due``
+    whether the stream's gains are to be made now (``stream_aim``'s)."""
+    jb = row // 2
+    sg = 1.0 if row % 2 == 0 else -1.0
+    jt = drives[jb].joint
+    drive_direction(axis[jt], drives[jb].slide, nrm)
+    return sg, jt, stream_aim(rec, anchor[jt], nrm, sg, k0, regain)
+
+
+@njit(cache=True, inline="always")
+def advance_phase(phase, s0, ds, L):
+    """A component's phase [rad] after ``L`` samples of its chirp (``s0`` [rad / sample] at
+    the first, growing by ``ds`` a sample): ``phase + sum_{k < L} (s0 + k ds)``, exact, wrapped
+    to [0, 2 pi)."""
+    return (phase + s0 * L + ds * (0.5 * L * (L - 1))) % (2.0 * math.pi)
 
 
 @njit(cache=True, inline="always")
@@ -270,12 +293,8 @@ def streams_write(streams, consts, sidx, ptr, rows, k0, F, a, anchor, axis, driv
                 best = i
         if best < 0:
             continue
-        jb = rows[best] // 2
-        sg = 1.0 if rows[best] % 2 == 0 else -1.0
         st = streams.table[s]
-        jt = drives[jb].joint
-        drive_direction(axis[jt], drives[jb].slide, nrm)
-        stream_aim(st, anchor[jt], nrm, sg, k0, regain)
+        sg, _, _ = aim_at_drive(st, rows[best], drives, axis, anchor, k0, regain, nrm)
         k = st.gen
         if k < k1 - cap:
             k = k1 - cap
