@@ -97,6 +97,32 @@ def test_a_joint_holding_still_is_silent():
     assert np.abs(audio).max() == 0.0
 
 
+def test_drives_follow_a_rebound_data():
+    """After ``rebind`` to a new ``MjData`` whose joint is still, the drives read that data (the
+    arguments kept between blocks are made again): the link falls silent once its last block
+    has played, where the old data, no longer stepped, still turns at full speed."""
+    m = mujoco.MjModel.from_xml_string(arm_xml())
+    d = mujoco.MjData(m)
+    sim = AudioSimulator(m, d, microphones=[[0.5, 0.5, 0.8]], contact_mics=["s_link", "s_far"], progress=False,
+                         sample_rate=FS, quality="draft", actuators="servo")
+    for _ in range(300):
+        d.ctrl[0] = 2.0
+        mujoco.mj_step(m, d)
+        sim.step()
+    assert abs(d.qvel[0]) > 1.0
+    d2 = mujoco.MjData(m)
+    d2.time = d.time
+    sim.rebind(m, d2)
+    out = []
+    for _ in range(300):
+        mujoco.mj_step(m, d2)
+        out.append(sim.step())
+    audio = np.concatenate(out, axis=1)
+    before = np.abs(audio[1, : FS // 20]).max()  # (the lines of the old data's last speed, fading)
+    assert before > 1e-3
+    assert np.abs(audio[1, FS // 5:]).max() < 1e-6 * before  # (the drives of a still joint: nothing)
+
+
 @pytest.mark.parametrize("how", ["python-none", "python-dict-none", "mjcf-none"])
 def test_none_changes_nothing_bit_for_bit(how):
     """With a ball striking the far box (so the scene sounds), ``none`` is the default's audio."""
