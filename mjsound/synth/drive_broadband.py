@@ -41,6 +41,9 @@ RESONANT_OFF = 0.025
 #: The share of a body's resonant broadband power its dropped modes may hold (-20 dB).
 RESONANT_REST = 0.01
 
+#: Samples per pass of :func:`broadband_resonant` (its modes' states over them: 64 kB at 32 modes).
+CHUNK = 128
+
 
 @njit(cache=True)
 def broadband_modes(act, lw, bg):
@@ -120,111 +123,79 @@ def broadband_force(act, lw, fs, F):
 
 
 @njit(cache=True, fastmath=FAST)
-def _resonant_run(out, f, K, pr, pi, gin, hr, hi, ur, wr, wi):
-    """``K`` modes over ``f``'s samples (L,): per sample ``w <- p (w + g f)`` (``g = gin``,
-    the input gain), heard at microphone ``m`` as ``out[m] += Im(h_m w)`` (``h = hr + j hi``
-    (M, K), its output factor), their states ``wr + j wi`` updated. A mode with ``ur = 0``
-    fades out linearly over the samples (1 to 0), one with ``ur = 1`` does not. Four modes at
-    a time, their states held in registers, so that their recursions overlap."""
-    M, L = out.shape
-    inv = 1.0 / L
-    r = 0
-    while r < K:
-        n = min(4, K - r)
+def modes_run(X, f, s, n, row, pr, pi, gin, wr, wi):
+    """``K`` modes (``K = pr.shape[0]``, a multiple of 4) over samples ``s <= q < s + n`` of
+    ``f`` (rows, L): mode ``k`` driven by row ``row[k]`` of ``f`` with input gain ``gin[k]``,
+    per sample ``b = w + g f[q]`` (the input on the real part) and ``w <- p b``; its heard
+    state ``(Im b, Re b)`` (``Im b = Im w``) into ``X[2 k, q - s], X[2 k + 1, q - s]``, its
+    state ``wr + j wi`` updated. Four modes at a time, their states held in registers, so
+    that their recursions overlap (a mode with ``p = g = 0`` and its state 0 fills a group:
+    it writes zeros)."""
+    K = pr.shape[0]
+    for r in range(0, K, 4):
         a0r, a0i, p0r, p0i, g0 = wr[r], wi[r], pr[r], pi[r], gin[r]
-        a1r = a1i = p1r = p1i = g1 = 0.0  # (absent modes of a short group: all 0)
-        a2r = a2i = p2r = p2i = g2 = 0.0
-        a3r = a3i = p3r = p3i = g3 = 0.0
-        if n > 1:
-            a1r, a1i, p1r, p1i, g1 = wr[r + 1], wi[r + 1], pr[r + 1], pi[r + 1], gin[r + 1]
-        if n > 2:
-            a2r, a2i, p2r, p2i, g2 = wr[r + 2], wi[r + 2], pr[r + 2], pi[r + 2], gin[r + 2]
-        if n > 3:
-            a3r, a3i, p3r, p3i, g3 = wr[r + 3], wi[r + 3], pr[r + 3], pi[r + 3], gin[r + 3]
-        # (each microphone's output factors: the steady modes' and the fading ones' apart)
-        H = np.zeros((M, 16))
-        for m in range(M):
-            for i in range(n):
-                u = ur[r + i]
-                H[m, 2 * i] = u * hr[m, r + i]
-                H[m, 2 * i + 1] = u * hi[m, r + i]
-                H[m, 8 + 2 * i] = (1.0 - u) * hr[m, r + i]
-                H[m, 9 + 2 * i] = (1.0 - u) * hi[m, r + i]
-        fading = False
-        for i in range(n):
-            fading = fading or ur[r + i] != 1.0
-        if n == 1 and not fading:  # (a lone steady mode: its own loop)
-            for m in range(M):
-                c = H[m]
-                o = out[m]
-                h0r, h0i = c[0], c[1]
-                xr, xi = a0r, a0i
-                for q in range(L):
-                    br = xr + g0 * f[q]
-                    o[q] += h0r * xi + h0i * br
-                    xr, xi = br * p0r - xi * p0i, xi * p0r + br * p0i
-            for q in range(L):
-                br = a0r + g0 * f[q]
-                a0r, a0i = br * p0r - a0i * p0i, a0i * p0r + br * p0i
-        elif not fading and M == 2:  # (the common case, two microphones: their factors in registers)
-            c0, c1, c2, c3, c4, c5, c6, c7 = H[0, 0], H[0, 1], H[0, 2], H[0, 3], H[0, 4], H[0, 5], H[0, 6], H[0, 7]
-            e0, e1, e2, e3, e4, e5, e6, e7 = H[1, 0], H[1, 1], H[1, 2], H[1, 3], H[1, 4], H[1, 5], H[1, 6], H[1, 7]
-            o0 = out[0]
-            o1 = out[1]
-            for q in range(L):
-                fq = f[q]
-                b0r = a0r + g0 * fq
-                b1r = a1r + g1 * fq
-                b2r = a2r + g2 * fq
-                b3r = a3r + g3 * fq
-                o0[q] += c0 * a0i + c1 * b0r + c2 * a1i + c3 * b1r + c4 * a2i + c5 * b2r + c6 * a3i + c7 * b3r
-                o1[q] += e0 * a0i + e1 * b0r + e2 * a1i + e3 * b1r + e4 * a2i + e5 * b2r + e6 * a3i + e7 * b3r
-                a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
-                a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
-                a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
-                a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
-        elif not fading:  # (every mode of the group steady)
-            for q in range(L):
-                fq = f[q]
-                b0r = a0r + g0 * fq
-                b1r = a1r + g1 * fq
-                b2r = a2r + g2 * fq
-                b3r = a3r + g3 * fq
-                for m in range(M):
-                    h = H[m]
-                    out[m, q] += h[0] * a0i + h[1] * b0r + h[2] * a1i + h[3] * b1r + h[4] * a2i + h[5] * b2r \
-                        + h[6] * a3i + h[7] * b3r
-                a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
-                a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
-                a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
-                a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
+        a1r, a1i, p1r, p1i, g1 = wr[r + 1], wi[r + 1], pr[r + 1], pi[r + 1], gin[r + 1]
+        a2r, a2i, p2r, p2i, g2 = wr[r + 2], wi[r + 2], pr[r + 2], pi[r + 2], gin[r + 2]
+        a3r, a3i, p3r, p3i, g3 = wr[r + 3], wi[r + 3], pr[r + 3], pi[r + 3], gin[r + 3]
+        f0, f1, f2, f3 = f[row[r], s:], f[row[r + 1], s:], f[row[r + 2], s:], f[row[r + 3], s:]
+        x0i, x0r, x1i, x1r = X[2 * r], X[2 * r + 1], X[2 * r + 2], X[2 * r + 3]
+        x2i, x2r, x3i, x3r = X[2 * r + 4], X[2 * r + 5], X[2 * r + 6], X[2 * r + 7]
+        for q in range(n):
+            b0r = a0r + g0 * f0[q]
+            b1r = a1r + g1 * f1[q]
+            b2r = a2r + g2 * f2[q]
+            b3r = a3r + g3 * f3[q]
+            x0i[q] = a0i
+            x0r[q] = b0r
+            x1i[q] = a1i
+            x1r[q] = b1r
+            x2i[q] = a2i
+            x2r[q] = b2r
+            x3i[q] = a3i
+            x3r[q] = b3r
+            a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
+            a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
+            a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
+            a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
+        wr[r], wi[r], wr[r + 1], wi[r + 1] = a0r, a0i, a1r, a1i
+        wr[r + 2], wi[r + 2], wr[r + 3], wi[r + 3] = a2r, a2i, a3r, a3i
+
+
+@njit(cache=True, fastmath=FAST)
+def modes_heard(out, X, n, k0, k1, hr, hi, steady, s, L):
+    """Add ``sum_k Im(h_k b_k)`` over the modes ``k0 <= k < k1`` of :func:`modes_run`'s ``X``
+    (``Im(h b) = hr Im b + hi Re b``) into ``out[:n]``, sample ``t`` being the block's
+    ``s + t`` of ``L``: a mode not ``steady`` is faded out linearly over the block
+    (``(L - s - t) / L``: 1 to 0)."""
+    inv = 1.0 / L
+    for k in range(k0, k1):
+        c, d = hr[k], hi[k]
+        xi, xr = X[2 * k], X[2 * k + 1]
+        if steady[k]:
+            for t in range(n):
+                out[t] += c * xi[t] + d * xr[t]
         else:
-            for q in range(L):
-                fq = f[q]
-                b0r = a0r + g0 * fq
-                b1r = a1r + g1 * fq
-                b2r = a2r + g2 * fq
-                b3r = a3r + g3 * fq
-                fade = (L - q) * inv
-                for m in range(M):
-                    h = H[m]
-                    y = h[0] * a0i + h[1] * b0r + h[2] * a1i + h[3] * b1r + h[4] * a2i + h[5] * b2r + h[6] * a3i \
-                        + h[7] * b3r
-                    z = h[8] * a0i + h[9] * b0r + h[10] * a1i + h[11] * b1r + h[12] * a2i + h[13] * b2r \
-                        + h[14] * a3i + h[15] * b3r
-                    out[m, q] += y + z * fade
-                a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
-                a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
-                a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
-                a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
-        wr[r], wi[r] = a0r, a0i
-        if n > 1:
-            wr[r + 1], wi[r + 1] = a1r, a1i
-        if n > 2:
-            wr[r + 2], wi[r + 2] = a2r, a2i
-        if n > 3:
-            wr[r + 3], wi[r + 3] = a3r, a3i
-        r += n
+            for t in range(n):
+                out[t] += (c * xi[t] + d * xr[t]) * ((L - s - t) * inv)
+
+
+@njit(cache=True, fastmath=FAST)
+def ring_add(acc, m, off, first, x):
+    """Add ``x`` (n,) into row ``m`` of the ring ``acc`` (channels x capacity, a power of two;
+    absolute sample ``k`` at ``k & (capacity - 1)``) at absolute samples ``off + q``, those
+    before ``first`` left out: in at most two contiguous runs (the ring's wrap)."""
+    n = x.shape[0]
+    cap = acc.shape[1]
+    row = acc[m]
+    q = max(0, first - off)
+    while q < n:
+        i = (off + q) & (cap - 1)
+        run = min(n - q, cap - i)
+        dst = row[i:i + run]
+        src = x[q:q + run]
+        for t in range(run):  # (over views, indexed from 0: the loop is vectorised)
+            dst[t] += src[t]
+        q += run
 
 
 @njit(cache=True)
@@ -251,38 +222,47 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     nb, M, nmax = bg.gr.shape
     M = min(M, acc.shape[0])
     J, L = F.shape
-    mask = acc.shape[1] - 1
     first = rec[0].start
-    f = np.empty(L)
-    out = np.empty((M, L))
-    idx = np.empty(nmax, np.int64)
-    u = np.empty(nmax)
-    pr = np.empty(nmax)
-    pi = np.empty(nmax)
-    gin = np.empty(nmax)
-    hr = np.empty((M, nmax))
-    hi = np.empty((M, nmax))
-    wr = np.empty(nmax)
-    wi = np.empty(nmax)
-    dmax = 0
+    K = 0  # (the modes running, every body's in one run: body b's are kb[b]:kb[b + 1])
     for b in range(nb):
-        s = sidx[b]
-        if s < 0:
+        if sidx[b] < 0:
             continue
         if fresh:
             for k in range(nmax):
                 level[b, k] = 0.0
                 z[b, k] = 0.0
-        K = 0
         for k in range(nmax):
             if keep[b, k] or level[b, k] > 0.0:
-                idx[K] = k
                 K += 1
-        if K == 0:
+    if K == 0:
+        return 0
+    Kp = (K + 3) // 4 * 4  # (groups of four: the rest filled with silent modes)
+    f = np.zeros((nb, L))
+    kb = np.zeros(nb + 1, np.int64)
+    idx = np.zeros(Kp, np.int64)
+    row = np.zeros(Kp, np.int64)
+    steady = np.zeros(Kp, np.bool_)
+    pr = np.zeros(Kp)
+    pi = np.zeros(Kp)
+    gin = np.zeros(Kp)
+    wr = np.zeros(Kp)
+    wi = np.zeros(Kp)
+    hr = np.zeros((M, Kp))
+    hi = np.zeros((M, Kp))
+    K = 0
+    for b in range(nb):
+        kb[b] = K
+        s = sidx[b]
+        if s < 0:
+            continue
+        n = 0
+        for k in range(nmax):
+            if keep[b, k] or level[b, k] > 0.0:
+                n += 1
+        if n == 0:
             continue
         forced = False
-        for q in range(L):
-            f[q] = 0.0
+        fb = f[b]
         if sign[b] != 0.0:
             for i in range(ptr[b], ptr[b + 1]):
                 j = rows[i] // 2
@@ -291,44 +271,66 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
                 forced = True
                 coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
                 for q in range(L):
-                    f[q] += coef * F[j, q]
+                    fb[q] += coef * F[j, q]
         o = view.table[s].obj
         m0 = view.mode_off[o]
         directional = view.order[o] >= 0
-        for r in range(K):
-            k = idx[r]
+        for k in range(nmax):
+            if not (keep[b, k] or level[b, k] > 0.0):
+                continue
             p = view.poles[m0 + k]
-            pr[r] = p.real
-            pi[r] = p.imag
             on = forced and keep[b, k]
-            u[r] = 1.0 if on else 0.0
-            gin[r] = bg.gin[b, k] if on else 0.0
-            wr[r] = z[b, k].real
-            wi[r] = z[b, k].imag
+            idx[K] = k
+            row[K] = b
+            pr[K] = p.real
+            pi[K] = p.imag
+            steady[K] = on
+            gin[K] = bg.gin[b, k] if on else 0.0
+            wr[K] = z[b, k].real
+            wi[K] = z[b, k].imag
             for m in range(M):
                 h = bg.gout[b, m, k]
                 if directional and view.channels[m].owner == AIR:
                     h *= Fd[b, m, k]
-                hr[m, r] = h.real
-                hi[m, r] = h.imag
-        for m in range(M):
-            for q in range(L):
-                out[m, q] = 0.0
-        _resonant_run(out, f, K, pr, pi, gin, hr, hi, u, wr, wi)
-        for r in range(K):
-            k = idx[r]
-            on = u[r] == 1.0
-            level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
-            z[b, k] = complex(wr[r], wi[r]) if on else 0.0
-        for m in range(M):
-            off = n0 + D[b, m]
-            dmax = max(dmax, D[b, m])
-            lo = max(off, first)
-            if off + L > lo:
-                rr = rec[0]
-                rr.pending_from = lo if rr.pending_until <= first else min(rr.pending_from, lo)
-                rr.pending_until = max(rr.pending_until, off + L)
-            for q in range(L):
-                if off + q >= first:
-                    acc[m, (off + q) & mask] += out[m, q]
+                hr[m, K] = h.real
+                hi[m, K] = h.imag
+            K += 1
+    kb[nb] = K
+    # each microphone's samples from its nearest body's delay on, every body at its own
+    lo_d = np.full(M, 1 << 62, np.int64)
+    hi_d = np.zeros(M, np.int64)
+    for b in range(nb):
+        if kb[b + 1] > kb[b]:
+            for m in range(M):
+                lo_d[m] = min(lo_d[m], D[b, m])
+                hi_d[m] = max(hi_d[m], D[b, m])
+    spread = 0
+    for m in range(M):
+        spread = max(spread, hi_d[m] - lo_d[m])
+    out = np.zeros((M, L + spread))
+    X = np.empty((2 * Kp, min(L, CHUNK)))
+    for s in range(0, L, CHUNK):  # (a chunk's states stay in the first-level cache)
+        n = min(CHUNK, L - s)
+        modes_run(X, f, s, n, row, pr, pi, gin, wr, wi)
+        for b in range(nb):
+            if kb[b + 1] > kb[b]:
+                for m in range(M):
+                    e = D[b, m] - lo_d[m] + s
+                    modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], hr[m], hi[m], steady, s, L)
+    for r in range(K):
+        b, k = row[r], idx[r]
+        on = steady[r]
+        level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
+        z[b, k] = complex(wr[r], wi[r]) if on else 0.0
+    rr = rec[0]
+    dmax = 0
+    for m in range(M):
+        off = n0 + lo_d[m]
+        dmax = max(dmax, hi_d[m])
+        n = L + hi_d[m] - lo_d[m]
+        lo = max(off, first)
+        if off + n > lo:
+            rr.pending_from = lo if rr.pending_until <= first else min(rr.pending_from, lo)
+            rr.pending_until = max(rr.pending_until, off + n)
+        ring_add(acc, m, off, first, out[m, :n])
     return dmax
