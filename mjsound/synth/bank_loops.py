@@ -23,7 +23,7 @@ from numba.extending import intrinsic
 
 from ..jit import njit, njit_inner
 
-__all__ = ["bank_free", "bank_forced", "MAX_FOLD", "FAST", "fma"]
+__all__ = ["bank_free", "bank_forced", "MAX_FOLD", "FAST", "fma", "fmuladd"]
 
 #: The loops' fast-math flags: every one but ``contract`` (and ``afn``). Reassociation lets
 #: the sum over modes vectorise; a multiply and an add fuse only where the code says so
@@ -45,6 +45,26 @@ def fma(typingctx, a, b, c):
         vals = [context.cast(builder, v, t, ty) for v, t in zip(args, signature.args)]
         lt = context.get_value_type(ty)
         fn = builder.module.declare_intrinsic("llvm.fma", [lt], ir.FunctionType(lt, [lt, lt, lt]))
+        return builder.call(fn, vals)
+
+    return sig, codegen
+
+
+@intrinsic
+def fmuladd(typingctx, a, b, c):
+    """``a * b + c`` through LLVM's ``llvm.fmuladd`` (fused where the target has a fused
+    multiply-add, as every x86-64 with FMA3; the fusing is this one expression's, not
+    LLVM's choice over the kernel as with ``contract``): unlike :func:`fma`, a sum
+    ``s = fmuladd(x, y, s)`` over a loop is recognised as a reduction and vectorised."""
+    if not all(isinstance(t, types.Float) for t in (a, b, c)):
+        return None
+    sig = a(a, b, c)
+
+    def codegen(context, builder, signature, args):
+        ty = signature.return_type
+        vals = [context.cast(builder, v, t, ty) for v, t in zip(args, signature.args)]
+        lt = context.get_value_type(ty)
+        fn = builder.module.declare_intrinsic("llvm.fmuladd", [lt], ir.FunctionType(lt, [lt, lt, lt]))
         return builder.call(fn, vals)
 
     return sig, codegen

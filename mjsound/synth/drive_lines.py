@@ -54,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit
-from .bank_loops import FAST
+from .bank_loops import FAST, fma, fmuladd
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant
 from .drive_gains import bodies_gains
 from .drive_housing import housing_weights
@@ -191,16 +191,24 @@ def drive_read(rd, act, qvel, force, fresh):
 
 #: Samples between the lines' exact restarts (a power of two: :func:`_lines_pass`).
 SUB = 64
+#: Fewest lanes :func:`_sub_pass` runs (a multiple of 8, the lines padded with silent ones):
+#: LLVM's vector loop there starts at 24 lanes (below, its scalar loop runs, ~3x slower per
+#: lane; the lines of one or two actuators: Fetch's gripper).
+LANES_MIN = 24
 
 
 @njit(cache=True, fastmath=FAST)
-def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, S, V):
-    """``n_k`` samples of the gathered lines in float32 lanes, two samples per pass over them,
-    into channels ``c0`` (absolute sample ``k0 + k``) and ``c1`` (``k0 + k + (the second
+def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
+    """``n_k`` samples of the gathered lines in float32 lanes (the first ``n`` columns, a
+    multiple of 8: lanes past the lines are zero), two samples per pass over them, into
+    channels ``c0`` (absolute sample ``k0 + k``) and ``c1`` (``k0 + k + (the second
     channel's offset)``, passed as ``c1 = (channel, offset)``; only when ``two``): rows of
-    ``S`` (6, n) float32 phasor, rate, the rate's turn (re, im; updated); ``V`` (8, n)
-    float32 each channel's weight and step per sample (re, im), ramped from sample ``kf0``."""
-    n = S.shape[1]
+    ``S`` (6, >= n) float32 phasor, rate, the rate's turn (re, im; updated); ``V`` (8, >= n)
+    float32 each channel's weight and step per sample (re, im), ramped from sample ``kf0``.
+    A product and a sum fuse where the code says so, the same in every process
+    (:func:`.bank_loops.fma`: the weights ``v + d k``, the phasor's ``Re = fma(a, c, -b d)``,
+    ``Im = fma(a, d, b c)``; :func:`.bank_loops.fmuladd`, which LLVM vectorises as a sum over
+    the lanes: each output's ``fmuladd(wr, zi, fmuladd(wi, zr, sum))``)."""
     mask = acc.shape[1] - 1
     ur, ui, rr, ri, er, ei = S[0], S[1], S[2], S[3], S[4], S[5]
     v0r, v0i, d0r, d0i, v1r, v1i, d1r, d1i = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
@@ -222,18 +230,18 @@ def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, S, V):
             d = ri[q]
             e = er[q]
             f = ei[q]
-            s0 += (v0r[q] + d0r[q] * kf) * b + (v0i[q] + d0i[q] * kf) * a
-            s1 += (v1r[q] + d1r[q] * kf) * b + (v1i[q] + d1i[q] * kf) * a
-            a2 = a * c - b * d
-            b2 = a * d + b * c
-            c2 = c * e - d * f
-            d2 = c * f + d * e
-            t0 += (v0r[q] + d0r[q] * kg) * b2 + (v0i[q] + d0i[q] * kg) * a2
-            t1 += (v1r[q] + d1r[q] * kg) * b2 + (v1i[q] + d1i[q] * kg) * a2
-            ur[q] = a2 * c2 - b2 * d2
-            ui[q] = a2 * d2 + b2 * c2
-            rr[q] = c2 * e - d2 * f
-            ri[q] = c2 * f + d2 * e
+            s0 = fmuladd(fma(d0r[q], kf, v0r[q]), b, fmuladd(fma(d0i[q], kf, v0i[q]), a, s0))
+            s1 = fmuladd(fma(d1r[q], kf, v1r[q]), b, fmuladd(fma(d1i[q], kf, v1i[q]), a, s1))
+            a2 = fma(a, c, -(b * d))
+            b2 = fma(a, d, b * c)
+            c2 = fma(c, e, -(d * f))
+            d2 = fma(c, f, d * e)
+            t0 = fmuladd(fma(d0r[q], kg, v0r[q]), b2, fmuladd(fma(d0i[q], kg, v0i[q]), a2, t0))
+            t1 = fmuladd(fma(d1r[q], kg, v1r[q]), b2, fmuladd(fma(d1i[q], kg, v1i[q]), a2, t1))
+            ur[q] = fma(a2, c2, -(b2 * d2))
+            ui[q] = fma(a2, d2, b2 * c2)
+            rr[q] = fma(c2, e, -(d2 * f))
+            ri[q] = fma(c2, f, d2 * e)
         for i in range(2):
             if k + i < n_k:
                 u = k0 + k + i
@@ -260,20 +268,22 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V, span):
     each; left as they are); of ``V`` (8, n) channel 0's and 1's weight and its step per
     sample (re, im each); line ``q`` sounds on samples ``span[0, q] <= k < span[1, q]`` only
     (a line crossing the cut-off: in the restarts it covers partly, its samples there run
-    one at a time, :func:`_span_part`).
+    one at a time, :func:`_span_part`; in those it does not cover, it is left out).
 
-    The samples run in float32 lanes (:func:`_sub_pass`), restarted every :data:`SUB`
-    samples from a float64 recursion over the restarts (phasor ``z`` times the product of the
-    rates over ``SUB`` samples ``P``; ``P`` turned by ``e^{j ds SUB^2}``, the rate by
-    ``e^{j ds SUB}``; the powers by squaring), so float32's rounding does not accumulate past
-    ``SUB`` samples (relative error ~1e-5)."""
+    The samples run in float32 lanes (:func:`_sub_pass`: the lines sounding through the
+    restart, packed and padded to a multiple of 8 lanes, at least :data:`LANES_MIN`),
+    restarted every :data:`SUB` samples from a float64 recursion over the restarts (phasor
+    ``z`` times the product of the rates over ``SUB`` samples ``P``; ``P`` turned by
+    ``e^{j ds SUB^2}``, the rate by ``e^{j ds SUB}``; the powers by squaring), so float32's
+    rounding does not accumulate past ``SUB`` samples (relative error ~1e-5)."""
     n = S.shape[1]
     c0, k0 = off0
     c1, k1 = off1
     T = np.empty((6, n))  # (float64 at each restart: phasor, rate, the rates' product over SUB samples)
     G = np.empty((4, n))  # (their turns per restart: the rate's, the product's)
-    S32 = np.empty((6, n), np.float32)
-    V32 = np.empty((8, n), np.float32)
+    nv = max(LANES_MIN, (n + 7) // 8 * 8)
+    S32 = np.zeros((6, nv), np.float32)
+    V32 = np.zeros((8, nv), np.float32)
     lg = 0
     while (1 << lg) < SUB:
         lg += 1
@@ -289,26 +299,49 @@ def _lines_pass(acc, first, off0, off1, two, L, S, V, span):
         pr, pi = pr * hr + pi * hi, pi * hr - pr * hi
         T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q] = S[0, q], S[1, q], S[2, q], S[3, q], pr, pi
         G[0, q], G[1, q], G[2, q], G[3, q] = eSr, eSi, Qr, Qi
-        S32[4, q] = e1r
-        S32[5, q] = e1i
-        for i in range(8):
-            V32[i, q] = V[i, q]
+    lane = np.full(n, -1, np.int64)  # (each line's lane in the last restart; -1: none)
+    na = 0  # (lanes in use: the lines sounding through the restart)
     for s in range(0, L, SUB):
         nk = min(SUB, L - s)
+        same = True  # (the same lines in the same lanes as the last restart)
+        i = 0
         for q in range(n):
-            for i in range(4):
-                S32[i, q] = T[i, q]
             lo, hi = span[0, q], span[1, q]
-            if lo > 0 or hi < L:  # (a partial line: in full here, or 0 and its part one sample at a time)
-                full = lo <= s and s + nk <= hi
-                for i in range(8):
-                    V32[i, q] = V[i, q] if full else 0.0
+            if lo <= s and s + nk <= hi:
+                same = same and lane[q] == i
+                i += 1
+            else:
+                same = same and lane[q] < 0
+        if not same:
+            na = 0
+            for q in range(n):
+                lo, hi = span[0, q], span[1, q]
+                lane[q] = -1
+                if lo <= s and s + nk <= hi:
+                    lane[q] = na
+                    S32[4, na] = S[4, q]
+                    S32[5, na] = S[5, q]
+                    for r in range(8):
+                        V32[r, na] = V[r, q]
+                    na += 1
+            for q in range(na, nv):  # (silent lanes)
+                for r in range(8):
+                    V32[r, q] = 0.0
+        for q in range(n):
+            i = lane[q]
+            if i >= 0:
+                for r in range(4):
+                    S32[r, i] = T[r, q]
+            else:  # (a partial line: its part one sample at a time)
+                lo, hi = span[0, q], span[1, q]
                 a = max(lo, s)
                 b = min(hi, s + nk)
-                if not full and b > a:
+                if b > a:
                     _span_part(acc, first, (c0, k0, c1, k1), two, s, a, b,
                                (T[0, q], T[1, q], T[2, q], T[3, q], S[4, q], S[5, q]), V[:, q])
-        _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, nk, np.float32(s), S32, V32)
+        if na:
+            _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, nk, np.float32(s),
+                      max(LANES_MIN, (na + 7) // 8 * 8), S32, V32)
         for q in range(n):
             zr, zi, rr, ri, pr, pi = T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q]
             T[0, q], T[1, q] = zr * pr - zi * pi, zr * pi + zi * pr
@@ -453,10 +486,17 @@ def lines_render(track, act, lw, n0, L, fs, F):
             continue
         for m in range(M):
             off = n0 + Dm[m]
-            dB = (B1[j, m] - B0[j, m]) / L
-            for q in range(L):
-                if off + q >= first:
-                    acc[m, (off + q) & mask] += (B0[j, m] + dB * q) * F[j, q]
+            b0 = B0[j, m]
+            dB = (B1[j, m] - b0) / L
+            f = F[j]
+            q = max(0, first - off)
+            while q < L:  # (in runs that do not wrap around the ring)
+                u = (off + q) & mask
+                n = min(L - q, mask + 1 - u)
+                row = acc[m, u:u + n]
+                for i in range(n):
+                    row[i] += (b0 + dB * (q + i)) * f[q + i]
+                q += n
     for c in range(C):  # (this block's end starts the next)
         for m in range(M):
             W0[c, m] = W1[c, m]
