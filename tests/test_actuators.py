@@ -123,6 +123,30 @@ def test_drives_follow_a_rebound_data():
     assert np.abs(audio[1, FS // 5:]).max() < 1e-6 * before  # (the drives of a still joint: nothing)
 
 
+def test_an_env_steps_drives_end_where_its_speeds_are_read():
+    """Stepped 50 at a time in one kernel call (an env's ``frame_skip``), the drives' block is
+    rendered after the substeps from the state then: a joint that starts at 500 ms is heard
+    from 500 ms as when every step is read on its own, not one call (50 ms) late."""
+    onsets = []
+    for every in (1, 50):
+        m = mujoco.MjModel.from_xml_string(arm_xml())
+        d = mujoco.MjData(m)
+        sim = AudioSimulator(m, d, microphones=[[0.5, 0.5, 0.8]], contact_mics=["s_link", "s_far"],
+                             progress=False, sample_rate=FS, quality="draft", actuators="servo")
+        out = []
+        for i in range(0, 1000, every):
+            d.ctrl[0] = 0.0 if i < 500 else 2.0
+            if every == 1:
+                mujoco.mj_step(m, d)
+                out.append(sim.step())
+            else:
+                out.append(sim.advance(every))
+        link = np.concatenate(out, axis=1)[1]
+        onsets.append(np.argmax(np.abs(link) > 1e-3 * np.abs(link).max()) / FS)
+    assert 0.500 <= onsets[0] < 0.502
+    assert 0.500 <= onsets[1] < 0.503  # (a ramp from rest over the call's 50 ms: 1.3 ms to -60 dB)
+
+
 @pytest.mark.parametrize("how", ["python-none", "python-dict-none", "mjcf-none"])
 def test_none_changes_nothing_bit_for_bit(how):
     """With a ball striking the far box (so the scene sounds), ``none`` is the default's audio."""

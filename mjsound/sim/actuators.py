@@ -324,8 +324,6 @@ class ActuatorSound:
         self._rd = DriveRead(self.dof, self.ids, self.ratio, self.gear, self.inv_radius, np.array([float(GATE_RAD_S)]))
         self._bg = None  # (the bodies' gains: _body_gains)
         self._view, self._view_of = None, None  # (scene_view of the synthesizer's state and directions)
-        self.lines_rendered = 0  # (lines the last block rendered: the cost's count)
-        self.modes_kept = 0  # (modes running for the broadband parts at the last block)
         # (numba kernels through their compiled entry points: the dispatcher types record arrays in Python;
         # the lines' one call per block takes its state packed, :mod:`mjsound.synth.packing`)
         self._calls = {"read": EntryPoint(drive_read), "lines": PackedEntry(lines_drive_packed)}
@@ -333,8 +331,19 @@ class ActuatorSound:
         self._dv, self._dv_of = None, None  # (the data's arrays the drives read, and the data they view)
         self._regain, self._fs = sim.regain_samples, float(sim.sample_rate)
         self._origin_view, self._origin_of = None, None
-        #: the last call's arguments and what they were made of (:meth:`_drive_lines`' fast path)
+        #: :func:`lines_drive`'s state and what it was made of (:meth:`_lines_state`)
         self._args, self._args_of = None, None
+        self._due = None  # (the block marked due: first synth sample, samples, whether fresh)
+
+    @property
+    def lines_rendered(self) -> int:
+        """Lines the last block rendered (the cost's count)."""
+        return int(self._io[2])
+
+    @property
+    def modes_kept(self) -> int:
+        """Modes running for the broadband parts at the last block."""
+        return int(self._io[3])
 
     def reset(self) -> None:
         """Forget the last block's speeds (the next block starts from its own)."""
@@ -349,11 +358,14 @@ class ActuatorSound:
             self._epoch = synth.streams_epoch
         return self._sidx
 
-    def drive(self, n0: int, n1: int, final: bool = True) -> None:
+    def drive(self, n0: int, n1: int, final: bool = True, later: bool = False) -> bool:
         """The drives on the clock's samples up to ``n1`` (the steps ``[n0, n1)`` are about to
-        be read), from the actuators' state now, linear from the last read. Unless ``final``
-        (the samples are rendered next), a call less than :data:`DRIVE_BLOCK_S` after the last
-        read waits for a later one."""
+        be read), linear from the last read to the actuators' state at the block's end. Unless
+        ``final`` (the samples are rendered next), a call less than :data:`DRIVE_BLOCK_S` after
+        the last read waits for a later one. ``later``: the block is only marked due and
+        returns True; the step kernel reads the steps and hands back, and :meth:`render_due`
+        renders it from the state then (:data:`mjsound.sim.step.DRIVES`); else it is rendered
+        now, from the state now (a render of samples already read)."""
         sim = self._sim
         rec = sim.driver.clock.rec
         if self._origin_of is not rec:  # (a plain int64 view of the clock's origin: fast to read)
@@ -365,21 +377,38 @@ class ActuatorSound:
             self._origin = origin
             self._last = None
         if n1 - done <= 0 or (not final and n1 - done < self.cadence):
-            return
+            return False
         self._done = n1
-        L = n1 - done
         if not len(self.bodies):  # (no driven body has a sounding geom: nothing to hear)
-            return
-        d = sim.data
+            return False
         fresh = self._last is None
         self._last = True
-        synth = sim.synth
-        k0 = done - origin
+        self._due = (done - origin, n1 - done, fresh)
+        if later:
+            return True
+        self.render_due()
+        return False
+
+    def render_due(self) -> bool:
+        """Render the block :meth:`drive` marked due, from the actuators' state now. Returns
+        whether an array the step kernel holds may have been replaced (the pulse track grown,
+        streams made or grown)."""
+        k0, L, fresh = self._due
+        sim = self._sim
+        if self._force.shape[1] != L:
+            self._force = np.empty((len(self.ids), L))  # (the broadband forces' buffer: kept while blocks keep their length)
         if self.rendering == "modal":
-            if self._calls["read"]((self._rd, self._act), d.qvel, d.actuator_force, fresh):
-                self._drive_modal(synth, d, k0, L)
-            return  # (else every joint is still: nothing to drive; the phases wait)
-        self._drive_lines(synth, d, k0, L, fresh)
+            if self._calls["read"]((self._rd, self._act), sim.data.qvel, sim.data.actuator_force, fresh):
+                self._drive_modal(sim.synth, sim.data, k0, L)
+            return True  # (else every joint is still: nothing to drive; the phases wait)
+        args = self._args
+        self._drive_lines(sim.synth, sim.data, k0, L, fresh)
+        return self._args is not args
+
+    def cancel(self) -> None:
+        """Forget the block marked due (the clock jumped: the next block starts afresh)."""
+        self._done = None
+        self._last = None
 
     def _weights_for(self, M: int) -> None:
         """:attr:`weights` for ``M`` channels (new ones when the synthesizer's count changed)."""
@@ -424,55 +453,48 @@ class ActuatorSound:
                 break
             synth.grow_stream_ring(need)
 
+    def _lines_state(self, synth, d):
+        """:func:`mjsound.synth.drive_lines.lines_drive`'s state now: the same tuple while
+        nothing it holds was replaced (kernel state, directions, data, streams, pulse track)."""
+        ks, dr = synth.kernel_state(), synth._bank.direction
+        key, track = self._args_of, self._sim.pulses.track.state
+        if (key is not None and key[0] is ks and key[1] is dr and key[2] is d and key[3] == synth.streams_epoch
+                and self._args[6] is track):
+            return self._args
+        if self.weights.W1.shape[1] != synth.n_channels:  # (microphones added or removed)
+            self._weights_for(synth.n_channels)
+        self._streams(synth)
+        ks, dr = synth.kernel_state(), synth._bank.direction  # (after the streams: they may replace the table)
+        if self._dv_of is not d:
+            self._dv, self._dv_of = (d.qvel, d.actuator_force, d.xanchor, d.xaxis), d
+        view = self._view
+        if view is None or self._view_of[0] is not ks or self._view_of[1] is not dr:
+            view = self._view = scene_view(ks, dr)
+            self._view_of = (ks, dr)
+        bg = self._bg
+        if bg is None or bg.gr.shape[1:] != ks.streams.gr.shape[1:]:
+            bg = self._body_gains(ks.streams)
+        self._args = (self._rd, self._act, self.weights, bg, view, ks, track, self._dv, self._io)
+        self._args_of = (ks, dr, d, synth.streams_epoch)
+        return self._args
+
     def _drive_lines(self, synth, d, k0, L, fresh) -> None:
         """The lines' rendering (:mod:`mjsound.synth.drive_lines`) into the pulse track; the
         broadband parts that ring the modes through the bodies' streams
-        (:mod:`mjsound.synth.drive_broadband`): one kernel call per block."""
-        ks, dr = synth.kernel_state(), synth._bank.direction
-        key = self._args_of
-        if (key is not None and key[0] is ks and key[1] is dr and key[2] is d and key[3] == L
-                and key[4] == synth.streams_epoch and self._args[6] is self._sim.pulses.track.state
-                and (synth.on_regain is None or synth.poses_current)):
-            # (nothing the call reads was replaced since the last block: the same arguments;
-            # the entry point is called as PackedEntry would, without its checks)
-            call, args, io = self._calls["lines"], self._args, self._io
-            if call.state is args:
-                call.entry(*call.packed, k0, L, self._fs, fresh, False, self._regain, self._force)
-            else:
-                call(args, k0, L, self._fs, fresh, False, self._regain, self._force)
-            if io[0] == DONE:
-                self.lines_rendered, self.modes_kept = int(io[2]), int(io[3])
-                return
-            self._sim.pulses.track._grow(0, int(io[1]) - 1)
-            resume = True
-        else:
-            resume = False
-        self._args_of = None
-        if self.weights.W1.shape[1] != synth.n_channels:  # (microphones added or removed)
-            self._weights_for(synth.n_channels)
-            fresh = True
-        self._streams(synth)
+        (:mod:`mjsound.synth.drive_broadband`): one kernel call per block, from Python."""
         if synth.on_regain is not None and not synth.poses_current:
             synth.on_regain()  # (the poses and microphones now)
-        if self._dv_of is not d:
-            self._dv, self._dv_of = (d.qvel, d.actuator_force, d.xanchor, d.xaxis), d
-        if self._force.shape[1] != L:
-            self._force = np.empty((len(self.ids), L))
-        call, io = self._calls["lines"], self._io
+        M = self.weights.W1.shape[1]
+        args = self._lines_state(synth, d)
+        fresh = fresh or self.weights.W1.shape[1] != M
+        call, io, resume, F = self._calls["lines"], self._io, False, self._force
         while True:
-            ks, dr = synth.kernel_state(), synth._bank.direction
-            view = self._view
-            if view is None or self._view_of[0] is not ks or self._view_of[1] is not dr:
-                view = self._view = scene_view(ks, dr)
-                self._view_of = (ks, dr)
-            bg = self._bg
-            if bg is None or bg.gr.shape[1:] != ks.streams.gr.shape[1:]:
-                bg = self._body_gains(ks.streams)
-            args = (self._rd, self._act, self.weights, bg, view, ks, self._sim.pulses.track.state, self._dv, io)
-            call(args, k0, L, self._fs, fresh, resume, self._regain, self._force)
+            if call.state is args:  # (the arguments packed last: PackedEntry's call without its checks)
+                call.entry(*call.packed, k0, L, self._fs, fresh, resume, self._regain, F)
+            else:
+                call(args, k0, L, self._fs, fresh, resume, self._regain, F)
             if io[0] == DONE:
-                self._args, self._args_of = args, (ks, dr, d, L, synth.streams_epoch)
                 break
             resume = True
             self._sim.pulses.track._grow(0, int(io[1]) - 1)  # (GROW_TRACK: the ring holds the block and the delays)
-        self.lines_rendered, self.modes_kept = int(io[2]), int(io[3])
+            args = self._lines_state(synth, d)

@@ -49,7 +49,7 @@ from .clock import SampleClock
 from .fused import mj_link
 from .images import fold
 from .records import DRIVE_PARAMS, NOT_RENDERED, RUN, SOUND, DataViews, DriveState, KernelState
-from .step import (AMPLITUDE, CLOCK_JUMP, DONE, PULSES, REASONS, RING, ROOM, SOLVE, STAGE_READ, STAGE_STEP, STREAMS,
+from .step import (AMPLITUDE, CLOCK_JUMP, DONE, DRIVES, DRIVES_DUE, DRIVES_NONE, PULSES, REASONS, RING, ROOM, SOLVE, STAGE_READ, STAGE_STEP, STREAMS,
                    advance)
 
 __all__ = ["StepDriver", "silent_drive", "silent_synth_state", "silent_render_target"]
@@ -166,10 +166,13 @@ class StepDriver:
         self._silent_synth = None if synth is not None else silent_synth_state()
         self._silent_target = None if synth is not None else silent_render_target()
         self.on_block = None
-        #: optional ``before_steps(n0, n1, final)`` called with the samples of the steps about to
-        #: be read (not on a replay; ``final``: the call renders them), and with ``(n, n, True)``
-        #: before a render of the samples up to ``n``: actuator noise drives there (:mod:`.actuators`)
-        self.before_steps = None
+        #: optional actuators (:class:`.actuators.ActuatorSound`): ``drives.drive(n0, n1, final,
+        #: later)`` called with the samples of the steps about to be read (not on a replay;
+        #: ``final``: the call renders them; ``later``: a block due is rendered when the kernel
+        #: hands back :data:`.step.DRIVES` after the substeps, by ``drives.render_due()``; it
+        #: returns whether one is due), and ``(n, n, True, False)`` before a render of the
+        #: samples up to ``n``; ``drives.cancel()`` when the clock jumps
+        self.drives = None
         self._held = []  # blocks rendered before an automatic reset, returned by the next render
         self.bind(model, data)
         self.clock.rec[0]["origin"] = self.clock.n
@@ -251,10 +254,10 @@ class StepDriver:
             k0, n0, n1 = clock.span(nstep)
             if k0 + nstep > clock.k_max_int64:
                 return self._python_steps(nstep, render, keep, stepped)
-            if self.before_steps is not None:
-                self.before_steps(n0, n1, render or keep)
+            due = self.drives is not None and self.drives.drive(n0, n1, render or keep, True)
         else:
             k0, n0, n1 = clock.k, times[2], times[3]
+            due = False
         pending = self._pending
         block = None
         if (render or keep) and times is None and synth is not None and self._ready is None and not self._held \
@@ -265,6 +268,8 @@ class StepDriver:
             fresh = self._fresh_run(nstep, stepped, block is not None)
         self._run_bytes[:] = fresh
         f = self.f
+        if due:
+            f["drives_due"][0] = DRIVES_DUE
         if self.keep_events:
             f["log_limit"][0] = max(0, self.keep_events - self._n_logged)
         if times is not None:
@@ -285,9 +290,14 @@ class StepDriver:
             if packed_for is None or not all(map(is_, state, packed_for)):
                 kernel.bind(state, out)
             kernel.entry(*kernel.packed, out)
+            # (the actuators' block, handed back after the substeps: the call resumes with the
+            # same state unless rendering it replaced a record)
+            while reason[0] == DRIVES and not self._render_drives():
+                kernel.entry(*kernel.packed, out)
             if reason[0] == DONE:
                 break
-            self._hand_back(int(reason[0]))
+            if reason[0] != DRIVES:
+                self._hand_back(int(reason[0]))
         if f["collect"][0]:
             self._collect()
         if times is not None:
@@ -372,6 +382,12 @@ class StepDriver:
         run = self.run[0]
         run["ncon"], run["nefc"] = self.reader.copy_contacts(self.data)
 
+    def _render_drives(self) -> bool:
+        """The actuators' block the kernel handed back for (:data:`.step.DRIVES`), from their
+        state after the substeps; returns whether a record of the kernel's state was replaced."""
+        self.synth.poses_current = True  # (the kernel synced them before handing back)
+        return self.drives.render_due()
+
     def _hand_back(self, reason: int) -> None:
         """Do what the kernel handed back (``run.reason``, :mod:`.step`); it is called again."""
         run = self.run[0]
@@ -396,6 +412,9 @@ class StepDriver:
             self.synth.grow_stream_ring(int(run["need"]))
         elif reason == CLOCK_JUMP:
             run["render"] = 0  # (the pending samples change: flush renders them)
+            if self.drives is not None:
+                run["drives_due"] = DRIVES_NONE
+                self.drives.cancel()  # (its block was for the clock before the jump)
             self._collect()
             self.pulses.flush()  # (the substeps' pulses so far, before the clock moves)
             self._count_segment()
@@ -536,8 +555,8 @@ class StepDriver:
         if self.synth is None:
             block = np.zeros((self.n_channels, n), dtype=np.float32)
         else:
-            if self.before_steps is not None:
-                self.before_steps(n0 + n, n0 + n, True)
+            if self.drives is not None:
+                self.drives.drive(n0 + n, n0 + n, True, False)
             tc = _time.perf_counter()
             block = self.pulses.mix(self.synth.render(n))  # (never NaN) plus the clicks and contact pulses
             if self._tail is not None:

@@ -161,7 +161,7 @@ RUN = np.dtype([("nstep", i8), ("done", i8), ("call_step", i8), ("from_struct", 
                 ("n0", i8), ("n1", i8), ("n_sust", i8), ("n_hits", i8), ("n_onset", i8), ("n_imp", i8),
                 ("reason", i8), ("need", i8), ("n_missing", i8), ("n_log", i8),
                 ("poses_current", i8), ("render", i8), ("render_code", i8), ("pulses_mixed", i8),
-                ("collect", i8)])
+                ("collect", i8), ("drives_due", i8)])
 #: ``RUN.render_code`` of a call that rendered no block.
 NOT_RENDERED = 1
 

@@ -275,7 +275,7 @@ class AudioSimulator(ListenerMethods, SimulatorReports):
             config = actuator_config(model, actuators)
             if config:
                 self.actuators = ActuatorSound(self, config)
-                self.driver.before_steps = self.actuators.drive
+                self.driver.drives = self.actuators
         if use_c and not self.driver.fused:
             warnings.warn("mjsound: substeps run through Python (MuJoCo's C functions or struct layout could not be "
                           "checked)", RuntimeWarning, stacklevel=user_stacklevel())

@@ -16,12 +16,13 @@ flow):
 
 and after the last substep renders the impacts' pulses into the pulse track
 (:func:`.click_kernels.render_waiting`), syncs the poses and microphones once more (for the
-render's stream gains) and, when ``run.render`` asks, renders the pending block
+render's stream gains), hands back for the actuators' block when one is due (rendered from
+their state after the substeps: :data:`DRIVES`) and, when ``run.render`` asks, renders the pending block
 (:func:`mjsound.synth.kernels.render_streams`, as ``Synthesizer.render`` would right after
 the call) and mixes the track into it, so that an env step costs one numba call. It stops
 and hands back to Python only for what numba cannot do, with a named reason in
 ``run.reason`` (:data:`DONE`, :data:`CLOCK_JUMP`, :data:`ROOM`, :data:`PULSES`,
-:data:`SOLVE`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`); ``run.stage``
+:data:`SOLVE`, :data:`STREAMS`, :data:`RING`, :data:`AMPLITUDE`, :data:`DRIVES`); ``run.stage``
 says where the substep resumes when Python calls again, and nothing of a stage is changed
 before it can finish, so the resumed substep is the same as one that never stopped.
 
@@ -49,7 +50,8 @@ from .impulses import event_impulses, normal_jacobians, write_records
 from .pairs import read_pairs
 from .records import NOT_RENDERED
 
-__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "STREAMS", "RING", "AMPLITUDE", "PULSES", "STAGE_STEP",
+__all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "STREAMS", "RING", "AMPLITUDE", "PULSES", "DRIVES",
+           "DRIVES_NONE", "DRIVES_DUE", "DRIVES_HANDED", "STAGE_STEP",
            "STAGE_READ", "STAGE_IMPULSES", "STAGE_QUEUE", "STAGE_LOG", "STAGE_DRIVE", "REASONS"]
 
 #: ``run.reason``: every substep done; ``data.time`` is not where the clock expects it (a
@@ -57,9 +59,14 @@ __all__ = ["advance", "DONE", "CLOCK_JUMP", "ROOM", "SOLVE", "STREAMS", "RING", 
 #: for ``run.need`` contacts; ``M^-1 Jn^T`` must come from Python (no C ``mj_solveM``: fill
 #: ``buf.minv_jt`` from ``buf.jn`` and set ``run.solved``); ``run.n_missing`` streams
 #: (``buf.missing``: row, side) must be made; the stream rings must hold ``run.need`` samples; an impact's amplitude is out
-#: of range (Python raises; ``run.need`` impacts in ``buf.impacts``).
-DONE, CLOCK_JUMP, ROOM, SOLVE, STREAMS, RING, AMPLITUDE, PULSES = range(8)
-REASONS = ("done", "clock jump", "room", "solve", "streams", "ring", "amplitude", "pulses")
+#: of range (Python raises; ``run.need`` impacts in ``buf.impacts``); the actuators' block is due
+#: (``run.drives_due``: Python renders it into the pulse track from the state after the
+#: substeps, then the call resumes and renders).
+DONE, CLOCK_JUMP, ROOM, SOLVE, STREAMS, RING, AMPLITUDE, PULSES, DRIVES = range(9)
+REASONS = ("done", "clock jump", "room", "solve", "streams", "ring", "amplitude", "pulses", "drives")
+#: ``run.drives_due``: no actuators' block this call; one is due (set by Python before the
+#: call); handed back for it (the call resumes at the render).
+DRIVES_NONE, DRIVES_DUE, DRIVES_HANDED = range(3)
 #: ``run.stage``: where the current substep resumes.
 STAGE_STEP, STAGE_READ, STAGE_IMPULSES, STAGE_QUEUE, STAGE_LOG, STAGE_DRIVE = range(6)
 
@@ -279,11 +286,17 @@ def advance(table, layout, out):
             rn.done += 1
             rn.stage = STAGE_STEP
     ps = drive.pulses
-    if drive.prm[0].pulses and not render_waiting(ps):
-        rn.reason = PULSES  # the pulse track must grow: Python renders the waiting pulses
-        return
-    sync_poses(drive, views, synth)
-    rn.poses_current = 1
+    if rn.drives_due != DRIVES_HANDED:  # (resumed after the actuators' block: all this is done)
+        if drive.prm[0].pulses and not render_waiting(ps):
+            rn.reason = PULSES  # the pulse track must grow: Python renders the waiting pulses
+            return
+        sync_poses(drive, views, synth)
+        rn.poses_current = 1
+        if rn.drives_due == DRIVES_DUE:  # the actuators' block, read now that the substeps are done
+            rn.drives_due = DRIVES_HANDED
+            rn.reason = DRIVES
+            return
+    rn.drives_due = DRIVES_NONE
     if rn.render:
         _render_block(synth, target, rn, ck, out)
         if rn.render_code == RENDERED and drive.prm[0].mix_pulses:
