@@ -253,6 +253,17 @@ def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
 
 
 @njit(cache=True, inline="always")
+def _turn(x):
+    """``(cos x, sin x)``; for ``|x| < 0.01`` (a chirp's turn per sample) by their series to
+    ``x^6`` and ``x^7`` (the next terms below 3e-21: within float64's rounding of libm's)."""
+    if abs(x) >= 0.01:
+        return math.cos(x), math.sin(x)
+    x2 = x * x
+    return (1.0 - x2 * (0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0))),
+            x * (1.0 - x2 * (1.0 / 6.0 - x2 * (1.0 / 120.0 - x2 * (1.0 / 5040.0)))))
+
+
+@njit(cache=True, inline="always")
 def _csq(r, i, times):
     """``(r + j i)^(2^times)`` by squaring."""
     for _ in range(times):
@@ -429,9 +440,7 @@ def lines_render(track, act, lw, n0, L, fs, F):
             lo, hi = audible_span(s0, ds, limit, L)
             if hi <= lo:
                 continue
-            cr, ci = math.cos(ph), math.sin(ph)  # (phasor and rate at the block's first sample)
-            tr, ti = math.cos(s0), math.sin(s0)
-            fr, fi = math.cos(ds), math.sin(ds)
+            heard = False
             for m in range(M):
                 v0 = a0[j] * W0[c, m]
                 d = (a1[j] * W1[c, m] - v0) / L
@@ -439,6 +448,12 @@ def lines_render(track, act, lw, n0, L, fs, F):
                 V[4 * m + 1, nl] = v0.imag
                 V[4 * m + 2, nl] = d.real
                 V[4 * m + 3, nl] = d.imag
+                heard = heard or v0 != 0.0 or d != 0.0
+            if not heard:  # (its weights are 0 at every microphone)
+                continue
+            cr, ci = math.cos(ph), math.sin(ph)  # (phasor and rate at the block's first sample)
+            tr, ti = math.cos(s0), math.sin(s0)
+            fr, fi = _turn(ds)
             S[0, nl], S[1, nl], S[2, nl], S[3, nl], S[4, nl], S[5, nl] = cr, ci, tr, ti, fr, fi
             span[0, nl] = lo  # (a line crossing the cut-off sounds on its audible samples alone)
             span[1, nl] = hi
@@ -481,21 +496,39 @@ def lines_render(track, act, lw, n0, L, fs, F):
                 y[m, i + 1] += (a0[j] + (a1[j] - a0[j]) * t) * b * (B0[j, m] + (B1[j, m] - B0[j, m]) * t) * yl
         noise[j].rng = np.int64(state)
         noise[j].lp = yl
-    for j in range(J):  # the exact actuators' static part, from their own force
-        if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
-            continue
+    some_exact = False
+    for j in range(J):
+        some_exact = some_exact or (exact[j] and (a0[j] != 0.0 or a1[j] != 0.0))
+    if any_bb or some_exact:
+        buf = np.empty(L)
         for m in range(M):
+            if any_bb:  # (the decimated broadband, interpolated linearly)
+                for i in range(nb):
+                    k0 = i * R
+                    k1 = min(L, (i + 1) * R)
+                    ya = y[m, i]
+                    dy = (y[m, i + 1] - ya) / (k1 - k0)
+                    part = buf[k0:k1]
+                    for k in range(k1 - k0):
+                        part[k] = ya + dy * (k + 1)
+            else:
+                buf[:] = 0.0
+            for j in range(J):  # the exact actuators' static part, from their own force
+                if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
+                    continue
+                b0 = B0[j, m]
+                dB = (B1[j, m] - b0) / L
+                f = F[j]
+                for q in range(L):
+                    buf[q] += (b0 + dB * q) * f[q]
             off = n0 + Dm[m]
-            b0 = B0[j, m]
-            dB = (B1[j, m] - b0) / L
-            f = F[j]
             q = max(0, first - off)
-            while q < L:  # (in runs that do not wrap around the ring)
+            while q < L:  # (into the ring, in runs that do not wrap around it)
                 u = (off + q) & mask
                 n = min(L - q, mask + 1 - u)
                 row = acc[m, u:u + n]
                 for i in range(n):
-                    row[i] += (b0 + dB * (q + i)) * f[q + i]
+                    row[i] += buf[q + i]
                 q += n
     for c in range(C):  # (this block's end starts the next)
         for m in range(M):
@@ -503,17 +536,6 @@ def lines_render(track, act, lw, n0, L, fs, F):
     for j in range(J):
         for m in range(M):
             B0[j, m] = B1[j, m]
-    if any_bb:
-        for m in range(M):
-            off = n0 + Dm[m]
-            for i in range(nb):
-                k0 = i * R
-                k1 = min(L, (i + 1) * R)
-                ya = y[m, i]
-                dy = (y[m, i + 1] - ya) / (k1 - k0)
-                for k in range(k0, k1):
-                    if off + k >= first:
-                        acc[m, (off + k) & mask] += ya + dy * (k - k0 + 1)
     return nl
 
 
