@@ -51,7 +51,8 @@ def broadband_modes(act, lw, bg):
     with one, the fewest modes holding all but :data:`RESONANT_REST` of the body's resonant
     power (``bg.resonant``, :func:`.drive_weights.line_weights`) are kept (``bg.keep``: they run,
     :func:`broadband_resonant`); their static part stays with the lines: ``lw.B1[j]`` of an
-    exact actuator is the static response of its bodies' other modes. Returns the modes kept."""
+    exact actuator is the static response of its bodies' other modes (each body's whole
+    static response less that of the modes kept). Returns the modes kept."""
     sidx, sign, ptr, rows = act.sidx, act.sign, act.ptr, act.rows
     exact, static, resonant, keep, B = lw.exact, bg.static, bg.resonant, bg.keep, lw.B1
     nb, M, nmax = bg.gr.shape
@@ -60,6 +61,8 @@ def broadband_modes(act, lw, bg):
         if exact[j]:
             for m in range(M):
                 B[j, m] = 0.0
+    left = np.empty(nmax)  # (a body's resonant powers not yet kept: those kept are set to -1)
+    h = np.empty(M)
     kept = 0
     for b in range(nb):
         for k in range(nmax):
@@ -74,26 +77,33 @@ def broadband_modes(act, lw, bg):
             continue
         total = 0.0
         for k in range(nmax):
+            left[k] = resonant[b, k]
             total += resonant[b, k]
+        for m in range(M):
+            x = 0.0
+            for k in range(nmax):
+                x += static[b, m, k]
+            h[m] = x
         rest = total
         while rest > RESONANT_REST * total:  # (the strongest left, until the rest is small)
-            best = -1
-            for k in range(nmax):
-                if not keep[b, k] and (best < 0 or resonant[b, k] > resonant[b, best]):
+            best = 0
+            for k in range(1, nmax):
+                if left[k] > left[best]:
                     best = k
-            if best < 0 or resonant[b, best] <= 0.0:
+            if left[best] <= 0.0:
                 break
             keep[b, best] = True
+            left[best] = -1.0
             rest -= resonant[b, best]
             kept += 1
+            for m in range(M):
+                h[m] -= static[b, m, best]
         for i in range(ptr[b], ptr[b + 1]):
             j = rows[i] // 2
             if exact[j]:
                 coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
                 for m in range(M):
-                    for k in range(nmax):
-                        if not keep[b, k]:
-                            B[j, m] += coef * static[b, m, k]
+                    B[j, m] += coef * h[m]
     return kept
 
 
