@@ -1,10 +1,54 @@
 """The resonant broadband's kernels (mjsound.synth.drive_broadband) against plain references:
-the modes' recursion run in chunks and heard per body against the complex recursion sample
-by sample, and the ring's add against one sample at a time."""
+the modes kept and the static part left against a sort, the modes' recursion run in chunks
+and heard per body against the complex recursion sample by sample, and the ring's add
+against one sample at a time."""
 
 import numpy as np
 
-from mjsound.synth.drive_broadband import modes_heard, modes_run, ring_add
+from mjsound.synth.drive_broadband import RESONANT_REST, broadband_modes, modes_heard, modes_run, ring_add
+from mjsound.synth.drive_lines import Actuators, BodyGains, LineWeights
+from mjsound.synth.drive_tones import DRIVE, NOISE, TONE
+
+
+def test_the_modes_kept_hold_all_but_the_rest_and_leave_the_others_static_part():
+    """Three bodies, 3 actuators (actuator 1 not exact, body 2 without a stream): on each body
+    an exact actuator pushes, the fewest modes holding all but RESONANT_REST of its resonant
+    power (a sort's prefix) are kept; an exact actuator's static gain is the sum over its
+    sides (signed) of the modes not kept; the others' gains are left as they were."""
+    rng = np.random.default_rng(3)
+    nb, M, nmax, J = 3, 2, 40, 3
+    resonant = rng.exponential(1.0, (nb, nmax)) ** 4  # (a few strong modes, many weak)
+    resonant[:, 30:] = 0.0  # (beyond the object's modes)
+    static = rng.standard_normal((nb, M, nmax))
+    sidx = np.array([0, 1, -1])
+    sign = np.array([1.0, -1.0, 1.0])
+    ptr = np.array([0, 2, 4, 5])
+    rows = np.array([0, 2, 1, 3, 4])  # body 0: actuators 0 and 1 (their bodies); body 1: their parents; body 2: 2
+    exact = np.array([True, False, True])
+    z = np.zeros
+    act = Actuators(z(J + 1, np.int64), z(0, TONE), z(J, NOISE), z(J, DRIVE), ptr, rows, sidx, sign, z(J, np.bool_),
+                    z(J), z(J), z(J), z(J), z(J))
+    B1 = rng.standard_normal((J, M))
+    lw = LineWeights(z((0, M), np.complex128), z((0, M), np.complex128), z((J, M)), B1.copy(), z(M, np.int64), exact,
+                     z((J, 2)))
+    bg = BodyGains(z((nb, M, nmax)), z((nb, M, nmax)), z((nb, nmax)), z((nb, M, nmax), np.complex128),
+                   z((nb, M), np.int64), z((nb, M)), z((nb, M, nmax), np.complex128), z((5, 3)), z(5, np.int64),
+                   static, resonant, np.ones((nb, nmax), np.bool_), z((nb, nmax), np.complex128), z((nb, nmax)),
+                   z((nb, M, 3)), z((nb, M, nmax), np.complex128))
+    kept = broadband_modes(act, lw, bg)
+    want_keep = np.zeros((nb, nmax), bool)
+    for b in (0, 1):
+        order = np.argsort(-resonant[b])
+        held = np.cumsum(resonant[b, order])
+        n = int(np.argmax(resonant[b].sum() - held <= RESONANT_REST * resonant[b].sum())) + 1
+        want_keep[b, order[:n]] = True
+    assert np.array_equal(bg.keep, want_keep)
+    assert kept == want_keep.sum() and 0 < kept < 2 * 30  # (some kept, not every mode)
+    left = np.einsum("bmk,bk->bm", static, ~want_keep)
+    # (actuator 0: on body 0 its own side, +; on body 1 the parent's side, -, of a body whose sign is -1)
+    assert np.allclose(lw.B1[0], left[0] + left[1], rtol=0, atol=1e-12)
+    assert np.allclose(lw.B1[2], 0.0)  # (its only body has no stream: nothing static through the modes)
+    assert np.array_equal(lw.B1[1], B1[1])
 
 
 def reference(f, row, p, g, w, h, steady):
