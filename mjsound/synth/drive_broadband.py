@@ -234,6 +234,8 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     J, L = F.shape
     first = rec[0].start
     K = 0  # (the modes running, every body's in one run: body b's are kb[b]:kb[b + 1])
+    nk = np.zeros(nb, np.int64)
+    nf = 0  # (the bodies with modes running: their forces, rows of f)
     for b in range(nb):
         if sidx[b] < 0:
             continue
@@ -243,13 +245,16 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
                 z[b, k] = 0.0
         for k in range(nmax):
             if keep[b, k] or level[b, k] > 0.0:
-                K += 1
+                nk[b] += 1
+        K += nk[b]
+        nf += 1 if nk[b] > 0 else 0
     if K == 0:
         return 0
     Kp = (K + 3) // 4 * 4  # (groups of four: the rest filled with silent modes)
-    f = np.zeros((nb, L))
+    f = np.zeros((nf, L))
     kb = np.zeros(nb + 1, np.int64)
     idx = np.zeros(Kp, np.int64)
+    body = np.zeros(Kp, np.int64)
     row = np.zeros(Kp, np.int64)
     steady = np.zeros(Kp, np.bool_)
     pr = np.zeros(Kp)
@@ -260,19 +265,14 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     hr = np.zeros((M, Kp))
     hi = np.zeros((M, Kp))
     K = 0
+    nf = 0
     for b in range(nb):
         kb[b] = K
         s = sidx[b]
-        if s < 0:
-            continue
-        n = 0
-        for k in range(nmax):
-            if keep[b, k] or level[b, k] > 0.0:
-                n += 1
-        if n == 0:
+        if s < 0 or nk[b] == 0:
             continue
         forced = False
-        fb = f[b]
+        fb = f[nf]
         if sign[b] != 0.0:
             for i in range(ptr[b], ptr[b + 1]):
                 j = rows[i] // 2
@@ -280,8 +280,9 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
                     continue
                 forced = True
                 coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
+                Fj = F[j]
                 for q in range(L):
-                    fb[q] += coef * F[j, q]
+                    fb[q] += coef * Fj[q]
         o = view.table[s].obj
         m0 = view.mode_off[o]
         directional = view.order[o] >= 0
@@ -291,7 +292,8 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
             p = view.poles[m0 + k]
             on = forced and keep[b, k]
             idx[K] = k
-            row[K] = b
+            body[K] = b
+            row[K] = nf
             pr[K] = p.real
             pi[K] = p.imag
             steady[K] = on
@@ -305,6 +307,7 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
                 hr[m, K] = h.real
                 hi[m, K] = h.imag
             K += 1
+        nf += 1
     kb[nb] = K
     # each microphone's samples from its nearest body's delay on, every body at its own
     lo_d = np.full(M, 1 << 62, np.int64)
@@ -328,7 +331,7 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
                     e = D[b, m] - lo_d[m] + s
                     modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], hr[m], hi[m], steady, s, L)
     for r in range(K):
-        b, k = row[r], idx[r]
+        b, k = body[r], idx[r]
         on = steady[r]
         level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
         z[b, k] = complex(wr[r], wi[r]) if on else 0.0
