@@ -159,8 +159,9 @@ def _lines_float64(act, lw, n0, L, fs, M, size):
 
 def test_lines_render_is_the_float64_sum_of_its_lines():
     """The kernel's lines (float32 lanes restarted from float64 every 64 samples, the lines
-    crossing the cut-off in part, one whose weights are 0 left out, two channels a pass and a
-    third alone) against the plain float64 sum of each line: the difference within 1e-4 of the peak and its RMS within 3e-5
+    crossing the cut-off in part, one whose weights are 0 left out, harmonics made of the
+    lines before them with phases in step and not, two channels a pass and a third alone)
+    against the plain float64 sum of each line: the difference within 1e-4 of the peak and its RMS within 3e-5
     of the sum's (float32's rounding over a restart; measured 2.4e-5 and 1.5e-5), the phases
     advanced as drive_tones.advance_phase and the end weights made the next block's start."""
     from mjsound.synth.drive_lines import lines_render
@@ -173,6 +174,8 @@ def test_lines_render_is_the_float64_sum_of_its_lines():
     track, act, lw, n0, L, fs, F = _render_state(orders, [3000.0, -20.0, 20000.0], [-1000.0, 400.0, 20000.0])
     M = lw.W0.shape[1]
     lw.W0[1] = lw.W1[1] = 0.0  # (a line heard nowhere: not rendered)
+    qdd = slice(act.comp_off[1], act.comp_off[2])  # (its phases order x rotor angle, as from the start)
+    act.tones["phase"][qdd] = (act.tones["order"][qdd] * 1234.5678) % (2 * math.pi)
     want, heard = _lines_float64(act, lw, n0, L, fs, M, track.acc.shape[1])
     assert min(heard) >= 3  # (lines heard all the block, part of it and not at all)
     ph0, s0, ds = act.tones["phase"].copy(), act.tones["order"] * np.repeat(act.w0, np.diff(act.comp_off)) / fs, \

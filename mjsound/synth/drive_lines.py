@@ -254,13 +254,21 @@ def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
 
 @njit(cache=True, inline="always")
 def _turn(x):
-    """``(cos x, sin x)``; for ``|x| < 0.01`` (a chirp's turn per sample) by their series to
-    ``x^6`` and ``x^7`` (the next terms below 3e-21: within float64's rounding of libm's)."""
+    """``(cos x, sin x)``; for ``|x| < 0.01`` (a chirp's turn per sample, harmonics' phase
+    differences) by their series to ``x^6`` and ``x^7`` (the next terms below 3e-21: within
+    float64's rounding of libm's)."""
     if abs(x) >= 0.01:
         return math.cos(x), math.sin(x)
     x2 = x * x
     return (1.0 - x2 * (0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0))),
             x * (1.0 - x2 * (1.0 / 6.0 - x2 * (1.0 / 120.0 - x2 * (1.0 / 5040.0)))))
+
+
+@njit(cache=True, inline="always")
+def _cpow(r, i, k):
+    """``(r + j i)^k`` for ``k`` 2 or 3."""
+    r2, i2 = r * r - i * i, 2.0 * r * i
+    return (r2, i2) if k == 2 else (r2 * r - i2 * i, r2 * i + i2 * r)
 
 
 @njit(cache=True, inline="always")
@@ -426,6 +434,8 @@ def lines_render(track, act, lw, n0, L, fs, F):
     S = np.empty((6, C))
     V = np.zeros((4 * M + 4, C))
     span = np.empty((2, C), np.int64)
+    line_of = np.empty(C, np.int64)  # (each line's component)
+    ph_of = np.empty(C)  # (... and its phase at the block's start)
     nl = 0
     for j in range(J):
         silent = a0[j] == 0.0 and a1[j] == 0.0
@@ -451,10 +461,30 @@ def lines_render(track, act, lw, n0, L, fs, F):
                 heard = heard or v0 != 0.0 or d != 0.0
             if not heard:  # (its weights are 0 at every microphone)
                 continue
-            cr, ci = math.cos(ph), math.sin(ph)  # (phasor and rate at the block's first sample)
-            tr, ti = math.cos(s0), math.sin(s0)
-            fr, fi = _turn(ds)
+            # phasor, rate and the rate's turn at the block's first sample; for a harmonic
+            # (order h o_b, h 2 or 3) of a line b of the actuator before it, b's to the power
+            # h (s0 = h s0_b, ds = h ds_b), the phasor turned by e^{j (ph - h ph_b)} (the
+            # phases grow as h: 0 but for their rounding): one sine and cosine fewer than three
+            ib = nl - 1
+            h = 0
+            while ib >= 0 and line_of[ib] >= comp_off[j] and h == 0:
+                ob = tones[line_of[ib]].order
+                h = 2 if ob * 2.0 == tones[c].order else (3 if ob * 3.0 == tones[c].order else 0)
+                ib -= 1
+            if h:
+                ib += 1
+                cr, ci = _cpow(S[0, ib], S[1, ib], h)
+                tr, ti = _cpow(S[2, ib], S[3, ib], h)
+                fr, fi = _cpow(S[4, ib], S[5, ib], h)
+                er, ei = _turn((ph - h * ph_of[ib] + math.pi) % two_pi - math.pi)
+                cr, ci = cr * er - ci * ei, cr * ei + ci * er
+            else:
+                cr, ci = math.cos(ph), math.sin(ph)
+                tr, ti = math.cos(s0), math.sin(s0)
+                fr, fi = _turn(ds)
             S[0, nl], S[1, nl], S[2, nl], S[3, nl], S[4, nl], S[5, nl] = cr, ci, tr, ti, fr, fi
+            line_of[nl] = c
+            ph_of[nl] = ph
             span[0, nl] = lo  # (a line crossing the cut-off sounds on its audible samples alone)
             span[1, nl] = hi
             nl += 1
