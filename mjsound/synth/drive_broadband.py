@@ -225,7 +225,12 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     it physically does, where the exact rendering's voices keep it per microphone. ``bg.z``
     carries the states over blocks (``fresh``: from 0). A mode no longer forced (kept and
     pushed in the last block: ``bg.level`` 1) runs one more block without force, faded out
-    linearly over it, and stops. Returns the largest delay written [samples]."""
+    linearly over it, and stops. Returns the largest delay written [samples].
+
+    Every body's modes run together, four at a time (:func:`modes_run`: a lone mode's
+    recursion is bound by its latency, four overlap), over chunks of :data:`CHUNK` samples;
+    each body's are heard from the chunk per microphone at its own delay into one buffer per
+    microphone (:func:`modes_heard`), which goes into the ring once (:func:`ring_add`)."""
     acc, rec = track.acc, track.rec
     sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
     keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
