@@ -390,6 +390,25 @@ def _span_part(acc, first, offs, two, s, a, b, ph, v):
         xr, xi = xr * fr - xi * fi, xr * fi + xi * fr
 
 
+@njit(cache=True, fastmath=FAST)
+def _ramp_fill(out, y0, dy):
+    """``out[q] = y0 + dy q`` (by adding ``dy`` a sample, as :func:`_ramp_add`)."""
+    y = y0
+    for q in range(out.shape[0]):
+        out[q] = y
+        y += dy
+
+
+@njit(cache=True, fastmath=FAST)
+def _ramp_add(out, x, g0, dg):
+    """``out[q] += (g0 + dg q) x[q]``, the gain ramped by adding ``dg`` a sample (vectorised:
+    no integer-to-float conversion a sample)."""
+    g = g0
+    for q in range(out.shape[0]):
+        out[q] += g * x[q]
+        g += dg
+
+
 @njit(cache=True)
 def lines_render(track, act, lw, n0, L, fs, F):
     """Add the block's lines and broadband part (module docstring) into the pulse track
@@ -538,19 +557,13 @@ def lines_render(track, act, lw, n0, L, fs, F):
                     k1 = min(L, (i + 1) * R)
                     ya = y[m, i]
                     dy = (y[m, i + 1] - ya) / (k1 - k0)
-                    part = buf[k0:k1]
-                    for k in range(k1 - k0):
-                        part[k] = ya + dy * (k + 1)
+                    _ramp_fill(buf[k0:k1], ya + dy, dy)
             else:
                 buf[:] = 0.0
             for j in range(J):  # the exact actuators' static part, from their own force
                 if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
                     continue
-                b0 = B0[j, m]
-                dB = (B1[j, m] - b0) / L
-                f = F[j]
-                for q in range(L):
-                    buf[q] += (b0 + dB * q) * f[q]
+                _ramp_add(buf, F[j], B0[j, m], (B1[j, m] - B0[j, m]) / L)
             off = n0 + Dm[m]
             q = max(0, first - off)
             while q < L:  # (into the ring, in runs that do not wrap around it)
