@@ -79,12 +79,13 @@ def sh_count(order: int) -> int:
 def sh_tables(order: int) -> np.ndarray:
     """(3, (order+1)^2) recurrence factors of :func:`real_sh` at index ``l^2 + l + m`` (m >= 0):
     ``a_lm = sqrt((4 l^2 - 1) / (l^2 - m^2))``, ``b_lm = sqrt(((l-1)^2 - m^2) / (4 (l-1)^2 - 1))``
-    (l >= m + 2) and ``s_m = sqrt((2m + 1) / (2m))`` (at l = m)."""
+    (l >= m + 1; at l = m + 1, ``a = sqrt(2m + 3)`` and ``b = 0``) and ``s_m = sqrt((2m + 1) / (2m))``
+    (at l = m)."""
     tab = np.zeros((3, sh_count(order)))
     for m in range(order + 1):
         for l in range(m, order + 1):
             i = l * l + l + m
-            if l >= m + 2:
+            if l >= m + 1:
                 tab[0, i] = np.sqrt((4 * l * l - 1) / (l * l - m * m))
                 tab[1, i] = np.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
             if l == m and m > 0:
@@ -103,32 +104,40 @@ def real_sh(order, x, y, z, out, tab):
     (no Condon-Shortley sign), ``(x + j y)^m = sin^m(theta) e^{j m phi}``, from the normalised
     recurrences ``a_00 = 1 / sqrt(4 pi)``, ``a_mm = s_m a_m-1,m-1``, ``a_m+1,m = sqrt(2m+3) z a_mm``,
     ``a_lm = a_lm' (z a_l-1,m - b_lm a_l-2,m)`` with the factors ``tab`` of :func:`sh_tables`
-    (``a_lm'``, ``b_lm``, ``s_m``). The basis is orthonormal: ``int Y_a Y_b dOmega = delta_ab``."""
+    (``a_lm'``, ``b_lm``, ``s_m``; ``a_m+1,m`` is the recurrence's with ``a_m-1,m = 0``). The
+    basis is orthonormal: ``int Y_a Y_b dOmega = delta_ab``. (Each step is one multiply-add on
+    the recurrence's chain, ``(a' z) a_l-1,m - (a' b) a_l-2,m``; the orders m one after the other.)"""
+    amm = 0.5 / np.sqrt(np.pi)  # a_mm
+    out[0] = amm
+    p2 = 0.0
+    p1 = amm
+    for l in range(1, order + 1):  # m = 0
+        i = l * l + l
+        a = tab[0, i]
+        p = (a * z) * p1 - (a * tab[1, i]) * p2
+        out[i] = p
+        p2 = p1
+        p1 = p
+    r2 = np.sqrt(2.0)
     cm = 1.0  # Re (x + j y)^m
     sm = 0.0  # Im
-    amm = 0.5 / np.sqrt(np.pi)  # a_mm
-    r2 = np.sqrt(2.0)
-    for m in range(order + 1):
-        if m > 0:
-            cm, sm = cm * x - sm * y, cm * y + sm * x
-            amm *= tab[2, m * m + 2 * m]
+    for m in range(1, order + 1):
+        cm, sm = cm * x - sm * y, cm * y + sm * x
+        amm *= tab[2, m * m + 2 * m]
+        rc = r2 * cm
+        rs = r2 * sm
+        out[m * m + 2 * m] = amm * rc
+        out[m * m] = amm * rs
         p2 = 0.0
-        p1 = 0.0
-        for l in range(m, order + 1):
-            i = l * l + l + m
-            if l == m:
-                p = amm
-            elif l == m + 1:
-                p = np.sqrt(2.0 * m + 3.0) * z * amm
-            else:
-                p = tab[0, i] * (z * p1 - tab[1, i] * p2)
+        p1 = amm
+        for l in range(m + 1, order + 1):
+            i = l * l + l
+            a = tab[0, i + m]
+            p = (a * z) * p1 - (a * tab[1, i + m]) * p2
             p2 = p1
             p1 = p
-            if m == 0:
-                out[i] = p
-            else:
-                out[i] = r2 * p * cm
-                out[l * l + l - m] = r2 * p * sm
+            out[i + m] = p * rc
+            out[i - m] = p * rs
 
 
 def _basis(order: int, dirs: np.ndarray) -> np.ndarray:

@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
+from .bank_loops import FAST
 from .directivity import _factor, real_sh
 from .drive_broadband import RESONANT_OFF, RESONANT_ON
 from .drive_tones import noise_cutoff_hz
@@ -54,6 +55,11 @@ def line_weights(view, act, lw, bg, fs):
     directional object's modes times their direction factor towards it now (as the exact
     rendering's forcing rows; ``bg.U, Fd`` the factors' cache).
 
+    A body's weight for a component of step ``theta`` sums, per microphone, the real and
+    imaginary parts of its modes' gains ``g = g_r + j g_i`` against two complex numbers per
+    mode that depend on ``theta`` and the pole alone, made once for every microphone
+    (:func:`_transfer_sums`: all of an actuator's components in one call).
+
     Parameters
     ----------
     view : :class:`SceneView` (the streams' records, poles, poses, microphones, channels,
@@ -67,7 +73,7 @@ def line_weights(view, act, lw, bg, fs):
     W, B, Dm, exact, power = lw.W1, lw.B1, lw.Dm, lw.exact, lw.power
     sidx, sign, ptr, rows, comp_off, tones, noise, w, a = (act.sidx, act.sign, act.ptr, act.rows, act.comp_off,
                                                            act.tones, act.noise, act.w1, act.a1)
-    table, poles, mode_off = view.table, view.poles, view.mode_off
+    table, poles, mode_off, order = view.table, view.poles, view.mode_off, view.order
     C, M = W.shape
     J = B.shape[0]
     for c in range(C):
@@ -92,28 +98,34 @@ def line_weights(view, act, lw, bg, fs):
     for b in range(sidx.shape[0]):
         for k in range(nmax):
             resonant[b, k] = 0.0
+    # (the scratch in one allocation: per component its phase step and its cosine and sine;
+    # per actuator its noise's one-pole and resonant power; per mode the pole, 1 / |1 - p|^2,
+    # the terms alpha, beta; per microphone and mode the gain with its direction factor; per
+    # component of an actuator and microphone the sums)
+    cmax = 0
+    for j in range(J):
+        cmax = max(cmax, comp_off[j + 1] - comp_off[j])
+    buf = np.empty(3 * C + 2 * J + (7 + 2 * M) * nmax + 2 * cmax * M)
+    th, cth, sth = buf[:C], buf[C:2 * C], buf[2 * C:3 * C]
+    alpha, res = buf[3 * C:3 * C + J], buf[3 * C + J:3 * C + 2 * J]
+    o1 = 3 * C + 2 * J
+    pr, pi, q0 = buf[o1:o1 + nmax], buf[o1 + nmax:o1 + 2 * nmax], buf[o1 + 2 * nmax:o1 + 3 * nmax]
+    ab = buf[o1 + 3 * nmax:o1 + 7 * nmax].reshape((4, nmax))
+    o2 = o1 + 7 * nmax
+    xr = buf[o2:o2 + M * nmax].reshape((M, nmax))
+    xi = buf[o2 + M * nmax:o2 + 2 * M * nmax].reshape((M, nmax))
+    o3 = o2 + 2 * M * nmax
+    hs = buf[o3:o3 + 2 * cmax * M].reshape((2, cmax, M))
     # each component's phase step per sample and its cosine and sine, once (0 above the cut-off)
-    th = np.empty(C)
-    cth = np.empty(C)
-    sth = np.empty(C)
     for j in range(J):
         for c in range(comp_off[j], comp_off[j + 1]):
             t = tones[c].order * w[j] / fs
             th[c] = t if abs(t) < limit else 0.0
             cth[c] = math.cos(t)
             sth[c] = math.sin(t)
-    pr = np.empty(nmax)
-    pi = np.empty(nmax)
-    q0 = np.empty(nmax)
-    g = np.empty((M, nmax), np.complex128)
-    h0 = np.empty(M)
-    Hp = np.empty(M, np.complex128)
-    Hn = np.empty(M, np.complex128)
-    sh = np.empty(M, np.complex128)
     two_pi = 2.0 * math.pi
-    res = np.zeros(J)  # the resonant broadband power per unit force scale
-    alpha = np.empty(J)
-    for j in range(J):
+    for j in range(J):  # (res: the resonant broadband power per unit force scale)
+        res[j] = 0.0
         fc = noise_cutoff_hz(tones, comp_off, j, w[j], fs)
         alpha[j] = 1.0 - math.exp(-two_pi * fc / fs)
     for b in range(sidx.shape[0]):
@@ -127,69 +139,49 @@ def line_weights(view, act, lw, bg, fs):
             p = poles[m0 + k]
             pr[k] = p.real
             pi[k] = p.imag
-            resonant[b, k] = 0.0
-            for m in range(M):
-                g[m, k] = complex(gr[b, m, k], gi[b, m, k])
-        if view.order[o] >= 0:
-            _direction_factors(g, n, o, m0, view, U[b], Fd[b])
-        for k in range(n):
-            qr = 1.0 - pr[k]
-            q0[k] = 1.0 / (qr * qr + pi[k] * pi[k])
-        for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
-            h = 0.0
+            qr = 1.0 - p.real
+            q0[k] = 1.0 / (qr * qr + p.imag * p.imag)
+        for m in range(M):
             for k in range(n):
-                x = g[m, k]
-                static[b, m, k] = (x.imag * (1.0 - pr[k]) + x.real * pi[k]) * q0[k]
-                h += static[b, m, k]
-            h0[m] = h
+                xr[m, k] = gr[b, m, k]
+                xi[m, k] = gi[b, m, k]
+        if order[o] >= 0:
+            _direction_factors(xr, xi, n, o, m0, view, U[b], Fd[b])
+        for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
+            for k in range(n):
+                static[b, m, k] = (xi[m, k] * (1.0 - pr[k]) + xr[m, k] * pi[k]) * q0[k]
         for i in range(ptr[b], ptr[b + 1]):
             j = rows[i] // 2
             coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)  # (this side's force along the body's direction)
             for m in range(M):
-                B[j, m] += coef * h0[m]
+                h = 0.0
+                for k in range(n):
+                    h += static[b, m, k]
+                B[j, m] += coef * h
             bb = noise[j].broadband
             if bb > 0.0:
                 al = alpha[j]
                 q = 1.0 - al
                 for k in range(n):
-                    # the one-pole's power spectrum at the mode, alpha^2 / |1 - (1 - alpha) e^{-j w}|^2
+                    # the one-pole's power spectrum at the mode, alpha^2 / |1 - (1 - alpha) e^{-j w}|^2,
+                    # times the mode's power gain 1 / (2 (1 - |p|^2)) and |g|^2 summed over the microphones
                     p2 = pr[k] * pr[k] + pi[k] * pi[k]
-                    S = al * al / (1.0 - 2.0 * q * pr[k] / math.sqrt(p2) + q * q)
-                    den = 2.0 * (1.0 - p2)
+                    g2 = 0.0
                     for m in range(M):
-                        x = g[m, k]
-                        e = bb * bb * (x.real * x.real + x.imag * x.imag) * S / den
-                        res[j] += e
-                        resonant[b, k] += e * a[j] * a[j]
-            for c in range(comp_off[j], comp_off[j + 1]):
-                t = th[c]
-                if t == 0.0:
+                        g2 += xr[m, k] * xr[m, k] + xi[m, k] * xi[m, k]
+                    e = bb * bb * al * al * g2 / ((1.0 - 2.0 * q * pr[k] / math.sqrt(p2) + q * q) * 2.0 * (1.0 - p2))
+                    res[j] += e
+                    resonant[b, k] += e * a[j] * a[j]
+            c0, c1 = comp_off[j], comp_off[j + 1]
+            _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs)
+            for c in range(c0, c1):
+                if th[c] == 0.0:
                     continue
-                cr = cth[c]
-                ci = sth[c]
+                amp = 0.5 * coef * tones[c].amp
+                z = complex(cth[c], -sth[c])
                 for m in range(M):
-                    Hp[m] = 0.0
-                    Hn[m] = 0.0
                     # (this body's delay beyond the microphone's, dd >= 0 samples: the phase e^{-j th dd})
-                    sh[m] = _cpow(complex(cr, -ci), D[b, m] - Dm[m])
-                for k in range(n):
-                    # 1 / (1 - p e^{-j th}) and 1 / (1 - p e^{+j th}), once for every microphone
-                    xr = 1.0 - (pr[k] * cr + pi[k] * ci)
-                    xi = pr[k] * ci - pi[k] * cr
-                    yr = 1.0 - (pr[k] * cr - pi[k] * ci)
-                    yi = -(pi[k] * cr + pr[k] * ci)
-                    x2 = xr * xr + xi * xi
-                    y2 = yr * yr + yi * yi
-                    inv = 1.0 / (x2 * y2)  # (one division for both)
-                    u = y2 * inv
-                    v = x2 * inv
-                    ip = complex(xr * u, -xi * u)
-                    iq = complex(yr * v, -yi * v)
-                    for m in range(M):
-                        Hp[m] += g[m, k] * ip
-                        Hn[m] += g[m, k] * iq
-                for m in range(M):
-                    W[c, m] += coef * tones[c].amp * sh[m] * (Hp[m] - Hn[m].conjugate()) * -0.5j
+                    W[c, m] += amp * _cpow(z, D[b, m] - Dm[m]) * complex(hs[0, c - c0, m], hs[1, c - c0, m])
     for j in range(J):
         bb = noise[j].broadband
         b2 = 0.0
@@ -208,19 +200,67 @@ def line_weights(view, act, lw, bg, fs):
     return dmax
 
 
+@njit_inner(cache=True, fastmath=FAST)
+def _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs):
+    """One body's ``2 W`` at each microphone for components ``c0 .. c1`` (phase steps ``th``,
+    their cosines and sines ``cth, sth``; 0: none) into ``hs[0] + j hs[1]`` (c - c0, m), from
+    its ``n`` modes' poles ``pr + j pi`` and gains ``xr + j xi`` (m, :n). With
+    ``A = 1 / (1 - p e^{-j theta})`` and ``Bc = 1 / (1 - conj(p) e^{-j theta})``,
+
+        g A - conj(g) Bc = g_r (A - Bc) + j g_i (A + Bc),   so   2 W = 2 (H(theta) - conj(H(-theta))) / 2j
+        = sum g_r alpha + g_i beta,   alpha = -j (A - Bc),   beta = A + Bc,
+
+    ``A = (x_r - j x_i) / |x|^2``, ``x = 1 - p e^{-j theta}``; ``Bc = (y_r + j y_i) / |y|^2``,
+    ``y = 1 - p e^{+j theta}`` (one division for both): the terms ``alpha, beta`` once per
+    mode for every microphone (``ab`` (4, >= n) scratch), then one sum over the modes per
+    microphone (``fastmath``: both loops vectorised)."""
+    ar, ai, br, bi = ab[0], ab[1], ab[2], ab[3]
+    for c in range(c0, c1):
+        if th[c] == 0.0:
+            continue
+        cr = cth[c]
+        ci = sth[c]
+        for k in range(n):
+            p = pr[k]
+            q = pi[k]
+            xr_ = 1.0 - (p * cr + q * ci)
+            xi_ = p * ci - q * cr
+            yr_ = 1.0 - (p * cr - q * ci)
+            yi_ = -(q * cr + p * ci)
+            x2 = xr_ * xr_ + xi_ * xi_
+            y2 = yr_ * yr_ + yi_ * yi_
+            inv = 1.0 / (x2 * y2)
+            u = y2 * inv
+            v = x2 * inv
+            ar[k] = -(xi_ * u + yi_ * v)
+            ai[k] = yr_ * v - xr_ * u
+            br[k] = xr_ * u + yr_ * v
+            bi[k] = yi_ * v - xi_ * u
+        for m in range(xr.shape[0]):
+            re = 0.0
+            im = 0.0
+            for k in range(n):
+                re += xr[m, k] * ar[k] + xi[m, k] * br[k]
+                im += xr[m, k] * ai[k] + xi[m, k] * bi[k]
+            hs[0, c - c0, m] = re
+            hs[1, c - c0, m] = im
+
+
 @njit(cache=True)
-def _direction_factors(g, n, o, m0, dr, U, Fd):
-    """``g[m, :n]`` (object ``o``'s modes, the first at ``m0`` of the flat order) times each
-    mode's direction factor towards air microphone ``m`` now (:func:`.directivity.hear_directions`'
+def _direction_factors(xr, xi, n, o, m0, view, U, Fd):
+    """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
+    each mode's direction factor towards air microphone ``m`` now (:func:`.directivity.hear_directions`'
     target: the fit at ``u = R^T (mic - pos) / r``, its magnitude floored), made again only
     when ``u`` turned by more than the synthesizer's step since the factors ``Fd[m]`` were
-    made for ``U[m]`` (a body's own cache; NaN: never made); ``dr``: a :class:`SceneView`."""
-    mics, pos, R, channels = dr.mics, dr.pos, dr.R, dr.channels
-    prm = dr.params[0]
+    made for ``U[m]`` (a body's own cache; NaN: never made); ``view``: a :class:`SceneView`."""
+    mics, pos, R, channels = view.mics, view.pos, view.R, view.channels
+    msh_off, cfr, cfi, Y, tab = view.msh_off, view.coef_r, view.coef_i, view.sh[0], view.sh_tab
+    prm = view.params[0]
     floor = prm.floor
+    cos_step = prm.cos_step
     floor2 = floor * floor
-    L = dr.order[o]
-    for m in range(min(g.shape[0], mics.shape[0])):
+    L = view.order[o]
+    for m in range(min(xr.shape[0], mics.shape[0])):
         if channels[m].owner != AIR:
             continue
         dx = mics[m, 0] - pos[o, 0]
@@ -232,22 +272,25 @@ def _direction_factors(g, n, o, m0, dr, U, Fd):
         ux = (R[o, 0, 0] * dx + R[o, 1, 0] * dy + R[o, 2, 0] * dz) / r
         uy = (R[o, 0, 1] * dx + R[o, 1, 1] * dy + R[o, 2, 1] * dz) / r
         uz = (R[o, 0, 2] * dx + R[o, 1, 2] * dy + R[o, 2, 2] * dz) / r
-        if not ux * U[m, 0] + uy * U[m, 1] + uz * U[m, 2] >= prm.cos_step:  # (NaN: never made)
+        if not ux * U[m, 0] + uy * U[m, 1] + uz * U[m, 2] >= cos_step:  # (NaN: never made)
             U[m, 0] = ux
             U[m, 1] = uy
             U[m, 2] = uz
-            Y = dr.sh[0]  # (the synthesizer's scratch: one row of harmonics)
-            real_sh(L, ux, uy, uz, Y, dr.sh_tab)
+            real_sh(L, ux, uy, uz, Y, tab)  # (the synthesizer's scratch: one row of harmonics)
             for k in range(n):
-                k0 = dr.msh_off[m0 + k]
-                nsh = dr.msh_off[m0 + k + 1] - k0
+                k0 = msh_off[m0 + k]
+                nsh = msh_off[m0 + k + 1] - k0
                 t = complex(1.0, 0.0)
                 if nsh > 0:
-                    fr, fi = _factor(Y[:nsh], dr.coef_r[k0:k0 + nsh], dr.coef_i[k0:k0 + nsh])
+                    fr, fi = _factor(Y[:nsh], cfr[k0:k0 + nsh], cfi[k0:k0 + nsh])
                     t = complex(fr, fi)
                     a2 = t.real * t.real + t.imag * t.imag
                     if not a2 >= floor2:
                         t = t * (floor / np.sqrt(a2)) if a2 > 0.0 else complex(floor, 0.0)
                 Fd[m, k] = t
         for k in range(n):
-            g[m, k] *= Fd[m, k]
+            f = Fd[m, k]
+            gr = xr[m, k]
+            gj = xi[m, k]
+            xr[m, k] = gr * f.real - gj * f.imag
+            xi[m, k] = gr * f.imag + gj * f.real
