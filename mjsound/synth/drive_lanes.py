@@ -1,0 +1,220 @@
+"""The drive lines' samples (:mod:`.drive_lines`): each line ``Im(V_k z_k)``, its phasor ``z``
+turned by its rate ``r`` a sample and the rate by its turn ``e^{j ds}`` (a linear chirp), its
+weight ``V`` linear over the block, summed per channel into the pulse track's ring.
+
+The samples run in float32 lanes, one line a lane, restarted every :data:`SUB` samples from
+a float64 recursion over the restarts (:func:`lines_pass`); a line crossing the cut-off runs
+in float64, one sample at a time, in the restarts it covers in part (:func:`_span_part`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import njit
+from .bank_loops import FAST, fma, fmuladd
+
+__all__ = ["SUB", "LANES_MIN", "lines_pass", "turn", "cpow"]
+
+
+#: Samples between the lines' exact restarts (a power of two: :func:`lines_pass`).
+SUB = 64
+#: Fewest lanes :func:`_sub_pass` runs (a multiple of 8, the lines padded with silent ones):
+#: LLVM's vector loop there starts at 24 lanes (below, its scalar loop runs, ~3x slower per
+#: lane; the lines of one or two actuators: Fetch's gripper).
+LANES_MIN = 24
+
+
+@njit(cache=True, fastmath=FAST)
+def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
+    """``n_k`` samples of the gathered lines in float32 lanes (the first ``n`` columns, a
+    multiple of 8: lanes past the lines are zero), two samples per pass over them, into
+    channels ``c0`` (absolute sample ``k0 + k``) and ``c1`` (``k0 + k + (the second
+    channel's offset)``, passed as ``c1 = (channel, offset)``; only when ``two``): rows of
+    ``S`` (6, >= n) float32 phasor, rate, the rate's turn (re, im; updated); ``V`` (8, >= n)
+    float32 each channel's weight and step per sample (re, im), ramped from sample ``kf0``.
+    A product and a sum fuse where the code says so, the same in every process
+    (:func:`.bank_loops.fma`: the weights ``v + d k``, the phasor's ``Re = fma(a, c, -b d)``,
+    ``Im = fma(a, d, b c)``; :func:`.bank_loops.fmuladd`, which LLVM vectorises as a sum over
+    the lanes: each output's ``fmuladd(wr, zi, fmuladd(wi, zr, sum))``)."""
+    mask = acc.shape[1] - 1
+    ur, ui, rr, ri, er, ei = S[0], S[1], S[2], S[3], S[4], S[5]
+    v0r, v0i, d0r, d0i, v1r, v1i, d1r, d1i = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
+    ch1, off1 = c1
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    k = 0
+    while k < n_k:
+        kf = kf0 + np.float32(k)
+        kg = kf + one
+        s0 = zero
+        s1 = zero
+        t0 = zero
+        t1 = zero
+        for q in range(n):
+            a = ur[q]
+            b = ui[q]
+            c = rr[q]
+            d = ri[q]
+            e = er[q]
+            f = ei[q]
+            s0 = fmuladd(fma(d0r[q], kf, v0r[q]), b, fmuladd(fma(d0i[q], kf, v0i[q]), a, s0))
+            s1 = fmuladd(fma(d1r[q], kf, v1r[q]), b, fmuladd(fma(d1i[q], kf, v1i[q]), a, s1))
+            a2 = fma(a, c, -(b * d))
+            b2 = fma(a, d, b * c)
+            c2 = fma(c, e, -(d * f))
+            d2 = fma(c, f, d * e)
+            t0 = fmuladd(fma(d0r[q], kg, v0r[q]), b2, fmuladd(fma(d0i[q], kg, v0i[q]), a2, t0))
+            t1 = fmuladd(fma(d1r[q], kg, v1r[q]), b2, fmuladd(fma(d1i[q], kg, v1i[q]), a2, t1))
+            ur[q] = fma(a2, c2, -(b2 * d2))
+            ui[q] = fma(a2, d2, b2 * c2)
+            rr[q] = fma(c2, e, -(d2 * f))
+            ri[q] = fma(c2, f, d2 * e)
+        for i in range(2):
+            if k + i < n_k:
+                u = k0 + k + i
+                if u >= first:
+                    acc[c0, u & mask] += s0 if i == 0 else t0
+                if two and u + off1 >= first:
+                    acc[ch1, (u + off1) & mask] += s1 if i == 0 else t1
+        k += 2
+
+
+@njit(cache=True, inline="always")
+def turn(x):
+    """``(cos x, sin x)``; for ``|x| < 0.01`` (a chirp's turn per sample, harmonics' phase
+    differences) by their series to ``x^6`` and ``x^7`` (the next terms below 3e-21: within
+    float64's rounding of libm's)."""
+    if abs(x) >= 0.01:
+        return math.cos(x), math.sin(x)
+    x2 = x * x
+    return (1.0 - x2 * (0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0))),
+            x * (1.0 - x2 * (1.0 / 6.0 - x2 * (1.0 / 120.0 - x2 * (1.0 / 5040.0)))))
+
+
+@njit(cache=True, inline="always")
+def cpow(r, i, k):
+    """``(r + j i)^k`` for ``k`` 2 or 3."""
+    r2, i2 = r * r - i * i, 2.0 * r * i
+    return (r2, i2) if k == 2 else (r2 * r - i2 * i, r2 * i + i2 * r)
+
+
+@njit(cache=True, inline="always")
+def _csq(r, i, times):
+    """``(r + j i)^(2^times)`` by squaring."""
+    for _ in range(times):
+        r, i = r * r - i * i, 2.0 * r * i
+    return r, i
+
+
+@njit(cache=True)
+def lines_pass(acc, first, off0, off1, two, L, S, V, span):
+    """The gathered lines over ``L`` samples into channels ``off0`` (and ``off1`` when
+    ``two``), each ``(channel, absolute sample of the block's first)``: rows of ``S`` (6, n)
+    float64 phasor, rate (at the block's first sample), the rate's turn per sample (re, im
+    each; left as they are); of ``V`` (8, n) channel 0's and 1's weight and its step per
+    sample (re, im each); line ``q`` sounds on samples ``span[0, q] <= k < span[1, q]`` only
+    (a line crossing the cut-off: in the restarts it covers partly, its samples there run
+    one at a time, :func:`_span_part`; in those it does not cover, it is left out).
+
+    The samples run in float32 lanes (:func:`_sub_pass`: the lines sounding through the
+    restart, packed and padded to a multiple of 8 lanes, at least :data:`LANES_MIN`),
+    restarted every :data:`SUB` samples from a float64 recursion over the restarts (phasor
+    ``z`` times the product of the rates over ``SUB`` samples ``P``; ``P`` turned by
+    ``e^{j ds SUB^2}``, the rate by ``e^{j ds SUB}``; the powers by squaring), so float32's
+    rounding does not accumulate past ``SUB`` samples (relative error ~1e-5)."""
+    n = S.shape[1]
+    c0, k0 = off0
+    c1, k1 = off1
+    T = np.empty((6, n))  # (float64 at each restart: phasor, rate, the rates' product over SUB samples)
+    G = np.empty((4, n))  # (their turns per restart: the rate's, the product's)
+    nv = max(LANES_MIN, (n + 7) // 8 * 8)
+    S32 = np.zeros((6, nv), np.float32)
+    V32 = np.zeros((8, nv), np.float32)
+    lg = 0
+    while (1 << lg) < SUB:
+        lg += 1
+    for q in range(n):
+        e1r, e1i = S[4, q], S[5, q]
+        hr, hi = _csq(e1r, e1i, lg - 1)  # e^{j ds SUB / 2}
+        eSr, eSi = _csq(hr, hi, 1)  # e^{j ds SUB}
+        br, bi = _csq(eSr, eSi, lg - 1)  # e^{j ds SUB^2 / 2}
+        Qr, Qi = _csq(br, bi, 1)  # e^{j ds SUB^2}
+        rr, ri = _csq(S[2, q], S[3, q], lg)  # e^{j SUB s0}
+        # P_0 = e^{j (SUB s0 + ds SUB (SUB - 1) / 2)}, SUB (SUB - 1) / 2 = SUB^2 / 2 - SUB / 2
+        pr, pi = rr * br - ri * bi, rr * bi + ri * br
+        pr, pi = pr * hr + pi * hi, pi * hr - pr * hi
+        T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q] = S[0, q], S[1, q], S[2, q], S[3, q], pr, pi
+        G[0, q], G[1, q], G[2, q], G[3, q] = eSr, eSi, Qr, Qi
+    lane = np.full(n, -1, np.int64)  # (each line's lane in the last restart; -1: none)
+    na = 0  # (lanes in use: the lines sounding through the restart)
+    for s in range(0, L, SUB):
+        nk = min(SUB, L - s)
+        same = True  # (the same lines in the same lanes as the last restart)
+        i = 0
+        for q in range(n):
+            lo, hi = span[0, q], span[1, q]
+            if lo <= s and s + nk <= hi:
+                same = same and lane[q] == i
+                i += 1
+            else:
+                same = same and lane[q] < 0
+        if not same:
+            na = 0
+            for q in range(n):
+                lo, hi = span[0, q], span[1, q]
+                lane[q] = -1
+                if lo <= s and s + nk <= hi:
+                    lane[q] = na
+                    S32[4, na] = S[4, q]
+                    S32[5, na] = S[5, q]
+                    for r in range(8):
+                        V32[r, na] = V[r, q]
+                    na += 1
+            for q in range(na, nv):  # (silent lanes)
+                for r in range(8):
+                    V32[r, q] = 0.0
+        for q in range(n):
+            i = lane[q]
+            if i >= 0:
+                for r in range(4):
+                    S32[r, i] = T[r, q]
+            else:  # (a partial line: its part one sample at a time)
+                lo, hi = span[0, q], span[1, q]
+                a = max(lo, s)
+                b = min(hi, s + nk)
+                if b > a:
+                    _span_part(acc, first, (c0, k0, c1, k1), two, s, a, b,
+                               (T[0, q], T[1, q], T[2, q], T[3, q], S[4, q], S[5, q]), V[:, q])
+        if na:
+            _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, nk, np.float32(s),
+                      max(LANES_MIN, (na + 7) // 8 * 8), S32, V32)
+        for q in range(n):
+            zr, zi, rr, ri, pr, pi = T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q]
+            T[0, q], T[1, q] = zr * pr - zi * pi, zr * pi + zi * pr
+            T[2, q], T[3, q] = rr * G[0, q] - ri * G[1, q], rr * G[1, q] + ri * G[0, q]
+            T[4, q], T[5, q] = pr * G[2, q] - pi * G[3, q], pr * G[3, q] + pi * G[2, q]
+
+
+@njit(cache=True, fastmath=FAST)
+def _span_part(acc, first, offs, two, s, a, b, ph, v):
+    """One line's samples ``a <= k < b`` (of the block) one at a time, into channel ``c0`` at
+    ``k0 + k`` and (``two``) ``c1`` at ``k1 + k`` (``offs = (c0, k0, c1, k1)``): ``ph = (zr,
+    zi, xr, xi, fr, fi)`` its phasor ``zr + j zi`` and rate ``xr + j xi`` at sample
+    ``s <= a`` and the rate's turn ``fr + j fi``; ``v`` (8,) each channel's weight and step
+    per sample from sample 0 (re, im)."""
+    c0, k0, c1, k1 = offs
+    zr, zi, xr, xi, fr, fi = ph
+    mask = acc.shape[1] - 1
+    for k in range(s, b):
+        if k >= a:
+            u = k0 + k
+            if u >= first:
+                acc[c0, u & mask] += (v[0] + v[2] * k) * zi + (v[1] + v[3] * k) * zr
+            u = k1 + k
+            if two and u >= first:
+                acc[c1, u & mask] += (v[4] + v[6] * k) * zi + (v[5] + v[7] * k) * zr
+        zr, zi = zr * xr - zi * xi, zr * xi + zi * xr
+        xr, xi = xr * fr - xi * fi, xr * fi + xi * fr
