@@ -51,16 +51,13 @@ def broadband_modes(act, lw, bg):
     with one, the fewest modes holding all but :data:`RESONANT_REST` of the body's resonant
     power (``bg.resonant``, :func:`.drive_weights.line_weights`) are kept (``bg.keep``: they run,
     :func:`broadband_resonant`); their static part stays with the lines: ``lw.B1[j]`` of an
-    exact actuator is the static response of its bodies' other modes (each body's whole
-    static response less that of the modes kept). Returns the modes kept."""
+    exact actuator, as :func:`.drive_weights.line_weights` and
+    :func:`.drive_housing.housing_weights` made it (its bodies' whole static response and the
+    housing's airborne part), less the static response of the modes kept. Returns the modes
+    kept."""
     sidx, sign, ptr, rows = act.sidx, act.sign, act.ptr, act.rows
     exact, static, resonant, keep, B = lw.exact, bg.static, bg.resonant, bg.keep, lw.B1
     nb, M, nmax = bg.gr.shape
-    J = B.shape[0]
-    for j in range(J):
-        if exact[j]:
-            for m in range(M):
-                B[j, m] = 0.0
     left = np.empty(nmax)  # (a body's resonant powers not yet kept: those kept are set to -1)
     h = np.empty(M)
     kept = 0
@@ -80,10 +77,7 @@ def broadband_modes(act, lw, bg):
             left[k] = resonant[b, k]
             total += resonant[b, k]
         for m in range(M):
-            x = 0.0
-            for k in range(nmax):
-                x += static[b, m, k]
-            h[m] = x
+            h[m] = 0.0
         rest = total
         while rest > RESONANT_REST * total:  # (the strongest left, until the rest is small)
             best = 0
@@ -97,13 +91,13 @@ def broadband_modes(act, lw, bg):
             rest -= resonant[b, best]
             kept += 1
             for m in range(M):
-                h[m] -= static[b, m, best]
-        for i in range(ptr[b], ptr[b + 1]):
+                h[m] += static[b, m, best]
+        for i in range(ptr[b], ptr[b + 1]):  # (the modes kept leave the exact actuators' static part)
             j = rows[i] // 2
             if exact[j]:
                 coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
                 for m in range(M):
-                    B[j, m] += coef * h[m]
+                    B[j, m] -= coef * h[m]
     return kept
 
 
