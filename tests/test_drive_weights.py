@@ -2,11 +2,14 @@
 harmonics of mjsound.synth.directivity) against their plain references."""
 
 import numpy as np
+import pytest
 from scipy.special import sph_harm_y
 
 from mjsound.jit import call_inner
-from mjsound.synth.directivity import real_sh, sh_count, sh_tables
-from mjsound.synth.drive_weights import _transfer_sums
+from mjsound.synth.directivity import DIRECTION_FLOOR, real_sh, sh_count, sh_tables
+from mjsound.synth.drive_lines import SceneView
+from mjsound.synth.drive_weights import _direction_factors, _transfer_sums
+from mjsound.synth.records import AIR, CHANNEL, DIRECTIONS
 
 
 def test_transfer_sums_are_the_steady_state_weights():
@@ -58,3 +61,75 @@ def test_real_harmonics_at_high_order_are_scipys():
                     ref[l * l + l + m] = np.sqrt(2) * (-1) ** m * y.real
                     ref[l * l + l - m] = np.sqrt(2) * (-1) ** m * y.imag
         np.testing.assert_allclose(Y, ref, rtol=1e-10, atol=1e-12)
+
+
+def _basis(L, u):
+    Y = np.empty(sh_count(L))
+    real_sh(L, *u, Y, sh_tables(L))
+    return Y
+
+
+def test_direction_factors_are_the_fits_at_each_microphones_direction():
+    """Each air microphone's gains times sum_lm Y_lm(u) c_lm (per mode, to its own order; the
+    floor where the fit is below it) at u = R^T (mic - pos) / |mic - pos|, made again only
+    when u turned by more than the step; a contact microphone's gains are left alone. Three
+    air microphones (made two at a time and one alone) and a contact one, object 1 of 2."""
+    rng = np.random.default_rng(11)
+    L, n, M = 10, 5, 4
+    orders = np.array([10, 10, 3, 0, 10])
+    msh = np.array([sh_count(o) for o in orders])
+    msh_off = np.concatenate([[0, 2], 2 + np.cumsum(np.concatenate([[0], msh]))])  # (object 0: 2 and 0)
+    coef = rng.normal(size=(msh_off[-1], 2)) * 0.3
+    coef[msh_off[2 + 2]:msh_off[2 + 3]] = 0.0  # (mode 2 of object 1: a null everywhere, floored)
+    mics = rng.normal(size=(M, 3))
+    channels = np.zeros(M, CHANNEL)
+    channels["owner"] = [AIR, AIR, 1, AIR]
+    channels["w_off"] = -1
+    pos = rng.normal(size=(2, 3))
+    R = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(2)])
+    params = np.zeros(1, DIRECTIONS)
+    params["cos_step"], params["floor"] = np.cos(np.radians(1.0)), DIRECTION_FLOOR
+    view = SceneView(None, None, np.array([0, 2, 2 + n]), mics, pos, R, channels, np.array([0, L]), msh_off,
+                     np.ascontiguousarray(coef[:, 0]), np.ascontiguousarray(coef[:, 1]), np.zeros((M, sh_count(16))),
+                     sh_tables(16), params)
+    g = rng.normal(size=(M, n + 2)) + 1j * rng.normal(size=(M, n + 2))
+    U = np.full((M, 3), np.nan)
+    Fd = np.zeros((M, n + 2), np.complex128)
+
+    def expected():
+        out = g.copy()
+        for m in range(M):
+            if channels["owner"][m] != AIR:
+                continue
+            u = R[1].T @ (mics[m] - pos[1])
+            Y = _basis(L, u / np.linalg.norm(u))
+            for k in range(n):
+                c = coef[msh_off[2 + k]:msh_off[3 + k]]
+                f = Y[:len(c)] @ (c[:, 0] + 1j * c[:, 1])
+                if abs(f) < DIRECTION_FLOOR:
+                    f = DIRECTION_FLOOR * (f / abs(f) if f != 0 else 1.0)
+                out[m, k] *= f
+        return out
+
+    def run():
+        xr, xi = g.real.copy(), g.imag.copy()
+        _direction_factors(xr, xi, n, 1, 2, view, U, Fd, np.zeros(M))
+        return xr + 1j * xi
+
+    np.testing.assert_allclose(run(), expected(), rtol=1e-11, atol=1e-14)
+    assert np.all(np.isnan(U[2])) and np.all(np.isfinite(U[[0, 1, 3]]))
+    assert np.abs(Fd[:, 2][[0, 1, 3]]) == pytest.approx(DIRECTION_FLOOR)
+    # the object turns by half the step: the factors are kept; by twice the step: made again
+    R0 = R[1].copy()
+    for deg, kept in ((0.5, True), (2.0, False)):
+        a = np.radians(deg)
+        turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        R[1] = R0 @ turn
+        ref = expected()
+        before = Fd.copy()
+        got = run()
+        if kept:
+            np.testing.assert_array_equal(Fd, before)
+            assert not np.allclose(got, ref, rtol=1e-6)  # (the old factors, not those of now)
+        else:
+            np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-14)

@@ -101,11 +101,11 @@ def line_weights(view, act, lw, bg, fs):
     # (the scratch in one allocation: per component its phase step and its cosine and sine;
     # per actuator its noise's one-pole and resonant power; per mode the pole, 1 / |1 - p|^2,
     # the terms alpha, beta; per microphone and mode the gain with its direction factor; per
-    # component of an actuator and microphone the sums)
+    # component of an actuator and microphone the sums; per microphone whether it hears a direction)
     cmax = 0
     for j in range(J):
         cmax = max(cmax, comp_off[j + 1] - comp_off[j])
-    buf = np.empty(3 * C + 2 * J + (7 + 2 * M) * nmax + 2 * cmax * M)
+    buf = np.empty(3 * C + 2 * J + (7 + 2 * M) * nmax + 2 * cmax * M + M)
     th, cth, sth = buf[:C], buf[C:2 * C], buf[2 * C:3 * C]
     alpha, res = buf[3 * C:3 * C + J], buf[3 * C + J:3 * C + 2 * J]
     o1 = 3 * C + 2 * J
@@ -116,6 +116,7 @@ def line_weights(view, act, lw, bg, fs):
     xi = buf[o2 + M * nmax:o2 + 2 * M * nmax].reshape((M, nmax))
     o3 = o2 + 2 * M * nmax
     hs = buf[o3:o3 + 2 * cmax * M].reshape((2, cmax, M))
+    heard = buf[o3 + 2 * cmax * M:o3 + 2 * cmax * M + M]
     # each component's phase step per sample and its cosine and sine, once (0 above the cut-off)
     for j in range(J):
         for c in range(comp_off[j], comp_off[j + 1]):
@@ -146,7 +147,7 @@ def line_weights(view, act, lw, bg, fs):
                 xr[m, k] = gr[b, m, k]
                 xi[m, k] = gi[b, m, k]
         if order[o] >= 0:
-            _direction_factors(xr, xi, n, o, m0, view, U[b], Fd[b])
+            _direction_factors(xr, xi, n, o, m0, view, U[b], Fd[b], heard)
         for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
             for k in range(n):
                 static[b, m, k] = (xi[m, k] * (1.0 - pr[k]) + xr[m, k] * pi[k]) * q0[k]
@@ -246,21 +247,55 @@ def _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs):
             hs[1, c - c0, m] = im
 
 
+@njit_inner(cache=True, fastmath=FAST)
+def _factor_pair(Y0, Y1, cr, ci):
+    """``sum_k Y0[k] (cr + j ci)[k]`` and the same with ``Y1`` (one mode's factor at two
+    directions: its coefficients read once; over the views' length, vectorised as
+    :func:`.directivity._factor`)."""
+    r0 = 0.0
+    i0 = 0.0
+    r1 = 0.0
+    i1 = 0.0
+    for k in range(cr.shape[0]):
+        r0 += Y0[k] * cr[k]
+        i0 += Y0[k] * ci[k]
+        r1 += Y1[k] * cr[k]
+        i1 += Y1[k] * ci[k]
+    return r0, i0, r1, i1
+
+
+@njit_inner(cache=True, inline="always")
+def _floored(fr, fi, floor):
+    """``fr + j fi`` with its magnitude at least ``floor`` (its phase kept; a 0 or NaN: ``floor``)."""
+    a2 = fr * fr + fi * fi
+    if not a2 >= floor * floor:
+        if a2 > 0.0:
+            c = floor / np.sqrt(a2)
+            return complex(fr * c, fi * c)
+        return complex(floor, 0.0)
+    return complex(fr, fi)
+
+
 @njit(cache=True)
-def _direction_factors(xr, xi, n, o, m0, view, U, Fd):
+def _direction_factors(xr, xi, n, o, m0, view, U, Fd, heard):
     """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
     each mode's direction factor towards air microphone ``m`` now (:func:`.directivity.hear_directions`'
     target: the fit at ``u = R^T (mic - pos) / r``, its magnitude floored), made again only
     when ``u`` turned by more than the synthesizer's step since the factors ``Fd[m]`` were
-    made for ``U[m]`` (a body's own cache; NaN: never made); ``view``: a :class:`SceneView`."""
+    made for ``U[m]`` (a body's own cache; NaN: never made); ``view``: a :class:`SceneView`;
+    ``heard`` (>= M,) scratch (0: no factor, 1: the kept one, 2: made again now). The
+    microphones whose direction turned are made two at a time, each mode's coefficients read
+    once for both (:func:`_factor_pair`), each microphone's harmonics in its own row of the
+    synthesizer's scratch."""
     mics, pos, R, channels = view.mics, view.pos, view.R, view.channels
-    msh_off, cfr, cfi, Y, tab = view.msh_off, view.coef_r, view.coef_i, view.sh[0], view.sh_tab
+    msh_off, cfr, cfi, Y, tab = view.msh_off, view.coef_r, view.coef_i, view.sh, view.sh_tab
     prm = view.params[0]
     floor = prm.floor
     cos_step = prm.cos_step
-    floor2 = floor * floor
     L = view.order[o]
-    for m in range(min(xr.shape[0], mics.shape[0])):
+    M = min(xr.shape[0], mics.shape[0], Y.shape[0])
+    for m in range(M):
+        heard[m] = 0.0
         if channels[m].owner != AIR:
             continue
         dx = mics[m, 0] - pos[o, 0]
@@ -272,22 +307,48 @@ def _direction_factors(xr, xi, n, o, m0, view, U, Fd):
         ux = (R[o, 0, 0] * dx + R[o, 1, 0] * dy + R[o, 2, 0] * dz) / r
         uy = (R[o, 0, 1] * dx + R[o, 1, 1] * dy + R[o, 2, 1] * dz) / r
         uz = (R[o, 0, 2] * dx + R[o, 1, 2] * dy + R[o, 2, 2] * dz) / r
+        heard[m] = 1.0
         if not ux * U[m, 0] + uy * U[m, 1] + uz * U[m, 2] >= cos_step:  # (NaN: never made)
             U[m, 0] = ux
             U[m, 1] = uy
             U[m, 2] = uz
-            real_sh(L, ux, uy, uz, Y, tab)  # (the synthesizer's scratch: one row of harmonics)
+            real_sh(L, ux, uy, uz, Y[m], tab)
+            heard[m] = 2.0
+    m = 0
+    while m < M:
+        while m < M and heard[m] != 2.0:
+            m += 1
+        m1 = m + 1
+        while m1 < M and heard[m1] != 2.0:
+            m1 += 1
+        if m >= M:
+            break
+        Y0 = Y[m]
+        if m1 < M:
+            Y1 = Y[m1]
             for k in range(n):
                 k0 = msh_off[m0 + k]
-                nsh = msh_off[m0 + k + 1] - k0
-                t = complex(1.0, 0.0)
-                if nsh > 0:
-                    fr, fi = _factor(Y[:nsh], cfr[k0:k0 + nsh], cfi[k0:k0 + nsh])
-                    t = complex(fr, fi)
-                    a2 = t.real * t.real + t.imag * t.imag
-                    if not a2 >= floor2:
-                        t = t * (floor / np.sqrt(a2)) if a2 > 0.0 else complex(floor, 0.0)
-                Fd[m, k] = t
+                k1 = msh_off[m0 + k + 1]
+                if k1 > k0:
+                    r0, i0, r1, i1 = _factor_pair(Y0[:k1 - k0], Y1[:k1 - k0], cfr[k0:k1], cfi[k0:k1])
+                    Fd[m, k] = _floored(r0, i0, floor)
+                    Fd[m1, k] = _floored(r1, i1, floor)
+                else:
+                    Fd[m, k] = 1.0
+                    Fd[m1, k] = 1.0
+        else:
+            for k in range(n):
+                k0 = msh_off[m0 + k]
+                k1 = msh_off[m0 + k + 1]
+                if k1 > k0:
+                    r0, i0 = _factor(Y0[:k1 - k0], cfr[k0:k1], cfi[k0:k1])
+                    Fd[m, k] = _floored(r0, i0, floor)
+                else:
+                    Fd[m, k] = 1.0
+        m = m1 + 1
+    for m in range(M):
+        if heard[m] == 0.0:
+            continue
         for k in range(n):
             f = Fd[m, k]
             gr = xr[m, k]
