@@ -5,7 +5,8 @@ against one sample at a time."""
 
 import numpy as np
 
-from mjsound.synth.drive_broadband import RESONANT_REST, broadband_modes, modes_heard, modes_run, ring_add
+from mjsound.synth.bandlimited import ring_add
+from mjsound.synth.drive_broadband import RESONANT_REST, broadband_modes, modes_heard, modes_run
 from mjsound.synth.drive_lines import Actuators, BodyGains, LineWeights
 from mjsound.synth.drive_tones import DRIVE, NOISE, TONE
 

@@ -346,7 +346,8 @@ class ActuatorSound:
         return int(self._io[3])
 
     def reset(self) -> None:
-        """Forget the last block's speeds (the next block starts from its own)."""
+        """Forget the last block's speeds and any block marked due (a reset, or the clock
+        jumped: the next block starts from its own)."""
         self._last = None
         self._done = None
 
@@ -405,11 +406,6 @@ class ActuatorSound:
         self._drive_lines(sim.synth, sim.data, k0, L, fresh)
         return self._args is not args
 
-    def cancel(self) -> None:
-        """Forget the block marked due (the clock jumped: the next block starts afresh)."""
-        self._done = None
-        self._last = None
-
     def _weights_for(self, M: int) -> None:
         """:attr:`weights` for ``M`` channels (new ones when the synthesizer's count changed)."""
         C, J = len(self.tones), len(self.ids)
@@ -439,10 +435,7 @@ class ActuatorSound:
 
     def _drive_modal(self, synth, d, k0, L) -> None:
         """The exact rendering: force signals into the bodies' streams, through their modes."""
-        act = self._act
-        if self._force.shape[1] != L:
-            self._force = np.empty((len(self.ids), L))
-        F = self._force
+        act, F = self._act, self._force  # (L columns: render_due)
         drive_tones(act.w0, act.w1, act.a0, act.a1, self.comp_off, self.tones, self.noise, self._fs, F)
         sidx = self._streams(synth)
         while True:
@@ -484,9 +477,9 @@ class ActuatorSound:
         (:mod:`mjsound.synth.drive_broadband`): one kernel call per block, from Python."""
         if synth.on_regain is not None and not synth.poses_current:
             synth.on_regain()  # (the poses and microphones now)
-        M = self.weights.W1.shape[1]
+        weights = self.weights
         args = self._lines_state(synth, d)
-        fresh = fresh or self.weights.W1.shape[1] != M
+        fresh = fresh or self.weights is not weights  # (new weights for new microphones: nothing to ramp from)
         call, io, resume, F = self._calls["lines"], self._io, False, self._force
         while True:
             if call.state is args:  # (the arguments packed last: PackedEntry's call without its checks)

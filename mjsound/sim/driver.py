@@ -49,8 +49,8 @@ from .clock import SampleClock
 from .fused import mj_link
 from .images import fold
 from .records import DRIVE_PARAMS, NOT_RENDERED, RUN, SOUND, DataViews, DriveState, KernelState
-from .step import (AMPLITUDE, CLOCK_JUMP, DONE, DRIVES, DRIVES_DUE, DRIVES_NONE, PULSES, REASONS, RING, ROOM, SOLVE, STAGE_READ, STAGE_STEP, STREAMS,
-                   advance)
+from .step import (AMPLITUDE, CLOCK_JUMP, DONE, DRIVES, DRIVES_DUE, DRIVES_NONE, PULSES, REASONS, RING, ROOM, SOLVE,
+                   STAGE_READ, STAGE_STEP, STREAMS, advance)
 
 __all__ = ["StepDriver", "silent_drive", "silent_synth_state", "silent_render_target"]
 
@@ -171,7 +171,7 @@ class StepDriver:
         #: ``final``: the call renders them; ``later``: a block due is rendered when the kernel
         #: hands back :data:`.step.DRIVES` after the substeps, by ``drives.render_due()``; it
         #: returns whether one is due), and ``(n, n, True, False)`` before a render of the
-        #: samples up to ``n``; ``drives.cancel()`` when the clock jumps
+        #: samples up to ``n``; ``drives.reset()`` when the clock jumps
         self.drives = None
         self._held = []  # blocks rendered before an automatic reset, returned by the next render
         self.bind(model, data)
@@ -414,7 +414,7 @@ class StepDriver:
             run["render"] = 0  # (the pending samples change: flush renders them)
             if self.drives is not None:
                 run["drives_due"] = DRIVES_NONE
-                self.drives.cancel()  # (its block was for the clock before the jump)
+                self.drives.reset()  # (its block was for the clock before the jump)
             self._collect()
             self.pulses.flush()  # (the substeps' pulses so far, before the clock moves)
             self._count_segment()

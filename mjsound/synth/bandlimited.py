@@ -44,6 +44,7 @@ import math
 import numpy as np
 
 from ..jit import njit, njit_inner
+from .bank_loops import FAST
 from .dispatch import EntryPoint
 from .interrupt import interruptible
 from .pulse import half_sine_rotated
@@ -51,7 +52,7 @@ from .records import TRACK, TrackState
 
 __all__ = ["PULSE_DTYPE", "LEAD", "TAIL", "PASS_FRACTION", "RING_TIME_CONSTANTS", "MAX_PULSE_SAMPLES", "RESEED",
            "fft_inplace", "fft_with", "twiddles", "lowpass", "transfer", "pulse_window", "group_window", "render_pulse",
-           "pulse_group", "render_group", "GROUP_GROWTH", "mix_pulse",
+           "pulse_group", "render_group", "GROUP_GROWTH", "mix_pulse", "ring_add",
            "pulse_extent", "add_pulses", "take_into_block", "PulseTrack"]
 
 #: One pulse at one output channel: arrival time [s], pulse length [s], velocity change times
@@ -357,22 +358,34 @@ def render_group(pulses, i, end, dv, fs, first, n, work, out, table):
         out[j] = work[j].real
 
 
+@njit(cache=True, fastmath=FAST)
+def ring_add(acc, m, off, first, x):
+    """Add ``x`` (n,) into row ``m`` of the ring ``acc`` (channels x capacity, a power of two;
+    absolute sample ``k`` at ``k & (capacity - 1)``) at absolute samples ``off + q``, those
+    before ``first`` left out: in at most two contiguous runs (the ring's wrap)."""
+    n = x.shape[0]
+    cap = acc.shape[1]
+    row = acc[m]
+    q = max(0, first - off)
+    while q < n:
+        i = (off + q) & (cap - 1)
+        run = min(n - q, cap - i)
+        dst = row[i:i + run]
+        src = x[q:q + run]
+        for t in range(run):  # (over views, indexed from 0: the loop is vectorised)
+            dst[t] += src[t]
+        q += run
+
+
 @njit_inner(cache=True)
 def mix_pulse(acc, start, channel, first, samples):
     """Add ``samples`` (absolute sample ``first`` onwards) into row ``channel`` of the ring
     accumulator ``acc`` (channels, capacity a power of two) whose oldest kept sample is
-    ``start``; samples before ``start`` are dropped. Returns the last sample written + 1
-    (``start`` if none)."""
-    cap = acc.shape[1]
-    mask = cap - 1
-    end = start
-    for i in range(samples.shape[0]):
-        k = first + i
-        if k < start:
-            continue
-        acc[channel, k & mask] += samples[i]
-        end = k + 1
-    return end
+    ``start``; samples before ``start`` are dropped (:func:`ring_add`). Returns the last
+    sample written + 1 (``start`` if none)."""
+    n = samples.shape[0]
+    ring_add(acc, channel, first, start, samples)
+    return max(start, first + n) if n > 0 else start
 
 
 @njit(cache=True)

@@ -33,21 +33,26 @@ __all__ = ["bank_free", "bank_forced", "MAX_FOLD", "FAST", "fma", "fmuladd"]
 FAST = {"reassoc", "nsz", "arcp", "nnan", "ninf"}
 
 
-@intrinsic
-def fma(typingctx, a, b, c):
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma``), in ``a``'s float type."""
-    if not all(isinstance(t, types.Float) for t in (a, b, c)):
-        return None
-    sig = a(a, b, c)
+def _multiply_add(llvm_name):
+    """The code of ``a * b + c`` through LLVM's intrinsic ``llvm_name`` (``llvm.fma``,
+    ``llvm.fmuladd``), the arguments cast to the result's float type."""
 
     def codegen(context, builder, signature, args):
         ty = signature.return_type
         vals = [context.cast(builder, v, t, ty) for v, t in zip(args, signature.args)]
         lt = context.get_value_type(ty)
-        fn = builder.module.declare_intrinsic("llvm.fma", [lt], ir.FunctionType(lt, [lt, lt, lt]))
+        fn = builder.module.declare_intrinsic(llvm_name, [lt], ir.FunctionType(lt, [lt, lt, lt]))
         return builder.call(fn, vals)
 
-    return sig, codegen
+    return codegen
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (LLVM's ``llvm.fma``), in ``a``'s float type."""
+    if not all(isinstance(t, types.Float) for t in (a, b, c)):
+        return None
+    return a(a, b, c), _multiply_add("llvm.fma")
 
 
 @intrinsic
@@ -58,16 +63,7 @@ def fmuladd(typingctx, a, b, c):
     ``s = fmuladd(x, y, s)`` over a loop is recognised as a reduction and vectorised."""
     if not all(isinstance(t, types.Float) for t in (a, b, c)):
         return None
-    sig = a(a, b, c)
-
-    def codegen(context, builder, signature, args):
-        ty = signature.return_type
-        vals = [context.cast(builder, v, t, ty) for v, t in zip(args, signature.args)]
-        lt = context.get_value_type(ty)
-        fn = builder.module.declare_intrinsic("llvm.fmuladd", [lt], ir.FunctionType(lt, [lt, lt, lt]))
-        return builder.call(fn, vals)
-
-    return sig, codegen
+    return a(a, b, c), _multiply_add("llvm.fmuladd")
 
 
 @njit(cache=True, fastmath=FAST)

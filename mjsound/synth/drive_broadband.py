@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .bandlimited import ring_add
 from .bank_loops import FAST
 from .drive_tones import noise_cutoff_hz
 from .records import AIR
@@ -181,25 +182,6 @@ def modes_heard(out, X, n, k0, k1, hr, hi, steady, s, L):
         else:
             for t in range(n):
                 out[t] += (c * xi[t] + d * xr[t]) * ((L - s - t) * inv)
-
-
-@njit(cache=True, fastmath=FAST)
-def ring_add(acc, m, off, first, x):
-    """Add ``x`` (n,) into row ``m`` of the ring ``acc`` (channels x capacity, a power of two;
-    absolute sample ``k`` at ``k & (capacity - 1)``) at absolute samples ``off + q``, those
-    before ``first`` left out: in at most two contiguous runs (the ring's wrap)."""
-    n = x.shape[0]
-    cap = acc.shape[1]
-    row = acc[m]
-    q = max(0, first - off)
-    while q < n:
-        i = (off + q) & (cap - 1)
-        run = min(n - q, cap - i)
-        dst = row[i:i + run]
-        src = x[q:q + run]
-        for t in range(run):  # (over views, indexed from 0: the loop is vectorised)
-            dst[t] += src[t]
-        q += run
 
 
 @njit(cache=True)

@@ -54,6 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..jit import njit
+from .bandlimited import ring_add
 from .bank_loops import FAST
 from .drive_lanes import cpow, lines_pass, turn
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant
@@ -238,7 +239,6 @@ def lines_render(track, act, lw, n0, L, fs, F):
     J = a0.shape[0]
     limit = 2.0 * math.pi * 0.45
     two_pi = 2.0 * math.pi
-    mask = acc.shape[1] - 1
     first = rec[0].start
     lo = n0 + L
     hi = n0
@@ -365,15 +365,7 @@ def lines_render(track, act, lw, n0, L, fs, F):
                 if not exact[j] or (a0[j] == 0.0 and a1[j] == 0.0):
                     continue
                 _ramp_add(buf, F[j], B0[j, m], (B1[j, m] - B0[j, m]) / L)
-            off = n0 + Dm[m]
-            q = max(0, first - off)
-            while q < L:  # (into the ring, in runs that do not wrap around it)
-                u = (off + q) & mask
-                n = min(L - q, mask + 1 - u)
-                row = acc[m, u:u + n]
-                for i in range(n):
-                    row[i] += buf[q + i]
-                q += n
+            ring_add(acc, m, n0 + Dm[m], first, buf)
     for c in range(C):  # (this block's end starts the next)
         for m in range(M):
             W0[c, m] = W1[c, m]
@@ -459,16 +451,10 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
         io[3] = broadband_modes(act, lw, bg)
         broadband_force(act, lw, fs, F)
     else:
-        for b in range(bg.keep.shape[0]):
-            for k in range(bg.keep.shape[1]):
-                bg.keep[b, k] = False
+        bg.keep[:, :] = False
     if fresh:
-        for c in range(lw.W1.shape[0]):
-            for m in range(lw.W1.shape[1]):
-                lw.W0[c, m] = lw.W1[c, m]
-        for j in range(lw.B1.shape[0]):
-            for m in range(lw.B1.shape[1]):
-                lw.B0[j, m] = lw.B1[j, m]
+        lw.W0[:, :] = lw.W1
+        lw.B0[:, :] = lw.B1
     io[2] = lines_render(track, act, lw, k0, L, fs, F)
     broadband_resonant(view, act, lw, bg, track, k0, F, fresh)
 

@@ -76,14 +76,9 @@ def line_weights(view, act, lw, bg, fs):
     table, poles, mode_off, order = view.table, view.poles, view.mode_off, view.order
     C, M = W.shape
     J = B.shape[0]
-    for c in range(C):
-        for m in range(M):
-            W[c, m] = 0.0
-    for j in range(J):
-        for m in range(M):
-            B[j, m] = 0.0
-    for m in range(M):
-        Dm[m] = -1
+    W[:, :] = 0.0
+    B[:, :] = 0.0
+    Dm[:] = -1
     for b in range(sidx.shape[0]):
         if sidx[b] < 0 or sign[b] == 0.0:
             continue
