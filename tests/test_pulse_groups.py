@@ -109,3 +109,32 @@ def test_click_rows_put_each_microphone_before_its_images():
     assert free["mic"].tolist() == free["channel"].tolist() == [0, 1] and not free["joins"].any()
     with pytest.raises(ValueError, match="image microphones"):
         click_rows(2, im)
+
+
+def test_taking_a_block_across_the_ring_wrap_matches_the_sample_loop():
+    """``take_into_block`` (contiguous runs of the ring) against the plain per-sample loop:
+    every pending sample added as float32, a non-finite one adds nothing, taken samples
+    zeroed, across the ring's wrap and at any pending span."""
+    rng = np.random.default_rng(1)
+    for trial in range(60):
+        track = bl.PulseTrack(int(rng.integers(1, 4)), FS)
+        st = track.state
+        cap = st.acc.shape[1]
+        st.acc[:] = rng.standard_normal(st.acc.shape)
+        st.acc[rng.random(st.acc.shape) < 0.02] = np.nan
+        start = int(rng.integers(0, 5000))
+        lo_p = start + int(rng.integers(0, 300))
+        rec = st.rec[0]
+        rec["start"], rec["pending_from"], rec["pending_until"] = start, lo_p, lo_p + int(rng.integers(0, cap))
+        n = int(rng.integers(1, cap))
+        block = rng.standard_normal((st.acc.shape[0], n)).astype(np.float32)
+        ref, acc = block.copy(), st.acc.copy()
+        for c in range(acc.shape[0]):
+            for u in range(max(start, lo_p), min(start + n, int(rec["pending_until"]))):
+                x, acc[c, u % cap] = acc[c, u % cap], 0.0
+                if np.isfinite(x):
+                    ref[c, u - start] += np.float32(x)
+        bl.take_into_block(st, block)
+        np.testing.assert_array_equal(block, ref, err_msg=f"trial {trial}")
+        np.testing.assert_array_equal(st.acc, acc, err_msg=f"trial {trial}")
+        assert st.rec[0]["start"] == start + n

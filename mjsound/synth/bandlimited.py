@@ -469,15 +469,25 @@ def take_into_block(track, block):
     if hi <= lo:
         return
     acc = track.acc
-    mask = acc.shape[1] - 1
-    for c in range(acc.shape[0]):
-        for u in range(lo, hi):
-            i = u & mask
-            x = acc[c, i]
-            acc[c, i] = 0.0
-            if np.isfinite(x):
-                block[c, u - n0] += np.float32(x)
+    cap = acc.shape[1]
+    u = lo
+    while u < hi:  # (in contiguous runs of the ring: no wrap inside a run, so the loop vectorises)
+        i0 = u & (cap - 1)
+        n = min(hi - u, cap - i0)
+        for c in range(acc.shape[0]):
+            _take_run(acc[c, i0:i0 + n], block[c, u - n0:u - n0 + n])
+        u += n
     rec.pending_from = hi
+
+
+@njit(cache=True)
+def _take_run(src, dst):
+    """``dst += float32(src)`` where ``src`` is finite (else nothing), and ``src`` zeroed (no
+    fastmath: the finiteness test must stay)."""
+    for q in range(src.shape[0]):
+        x = src[q]
+        src[q] = 0.0
+        dst[q] += np.float32(x) if np.abs(x) < np.inf else np.float32(0.0)
 
 
 class PulseTrack:
