@@ -6,7 +6,7 @@ against one sample at a time."""
 import numpy as np
 
 from mjsound.synth.bandlimited import ring_add
-from mjsound.synth.drive_broadband import RESONANT_REST, broadband_modes, modes_heard, modes_run
+from mjsound.synth.drive_broadband import RESONANT_REST, broadband_modes, modes_heard, modes_heard_pair, modes_run
 from mjsound.synth.drive_lines import Actuators, BodyGains, LineWeights
 from mjsound.synth.drive_tones import DRIVE, NOISE, TONE
 
@@ -111,3 +111,43 @@ def test_ring_add_wraps_and_leaves_out_samples_before_the_first():
                 want[1, (off + q) & 63] += x[q]
         ring_add(acc, 1, off, first, x)
         assert np.array_equal(acc, want), (off, first, n)
+
+
+def test_two_microphones_at_once_as_one_at_a_time():
+    """modes_heard_pair (two microphones per pass over the modes' states) adds what
+    modes_heard adds for each microphone alone (to 1e-15 of its scale: the same products
+    and sums, which the compiler may round in another order), into buffers at different
+    delays, steady and fading modes mixed, nothing outside them; and each microphone's sum
+    matches the complex recursion (reference) to 1e-12 of its scale."""
+    rng = np.random.default_rng(4)
+    L, K, Kp = 300, 6, 8
+    f = rng.standard_normal((2, L))
+    row = np.array([0, 0, 1, 1, 0, 1, 0, 0])
+    p = 0.9995 * np.exp(1j * rng.uniform(0.5, 3.0, Kp))
+    g = rng.standard_normal(Kp)
+    w = rng.standard_normal(Kp) + 1j * rng.standard_normal(Kp)
+    p[K:] = g[K:] = w[K:] = 0.0  # (the fillers of the second group of four)
+    h = rng.standard_normal((2, Kp)) + 1j * rng.standard_normal((2, Kp))
+    steady = np.array([True, False, True, True, False, True, True, True])
+    H = np.empty((4, Kp))  # (rows 2 m, 2 m + 1: microphone m's real and imaginary output factors)
+    H[0::2], H[1::2] = h.real, h.imag
+    delays = (3, 17)
+    pair = np.zeros((2, L + 20))
+    alone = np.zeros((2, L + 20))
+    wr, wi = w.real.copy(), w.imag.copy()
+    X = np.empty((2 * Kp, 128))
+    for s in range(0, L, 128):
+        n = min(128, L - s)
+        modes_run(X, f, s, n, row, p.real.copy(), p.imag.copy(), g, wr, wi)
+        for k0, k1 in ((0, 4), (4, K)):  # (two bodies)
+            modes_heard_pair(pair[0, delays[0] + s:], pair[1, delays[1] + s:], X, n, k0, k1, H, 0, steady, s, L)
+            for m in (0, 1):
+                e = delays[m] + s
+                modes_heard(alone[m, e:e + n], X, n, k0, k1, H[2 * m], H[2 * m + 1], steady, s, L)
+    assert np.abs(pair - alone).max() <= 1e-15 * np.abs(alone).max()  # (the same sums, up to their rounding's order)
+    for m in (0, 1):
+        y, _ = reference(f, row, p, g, w, h[m], steady)
+        want = y[:K].sum(axis=0)
+        got = pair[m, delays[m]:delays[m] + L]
+        assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+        assert not pair[m, :delays[m]].any() and not pair[m, delays[m] + L:].any()

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..jit import njit
+from ..jit import njit, njit_inner
 from .bandlimited import ring_add
 from .bank_loops import FAST
 from .drive_tones import noise_cutoff_hz
@@ -184,7 +184,30 @@ def modes_heard(out, X, n, k0, k1, hr, hi, steady, s, L):
                 out[t] += (c * xi[t] + d * xr[t]) * ((L - s - t) * inv)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
+def modes_heard_pair(o0, o1, X, n, k0, k1, h, m, steady, s, L):
+    """:func:`modes_heard` for microphones ``m`` and ``m + 1`` at once (into ``o0[:n]``,
+    ``o1[:n]``; ``h`` (2 M, K): rows ``2 m, 2 m + 1`` the real and imaginary output factors
+    of microphone ``m``): each mode's states are read once for both microphones."""
+    inv = 1.0 / L
+    c0, d0, c1, d1 = h[2 * m], h[2 * m + 1], h[2 * m + 2], h[2 * m + 3]
+    a = o0[:n]
+    b = o1[:n]
+    for k in range(k0, k1):
+        xi, xr = X[2 * k, :n], X[2 * k + 1, :n]
+        e0, f0, e1, f1 = c0[k], d0[k], c1[k], d1[k]
+        if steady[k]:
+            for t in range(n):
+                a[t] += e0 * xi[t] + f0 * xr[t]
+                b[t] += e1 * xi[t] + f1 * xr[t]
+        else:
+            for t in range(n):
+                fade = (L - s - t) * inv
+                a[t] += (e0 * xi[t] + f0 * xr[t]) * fade
+                b[t] += (e1 * xi[t] + f1 * xr[t]) * fade
+
+
+@njit(cache=True, inline="always")
 def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     """The kept modes (``bg.keep``, :func:`broadband_modes`) driven by their body's broadband
     force, and the modes fading out, over the block ``F`` covers (J, L), into the pulse track
@@ -205,18 +228,17 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
 
     Every body's modes run together, four at a time (:func:`modes_run`: a lone mode's
     recursion is bound by its latency, four overlap), over chunks of :data:`CHUNK` samples;
-    each body's are heard from the chunk per microphone at its own delay into one buffer per
-    microphone (:func:`modes_heard`), which goes into the ring once (:func:`ring_add`)."""
-    acc, rec = track.acc, track.rec
-    sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
-    keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
-    nb, M, nmax = bg.gr.shape
-    M = min(M, acc.shape[0])
-    J, L = F.shape
-    first = rec[0].start
-    K = 0  # (the modes running, every body's in one run: body b's are kb[b]:kb[b + 1])
-    nk = np.zeros(nb, np.int64)
-    nf = 0  # (the bodies with modes running: their forces, rows of f)
+    each body's are heard from the chunk, two microphones at a time at its own delays, into
+    one buffer per microphone (:func:`modes_heard_pair`, :func:`modes_heard`), which goes
+    into the ring once (:func:`ring_add`).
+
+    A block with no mode running costs a pass over the flags (``bg.keep``, ``bg.level``):
+    the rest (:func:`resonant_run`) unpacks the records, whose arrays' reference counts
+    cost more than that pass, and allocates five arrays (the modes' parameters and indices,
+    the bodies' forces, the chunk's states, the microphones' buffers)."""
+    sidx, keep, z, level = act.sidx, bg.keep, bg.z, bg.level
+    nb, nmax = keep.shape
+    K = 0
     for b in range(nb):
         if sidx[b] < 0:
             continue
@@ -226,31 +248,50 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
                 z[b, k] = 0.0
         for k in range(nmax):
             if keep[b, k] or level[b, k] > 0.0:
-                nk[b] += 1
-        K += nk[b]
-        nf += 1 if nk[b] > 0 else 0
+                K += 1
     if K == 0:
         return 0
+    return resonant_run(view, act, lw, bg, track, n0, F, K)
+
+
+@njit_inner(cache=True, inline="always")
+def resonant_run(view, act, lw, bg, track, n0, F, K):
+    """:func:`broadband_resonant` of a block with ``K > 0`` modes running (their states
+    already zeroed where the block is fresh). Returns the largest delay written [samples]."""
+    acc, rec = track.acc, track.rec
+    sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
+    keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
+    nb, M, nmax = bg.gr.shape
+    M = min(M, acc.shape[0])
+    J, L = F.shape
+    first = rec[0].start
+    nf = 0  # (the bodies with modes running: their forces, rows of f; body b's modes are kb[b]:kb[b + 1])
+    for b in range(nb):
+        if sidx[b] >= 0:
+            for k in range(nmax):
+                if keep[b, k] or level[b, k] > 0.0:
+                    nf += 1
+                    break
     Kp = (K + 3) // 4 * 4  # (groups of four: the rest filled with silent modes)
+    P = np.zeros((5 + 2 * M, Kp))  # (rows: pole re, im, input gain, state re, im; per microphone h re, im)
+    pr, pi, gin, wr, wi, h = P[0], P[1], P[2], P[3], P[4], P[5:]
+    I = np.zeros(4 * Kp + nb + 1 + 2 * M, np.int64)
+    idx, body, row, steady = I[:Kp], I[Kp:2 * Kp], I[2 * Kp:3 * Kp], I[3 * Kp:4 * Kp]
+    kb = I[4 * Kp:4 * Kp + nb + 1]
+    lo_d, hi_d = I[4 * Kp + nb + 1:4 * Kp + nb + 1 + M], I[4 * Kp + nb + 1 + M:]
     f = np.zeros((nf, L))
-    kb = np.zeros(nb + 1, np.int64)
-    idx = np.zeros(Kp, np.int64)
-    body = np.zeros(Kp, np.int64)
-    row = np.zeros(Kp, np.int64)
-    steady = np.zeros(Kp, np.bool_)
-    pr = np.zeros(Kp)
-    pi = np.zeros(Kp)
-    gin = np.zeros(Kp)
-    wr = np.zeros(Kp)
-    wi = np.zeros(Kp)
-    hr = np.zeros((M, Kp))
-    hi = np.zeros((M, Kp))
     K = 0
     nf = 0
     for b in range(nb):
         kb[b] = K
         s = sidx[b]
-        if s < 0 or nk[b] == 0:
+        if s < 0:
+            continue
+        c = 0
+        for k in range(nmax):
+            if keep[b, k] or level[b, k] > 0.0:
+                c += 1
+        if c == 0:
             continue
         forced = False
         fb = f[nf]
@@ -277,22 +318,22 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
             row[K] = nf
             pr[K] = p.real
             pi[K] = p.imag
-            steady[K] = on
+            steady[K] = 1 if on else 0
             gin[K] = bg.gin[b, k] if on else 0.0
             wr[K] = z[b, k].real
             wi[K] = z[b, k].imag
             for m in range(M):
-                h = bg.gout[b, m, k]
+                hm = bg.gout[b, m, k]
                 if directional and view.channels[m].owner == AIR:
-                    h *= Fd[b, m, k]
-                hr[m, K] = h.real
-                hi[m, K] = h.imag
+                    hm *= Fd[b, m, k]
+                h[2 * m, K] = hm.real
+                h[2 * m + 1, K] = hm.imag
             K += 1
         nf += 1
     kb[nb] = K
     # each microphone's samples from its nearest body's delay on, every body at its own
-    lo_d = np.full(M, 1 << 62, np.int64)
-    hi_d = np.zeros(M, np.int64)
+    for m in range(M):
+        lo_d[m] = 1 << 62
     for b in range(nb):
         if kb[b + 1] > kb[b]:
             for m in range(M):
@@ -308,12 +349,17 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
         modes_run(X, f, s, n, row, pr, pi, gin, wr, wi)
         for b in range(nb):
             if kb[b + 1] > kb[b]:
-                for m in range(M):
+                for m in range(0, M - 1, 2):
+                    e0 = D[b, m] - lo_d[m] + s
+                    e1 = D[b, m + 1] - lo_d[m + 1] + s
+                    modes_heard_pair(out[m, e0:], out[m + 1, e1:], X, n, kb[b], kb[b + 1], h, m, steady, s, L)
+                if M % 2 == 1:
+                    m = M - 1
                     e = D[b, m] - lo_d[m] + s
-                    modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], hr[m], hi[m], steady, s, L)
+                    modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], h[2 * m], h[2 * m + 1], steady, s, L)
     for r in range(K):
         b, k = body[r], idx[r]
-        on = steady[r]
+        on = steady[r] != 0
         level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
         z[b, k] = complex(wr[r], wi[r]) if on else 0.0
     rr = rec[0]
