@@ -21,34 +21,33 @@ __all__ = ["SUB", "LANES_MIN", "lines_pass", "turn", "cpow"]
 
 #: Samples between the lines' exact restarts (a power of two: :func:`lines_pass`).
 SUB = 64
-#: Fewest lanes :func:`_sub_pass` runs (a multiple of 8, the lines padded with silent ones):
-#: LLVM's vector loop there starts at 24 lanes (below, its scalar loop runs, ~3x slower per
-#: lane; the lines of one or two actuators: Fetch's gripper).
-LANES_MIN = 24
+#: Fewest lanes :func:`_sub_pass` runs (a multiple of 8, the lines padded with silent ones:
+#: LLVM's vector loop takes 8 lanes at a time; with the weights ramped on the adders its
+#: vector loop runs from 8 lanes on, so a few lines (Fetch's gripper) are not padded to 24).
+LANES_MIN = 8
 
 
 @njit(cache=True, fastmath=FAST)
-def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
+def _sub_pass(acc, first, c0, c1, k0, n_k, n, S, V):
     """``n_k`` samples of the gathered lines in float32 lanes (the first ``n`` columns, a
     multiple of 8: lanes past the lines are zero), two samples per pass over them, into
     channels ``c0`` (absolute sample ``k0 + k``) and ``c1`` (``k0 + k + (the second
-    channel's offset)``, passed as ``c1 = (channel, offset)``; only when ``two``): rows of
-    ``S`` (6, >= n) float32 phasor, rate, the rate's turn (re, im; updated); ``V`` (8, >= n)
-    float32 each channel's weight and step per sample (re, im), ramped from sample ``kf0``.
-    A product and a sum fuse where the code says so, the same in every process
-    (:func:`.bank_loops.fma`: the weights ``v + d k``, the phasor's ``Re = fma(a, c, -b d)``,
-    ``Im = fma(a, d, b c)``; :func:`.bank_loops.fmuladd`, which LLVM vectorises as a sum over
-    the lanes: each output's ``fmuladd(wr, zi, fmuladd(wi, zr, sum))``)."""
+    channel's offset)``, passed as ``c1 = (channel, offset)``; one channel:
+    :func:`_sub_pass1`): rows of ``S`` (6, >= n) float32 phasor, rate, the rate's turn (re,
+    im; updated); ``V`` (8, >= n) float32 each channel's weight at the first sample and its
+    step per sample (re, im; the weights updated: the weight ramps by adding its step a
+    sample, on the adders, so that the multipliers do the phasors' and the outputs' work
+    alone). A product and a sum fuse where the code says so, the same in every process
+    (:func:`.bank_loops.fma`: the phasor's ``Re = fma(a, c, -b d)``, ``Im = fma(a, d, b c)``;
+    :func:`.bank_loops.fmuladd`, which LLVM vectorises as a sum over the lanes: each
+    output's ``fmuladd(wr, zi, fmuladd(wi, zr, sum))``)."""
     mask = acc.shape[1] - 1
     ur, ui, rr, ri, er, ei = S[0], S[1], S[2], S[3], S[4], S[5]
     v0r, v0i, d0r, d0i, v1r, v1i, d1r, d1i = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
     ch1, off1 = c1
     zero = np.float32(0.0)
-    one = np.float32(1.0)
     k = 0
     while k < n_k:
-        kf = kf0 + np.float32(k)
-        kg = kf + one
         s0 = zero
         s1 = zero
         t0 = zero
@@ -60,14 +59,26 @@ def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
             d = ri[q]
             e = er[q]
             f = ei[q]
-            s0 = fmuladd(fma(d0r[q], kf, v0r[q]), b, fmuladd(fma(d0i[q], kf, v0i[q]), a, s0))
-            s1 = fmuladd(fma(d1r[q], kf, v1r[q]), b, fmuladd(fma(d1i[q], kf, v1i[q]), a, s1))
+            xr = v0r[q]
+            xi = v0i[q]
+            yr = v1r[q]
+            yi = v1i[q]
+            s0 = fmuladd(xr, b, fmuladd(xi, a, s0))
+            s1 = fmuladd(yr, b, fmuladd(yi, a, s1))
+            xr += d0r[q]
+            xi += d0i[q]
+            yr += d1r[q]
+            yi += d1i[q]
             a2 = fma(a, c, -(b * d))
             b2 = fma(a, d, b * c)
             c2 = fma(c, e, -(d * f))
             d2 = fma(c, f, d * e)
-            t0 = fmuladd(fma(d0r[q], kg, v0r[q]), b2, fmuladd(fma(d0i[q], kg, v0i[q]), a2, t0))
-            t1 = fmuladd(fma(d1r[q], kg, v1r[q]), b2, fmuladd(fma(d1i[q], kg, v1i[q]), a2, t1))
+            t0 = fmuladd(xr, b2, fmuladd(xi, a2, t0))
+            t1 = fmuladd(yr, b2, fmuladd(yi, a2, t1))
+            v0r[q] = xr + d0r[q]
+            v0i[q] = xi + d0i[q]
+            v1r[q] = yr + d1r[q]
+            v1i[q] = yi + d1i[q]
             ur[q] = fma(a2, c2, -(b2 * d2))
             ui[q] = fma(a2, d2, b2 * c2)
             rr[q] = fma(c2, e, -(d2 * f))
@@ -77,8 +88,50 @@ def _sub_pass(acc, first, c0, c1, two, k0, n_k, kf0, n, S, V):
                 u = k0 + k + i
                 if u >= first:
                     acc[c0, u & mask] += s0 if i == 0 else t0
-                if two and u + off1 >= first:
+                if u + off1 >= first:
                     acc[ch1, (u + off1) & mask] += s1 if i == 0 else t1
+        k += 2
+
+
+@njit(cache=True, fastmath=FAST)
+def _sub_pass1(acc, first, c0, k0, n_k, n, S, V):
+    """:func:`_sub_pass` into one channel ``c0`` (``V``'s first 4 rows)."""
+    mask = acc.shape[1] - 1
+    ur, ui, rr, ri, er, ei = S[0], S[1], S[2], S[3], S[4], S[5]
+    v0r, v0i, d0r, d0i = V[0], V[1], V[2], V[3]
+    zero = np.float32(0.0)
+    k = 0
+    while k < n_k:
+        s0 = zero
+        t0 = zero
+        for q in range(n):
+            a = ur[q]
+            b = ui[q]
+            c = rr[q]
+            d = ri[q]
+            e = er[q]
+            f = ei[q]
+            xr = v0r[q]
+            xi = v0i[q]
+            s0 = fmuladd(xr, b, fmuladd(xi, a, s0))
+            xr += d0r[q]
+            xi += d0i[q]
+            a2 = fma(a, c, -(b * d))
+            b2 = fma(a, d, b * c)
+            c2 = fma(c, e, -(d * f))
+            d2 = fma(c, f, d * e)
+            t0 = fmuladd(xr, b2, fmuladd(xi, a2, t0))
+            v0r[q] = xr + d0r[q]
+            v0i[q] = xi + d0i[q]
+            ur[q] = fma(a2, c2, -(b2 * d2))
+            ui[q] = fma(a2, d2, b2 * c2)
+            rr[q] = fma(c2, e, -(d2 * f))
+            ri[q] = fma(c2, f, d2 * e)
+        for i in range(2):
+            if k + i < n_k:
+                u = k0 + k + i
+                if u >= first:
+                    acc[c0, u & mask] += s0 if i == 0 else t0
         k += 2
 
 
@@ -170,17 +223,25 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span):
                     lane[q] = na
                     S32[4, na] = S[4, q]
                     S32[5, na] = S[5, q]
-                    for r in range(8):
+                    for r in range(2, 8, 4):  # (the weights' steps)
                         V32[r, na] = V[r, q]
+                        V32[r + 1, na] = V[r + 1, q]
                     na += 1
             for q in range(na, nv):  # (silent lanes)
                 for r in range(8):
                     V32[r, q] = 0.0
+        if na == n:  # (every line in its own lane, in order)
+            _lanes_load(T, V, S32, V32, n, s)
         for q in range(n):
             i = lane[q]
+            if na == n:
+                break
             if i >= 0:
                 for r in range(4):
                     S32[r, i] = T[r, q]
+                for r in range(0, 8, 4):  # (the weights at the restart, from float64)
+                    V32[r, i] = V[r, q] + V[r + 2, q] * s
+                    V32[r + 1, i] = V[r + 1, q] + V[r + 3, q] * s
             else:  # (a partial line: its part one sample at a time)
                 lo, hi = span[0, q], span[1, q]
                 a = max(lo, s)
@@ -189,13 +250,44 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span):
                     _span_part(acc, first, (c0, k0, c1, k1), two, s, a, b,
                                (T[0, q], T[1, q], T[2, q], T[3, q], S[4, q], S[5, q]), V[:, q])
         if na:
-            _sub_pass(acc, first, c0, (c1, k1 - k0), two, k0 + s, nk, np.float32(s),
-                      max(LANES_MIN, (na + 7) // 8 * 8), S32, V32)
+            nl = max(LANES_MIN, (na + 7) // 8 * 8)
+            if two:
+                _sub_pass(acc, first, c0, (c1, k1 - k0), k0 + s, nk, nl, S32, V32)
+            else:
+                _sub_pass1(acc, first, c0, k0 + s, nk, nl, S32, V32)
+        _advance(T, G, n)
+
+
+@njit(cache=True)
+def _lanes_load(T, V, S32, V32, n, s):
+    """Lanes ``0 .. n-1`` at the restart at sample ``s`` (line ``q`` in lane ``q``): the
+    phasors and rates ``T`` (float64, rows 0-3) rounded to float32, the weights ``V[r] + s
+    V[r + 2]`` (float64, then rounded; rows 0, 1, 4, 5). Straight copies: vectorised."""
+    for r in range(4):
+        src = T[r]
+        dst = S32[r]
         for q in range(n):
-            zr, zi, rr, ri, pr, pi = T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q]
-            T[0, q], T[1, q] = zr * pr - zi * pi, zr * pi + zi * pr
-            T[2, q], T[3, q] = rr * G[0, q] - ri * G[1, q], rr * G[1, q] + ri * G[0, q]
-            T[4, q], T[5, q] = pr * G[2, q] - pi * G[3, q], pr * G[3, q] + pi * G[2, q]
+            dst[q] = src[q]
+    for r in (0, 1, 4, 5):
+        v = V[r]
+        d = V[r + 2]
+        dst = V32[r]
+        for q in range(n):
+            dst[q] = v[q] + d[q] * s
+
+
+@njit(cache=True)
+def _advance(T, G, n):
+    """The float64 recursion from one restart to the next (:func:`lines_pass`): the phasor
+    ``z`` times ``P``, the rate times its turn ``G[0:2]``, ``P`` times its turn ``G[2:4]``
+    (elementwise over the lines: vectorised)."""
+    zr, zi, rr, ri, pr, pi = T[0], T[1], T[2], T[3], T[4], T[5]
+    gr, gi, hr, hi = G[0], G[1], G[2], G[3]
+    for q in range(n):
+        a, b, c, d, e, f = zr[q], zi[q], rr[q], ri[q], pr[q], pi[q]
+        zr[q], zi[q] = a * e - b * f, a * f + b * e
+        rr[q], ri[q] = c * gr[q] - d * gi[q], c * gi[q] + d * gr[q]
+        pr[q], pi[q] = e * hr[q] - f * hi[q], e * hi[q] + f * hr[q]
 
 
 @njit(cache=True, fastmath=FAST)
