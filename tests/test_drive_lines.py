@@ -189,3 +189,34 @@ def test_lines_render_is_the_float64_sum_of_its_lines():
     assert np.allclose(act.tones["phase"], [advance_phase(p, a, b, L) for p, a, b in zip(ph0, s0, ds)], rtol=0,
                        atol=1e-12)
     assert np.array_equal(lw.W0, W1)
+
+
+def test_lines_render_with_kept_working_arrays_is_the_same_as_without():
+    """The working arrays kept between blocks (LineWeights.scratch, drive_lines.lines_scratch):
+    a block rendered with them (lines and the static broadband), after they served another block
+    with other lines (more of them, another actuator crossing the cut-off), is bit for bit the
+    block rendered with arrays of its own; arrays too small for the block (lines, microphones, samples) are replaced for the call."""
+    from mjsound.synth.drive_lines import lines_render, lines_scratch
+
+    def block(scratch, orders, w0, w1, seed, M=3, L=800):
+        track, act, lw, n0, L, fs, F = _render_state(orders, w0, w1, M=M, L=L, seed=seed)
+        rng = np.random.default_rng(seed)
+        act.noise["broadband"], act.noise["rng"] = 0.3, rng.integers(1, 2 ** 62, len(w0))  # (the static broadband)
+        lw.B0[:], lw.B1[:] = rng.uniform(0.5, 1.0, lw.B0.shape), rng.uniform(0.5, 1.0, lw.B1.shape)
+        lw = lw._replace(scratch=scratch)
+        n = lines_render(track, act, lw, n0, L, fs, F)
+        return track.acc.copy(), n
+
+    big = [[1 / 3, 2 / 3, 1.0, 2.0, 4.0, 6.0, 10.0, 20.0, 30.0], [10.0, 20.0, 30.0, 126.0, 252.0], [3.0, 7.5, 9.0]]
+    small = [[10.0, 20.0, 30.0, 126.0, 252.0], [1.0, 2.0]]
+    kept = lines_scratch(len(sum(big, [])), 3, 800)
+    block(kept, big, [3000.0, -20.0, 20000.0], [-1000.0, 400.0, 20000.0], 1)  # (another block first)
+    for orders, w0, w1 in ((small, [50.0, 900.0], [60.0, 700.0]), (big, [20.0, 300.0, 5.0], [25.0, 280.0, 6.0])):
+        want, n = block(lines_scratch(0, 0, 0), orders, w0, w1, 2)
+        got, m = block(kept, orders, w0, w1, 2)
+        assert n == m > 0
+        assert np.array_equal(got, want)
+    # (too few lines, microphones and samples for the block: its own arrays)
+    want, n = block(lines_scratch(0, 0, 0), big, [20.0, 300.0, 5.0], [25.0, 280.0, 6.0], 3, M=4, L=1000)
+    got, m = block(lines_scratch(4, 2, 100), big, [20.0, 300.0, 5.0], [25.0, 280.0, 6.0], 3, M=4, L=1000)
+    assert n == m > 0 and np.array_equal(got, want)

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..synth.constants import P_REF_PA
 from ..synth.dispatch import EntryPoint, PackedEntry
-from ..synth.drive_lines import (DONE, Actuators, BodyGains, DriveRead, LineWeights, drive_read,
+from ..synth.drive_lines import (DONE, Actuators, BodyGains, DriveRead, LineWeights, drive_read, lines_scratch,
                                  lines_drive_packed, scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
@@ -413,9 +413,10 @@ class ActuatorSound:
         #: the lines' weights; ``exact``: whether each actuator's broadband part goes through
         #: the modes now (its resonant response matters: :mod:`mjsound.synth.drive_broadband`);
         #: ``power``: that resonant power and everything the actuator makes heard, per unit
-        #: force scale (summed over the microphones), at the last block
+        #: force scale (summed over the microphones), at the last block; the lines' working
+        #: arrays (blocks of up to twice the cadence allocate none)
         self.weights = LineWeights(z((C, M), np.complex128), z((C, M), np.complex128), z((J, M)), z((J, M)),
-                                   z(M, np.int64), z(J, np.bool_), z((J, 2)))
+                                   z(M, np.int64), z(J, np.bool_), z((J, 2)), lines_scratch(C, M, 2 * self.cadence))
         self._last = None  # (the next block starts from its own state)
 
     def _body_gains(self, state) -> BodyGains:

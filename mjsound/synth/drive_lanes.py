@@ -10,13 +10,14 @@ in float64, one sample at a time, in the restarts it covers in part (:func:`_spa
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..jit import njit
 from .bank_loops import FAST, fma, fmuladd
 
-__all__ = ["SUB", "LANES_MIN", "lines_pass", "turn", "cpow"]
+__all__ = ["SUB", "LANES_MIN", "LaneScratch", "lane_scratch", "lines_pass", "turn", "cpow"]
 
 
 #: Samples between the lines' exact restarts (a power of two: :func:`lines_pass`).
@@ -25,6 +26,24 @@ SUB = 64
 #: LLVM's vector loop takes 8 lanes at a time; with the weights ramped on the adders its
 #: vector loop runs from 8 lanes on, so a few lines (Fetch's gripper) are not padded to 24).
 LANES_MIN = 8
+
+
+class LaneScratch(NamedTuple):
+    """:func:`lines_pass`'s working arrays for up to ``n`` lines (:func:`lane_scratch`; kept by
+    their owner between blocks: a block allocates none where they are large enough)."""
+
+    T: np.ndarray  # (6, n) float64: each line's phasor, rate and the rates' product over SUB samples at a restart
+    G: np.ndarray  # (4, n) float64: their turns per restart
+    S32: np.ndarray  # (6, nv) float32: the lanes' phasor, rate, turn
+    V32: np.ndarray  # (8, nv) float32: the lanes' weights and steps
+    lane: np.ndarray  # (n,) int64: each line's lane in the last restart (-1: none)
+
+
+def lane_scratch(n: int) -> LaneScratch:
+    """:class:`LaneScratch` for ``n`` lines (``nv``: ``n`` rounded up to the lanes' multiple)."""
+    nv = max(LANES_MIN, (n + 7) // 8 * 8)
+    return LaneScratch(np.zeros((6, n)), np.zeros((4, n)), np.zeros((6, nv), np.float32),
+                       np.zeros((8, nv), np.float32), np.full(n, -1, np.int64))
 
 
 @njit(cache=True, fastmath=FAST)
@@ -163,14 +182,16 @@ def _csq(r, i, times):
 
 
 @njit(cache=True)
-def lines_pass(acc, first, off0, off1, two, L, S, V, span):
-    """The gathered lines over ``L`` samples into channels ``off0`` (and ``off1`` when
-    ``two``), each ``(channel, absolute sample of the block's first)``: rows of ``S`` (6, n)
-    float64 phasor, rate (at the block's first sample), the rate's turn per sample (re, im
-    each; left as they are); of ``V`` (8, n) channel 0's and 1's weight and its step per
-    sample (re, im each); line ``q`` sounds on samples ``span[0, q] <= k < span[1, q]`` only
-    (a line crossing the cut-off: in the restarts it covers partly, its samples there run
-    one at a time, :func:`_span_part`; in those it does not cover, it is left out).
+def lines_pass(acc, first, off0, off1, two, L, S, V, span, n, work):
+    """The first ``n`` gathered lines over ``L`` samples into channels ``off0`` (and ``off1``
+    when ``two``), each ``(channel, absolute sample of the block's first)``: rows of ``S``
+    (6, >= n) float64 phasor, rate (at the block's first sample), the rate's turn per sample
+    (re, im each; left as they are); of ``V`` (8, >= n) channel 0's and 1's weight and its
+    step per sample (re, im each; channel 1's only read when ``two``); line ``q`` sounds on
+    samples ``span[0, q] <= k < span[1, q]`` only (a line crossing the cut-off: in the
+    restarts it covers partly, its samples there run one at a time, :func:`_span_part`; in
+    those it does not cover, it is left out). ``work``: :class:`LaneScratch` (arrays too
+    small for ``n`` lines are made for the call).
 
     The samples run in float32 lanes (:func:`_sub_pass`: the lines sounding through the
     restart, packed and padded to a multiple of 8 lanes, at least :data:`LANES_MIN`),
@@ -178,14 +199,14 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span):
     ``z`` times the product of the rates over ``SUB`` samples ``P``; ``P`` turned by
     ``e^{j ds SUB^2}``, the rate by ``e^{j ds SUB}``; the powers by squaring), so float32's
     rounding does not accumulate past ``SUB`` samples (relative error ~1e-5)."""
-    n = S.shape[1]
     c0, k0 = off0
     c1, k1 = off1
-    T = np.empty((6, n))  # (float64 at each restart: phasor, rate, the rates' product over SUB samples)
-    G = np.empty((4, n))  # (their turns per restart: the rate's, the product's)
     nv = max(LANES_MIN, (n + 7) // 8 * 8)
-    S32 = np.zeros((6, nv), np.float32)
-    V32 = np.zeros((8, nv), np.float32)
+    T, G, S32, V32, lane = work.T, work.G, work.S32, work.V32, work.lane
+    if T.shape[1] < n or S32.shape[1] < nv:
+        T, G = np.empty((6, n)), np.empty((4, n))  # (float64 at each restart: phasor, rate, the rates' product over SUB samples; their turns)
+        S32, V32 = np.zeros((6, nv), np.float32), np.zeros((8, nv), np.float32)
+        lane = np.empty(n, np.int64)
     lg = 0
     while (1 << lg) < SUB:
         lg += 1
@@ -201,7 +222,8 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span):
         pr, pi = pr * hr + pi * hi, pi * hr - pr * hi
         T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q] = S[0, q], S[1, q], S[2, q], S[3, q], pr, pi
         G[0, q], G[1, q], G[2, q], G[3, q] = eSr, eSi, Qr, Qi
-    lane = np.full(n, -1, np.int64)  # (each line's lane in the last restart; -1: none)
+    for q in range(n):
+        lane[q] = -1  # (each line's lane in the last restart; -1: none)
     na = 0  # (lanes in use: the lines sounding through the restart)
     for s in range(0, L, SUB):
         nk = min(SUB, L - s)
@@ -230,6 +252,8 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span):
             for q in range(na, nv):  # (silent lanes)
                 for r in range(8):
                     V32[r, q] = 0.0
+                for r in range(6):
+                    S32[r, q] = 0.0
         if na == n:  # (every line in its own lane, in order)
             _lanes_load(T, V, S32, V32, n, s)
         for q in range(n):

@@ -56,7 +56,7 @@ import numpy as np
 from ..jit import njit
 from .bandlimited import ring_add
 from .bank_loops import FAST
-from .drive_lanes import cpow, lines_pass, turn
+from .drive_lanes import LaneScratch, cpow, lane_scratch, lines_pass, turn
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant
 from .drive_gains import bodies_gains
 from .drive_housing import housing_weights
@@ -65,7 +65,7 @@ from .drive_weights import line_weights
 from .packing import unpack
 from .streams import SQRT3, noise_draw
 
-__all__ = ["Actuators", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read",
+__all__ = ["Actuators", "LinesScratch", "lines_scratch", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read",
            "line_weights", "lines_render", "lines_drive", "lines_drive_packed", "DONE", "GROW_TRACK"]
 
 
@@ -89,6 +89,33 @@ class Actuators(NamedTuple):
     housing: np.ndarray  # (J,) float64: the housing's airborne coefficient [Pa m / N] (.drive_housing; 0: none)
 
 
+class LinesScratch(NamedTuple):
+    """:func:`lines_render`'s working arrays for ``C`` lines, ``M`` microphones and blocks of
+    up to ``L`` samples (:func:`lines_scratch`; owner: ``ActuatorSound``, in its
+    :class:`LineWeights`): a block allocates none where they are large enough, else makes
+    what it needs for itself."""
+
+    S: np.ndarray  # (6, C) float64: each gathered line's phasor, rate, the rate's turn
+    V: np.ndarray  # (4 M + 4, C) float64: its weight and step per sample at each microphone
+    span: np.ndarray  # (2, C) int64: its audible samples
+    line_of: np.ndarray  # (C,) int64: its component
+    ph_of: np.ndarray  # (C,) float64: its phase at the block's start
+    y: np.ndarray  # (M, L + 1) float64: the decimated broadband
+    buf: np.ndarray  # (L,) float64: one channel's broadband samples
+    lanes: LaneScratch  # (.drive_lanes.lines_pass's)
+
+
+def lines_scratch(C: int, M: int, L: int) -> LinesScratch:
+    """:class:`LinesScratch` for ``C`` lines, ``M`` microphones, blocks of up to ``L`` samples."""
+    z = np.zeros
+    return LinesScratch(z((6, C)), z((4 * M + 4, C)), z((2, C), np.int64), z(C, np.int64), z(C), z((M, L + 1)),
+                        z(L), lane_scratch(C))
+
+
+#: No scratch: :func:`lines_render` makes its working arrays each block.
+NO_SCRATCH = lines_scratch(0, 0, 0)
+
+
 class LineWeights(NamedTuple):
     """Each block's weights (owner: ``ActuatorSound``; :func:`.drive_weights.line_weights` writes the ends,
     :func:`lines_render` moves them to the starts)."""
@@ -100,6 +127,7 @@ class LineWeights(NamedTuple):
     Dm: np.ndarray  # (M,) int64: each microphone's delay [samples]
     exact: np.ndarray  # (J,) bool: the broadband part goes through the modes (.drive_broadband)
     power: np.ndarray  # (J, 2) float64: its resonant power and everything heard, per unit force scale
+    scratch: LinesScratch = NO_SCRATCH  # (lines_render's working arrays: lines_scratch)
 
 
 class BodyGains(NamedTuple):
@@ -251,11 +279,14 @@ def lines_render(track, act, lw, n0, L, fs, F):
         r.pending_from = lo if r.pending_until <= first else min(r.pending_from, lo)
         r.pending_until = max(r.pending_until, hi)
     # the lines gathered, each over its audible samples
-    S = np.empty((6, C))
-    V = np.zeros((4 * M + 4, C))
-    span = np.empty((2, C), np.int64)
-    line_of = np.empty(C, np.int64)  # (each line's component)
-    ph_of = np.empty(C)  # (... and its phase at the block's start)
+    sc = lw.scratch
+    S, V, span, line_of, ph_of = sc.S, sc.V, sc.span, sc.line_of, sc.ph_of
+    if S.shape[1] < C or V.shape[0] < 4 * M + 4:
+        S = np.empty((6, C))
+        V = np.zeros((4 * M + 4, C))
+        span = np.empty((2, C), np.int64)
+        line_of = np.empty(C, np.int64)  # (each line's component)
+        ph_of = np.empty(C)  # (... and its phase at the block's start)
     nl = 0
     for j in range(J):
         silent = a0[j] == 0.0 and a1[j] == 0.0
@@ -309,11 +340,10 @@ def lines_render(track, act, lw, n0, L, fs, F):
             span[1, nl] = hi
             nl += 1
     if nl:
-        S0 = S[:, :nl].copy()
         for m in range(0, M, 2):  # (two channels per pass over the phasors)
             two = m + 1 < M
             lines_pass(acc, first, (m, n0 + Dm[m]), (m + 1 if two else m, n0 + Dm[m + 1 if two else m]), two, L,
-                        S0, V[4 * m:4 * m + 8, :nl].copy(), span[:, :nl])
+                       S, V[4 * m:4 * m + 8], span, nl, sc.lanes)
     # broadband: the static response of the low-passed noises, generated every R samples,
     # summed per channel there and interpolated linearly in between
     R = 64
@@ -323,7 +353,10 @@ def lines_render(track, act, lw, n0, L, fs, F):
             fc = abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi
             R = min(R, max(1, int(fs / (16.0 * fc)) if fc > 0.0 else 64))
     nb = (L + R - 1) // R  # decimated points at samples R - 1, 2R - 1, ... (the last at L - 1)
-    y = np.zeros((M, nb + 1))  # (column 0: the last block's end, from the noise state)
+    y = sc.y if sc.y.shape[0] >= M and sc.y.shape[1] >= nb + 1 else np.empty((M, nb + 1))
+    for m in range(M):  # (column 0: the last block's end, from the noise state)
+        for i in range(nb + 1):
+            y[m, i] = 0.0
     any_bb = False
     for j in range(J):
         b = noise[j].broadband
@@ -350,7 +383,7 @@ def lines_render(track, act, lw, n0, L, fs, F):
     for j in range(J):
         some_exact = some_exact or (exact[j] and (a0[j] != 0.0 or a1[j] != 0.0))
     if any_bb or some_exact:
-        buf = np.empty(L)
+        buf = sc.buf[:L] if sc.buf.shape[0] >= L else np.empty(L)
         for m in range(M):
             if any_bb:  # (the decimated broadband, interpolated linearly)
                 for i in range(nb):
