@@ -1,12 +1,14 @@
 """The resonant broadband's kernels (mjsound.synth.drive_broadband) against plain references:
 the modes kept and the static part left against a sort, the modes' recursion run in chunks
-and heard per body against the complex recursion sample by sample, and the ring's add
-against one sample at a time."""
+and heard per body against the complex recursion sample by sample (two microphones at once
+as one at a time; a free mode's ring-out from its pole's powers as the recursion), and the
+ring's add against one sample at a time."""
 
 import numpy as np
 
 from mjsound.synth.bandlimited import ring_add
-from mjsound.synth.drive_broadband import RESONANT_REST, broadband_modes, modes_heard, modes_heard_pair, modes_run
+from mjsound.synth.drive_broadband import (RESONANT_REST, broadband_modes, free_heard, modes_heard, modes_heard_pair,
+                                          modes_run, pole_powers)
 from mjsound.synth.drive_lines import Actuators, BodyGains, LineWeights
 from mjsound.synth.drive_tones import DRIVE, NOISE, TONE
 
@@ -151,3 +153,28 @@ def test_two_microphones_at_once_as_one_at_a_time():
         got = pair[m, delays[m]:delays[m] + L]
         assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
         assert not pair[m, :delays[m]].any() and not pair[m, delays[m] + L:].any()
+
+
+def test_a_free_mode_rings_out_from_its_pole_s_powers_as_the_recursion():
+    """A mode no longer forced (its ring-out faded over the block) heard from the pole's
+    powers (pole_powers: doubling, p^t within 5e-14 of numpy's p**t over 128 samples) over a block
+    of 300 samples in chunks of 128 (free_heard) matches the complex recursion without force
+    faded as modes_heard fades it (reference, not steady) to 1e-12 of its scale, at a delay,
+    nothing written outside the block."""
+    rng = np.random.default_rng(5)
+    L = 300
+    pw = np.empty((2, 128))
+    for p in (0.9995 * np.exp(0.7j), 0.98 * np.exp(2.9j), 1.0 + 0.0j):
+        pc = pole_powers(pw, p)
+        want = p ** np.arange(128)
+        assert np.abs(pw[0] + 1j * pw[1] - want).max() < 5e-14  # (128 products' rounding: 128 eps = 2.8e-14)
+        assert abs(pc - p ** 128) < 5e-14
+        w = complex(rng.standard_normal(), rng.standard_normal())
+        h = complex(rng.standard_normal(), rng.standard_normal())
+        fade = (L - np.arange(L)) / L
+        out = np.zeros(L + 10)
+        free_heard(out[4:], pw, pc, h * w, fade)
+        y, _ = reference(np.zeros((1, L)), np.zeros(1, np.int64), np.array([p]), np.zeros(1), np.array([w]),
+                         np.array([h]), np.array([False]))
+        assert np.abs(out[4:4 + L] - y[0]).max() < 1e-12 * np.abs(y[0]).max()
+        assert not out[:4].any() and not out[4 + L:].any()

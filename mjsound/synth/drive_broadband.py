@@ -254,10 +254,52 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     return resonant_run(view, act, lw, bg, track, n0, F, K)
 
 
+@njit(cache=True, fastmath=FAST)
+def pole_powers(pw, p):
+    """``p^t`` into ``pw`` (2, n: real and imaginary parts, ``0 <= t < n``, ``n`` a power of
+    two) by doubling (``p^{T + t} = p^t p^T``: each pass vectorised, not a recursion
+    sample by sample); returns ``p^n``."""
+    n = pw.shape[1]
+    re, im = pw[0], pw[1]
+    re[0], im[0] = 1.0, 0.0
+    qr, qi = p.real, p.imag  # (p^T)
+    T = 1
+    while T < n:
+        for t in range(T):
+            re[T + t] = re[t] * qr - im[t] * qi
+            im[T + t] = re[t] * qi + im[t] * qr
+        qr, qi = qr * qr - qi * qi, 2.0 * qr * qi
+        T *= 2
+    return complex(qr, qi)
+
+
+@njit(cache=True, fastmath=FAST)
+def free_heard(o, pw, pc, u, fade):
+    """Add a free mode's ring-out heard at one microphone, ``Im(u p^q) fade[q]`` for
+    ``0 <= q < L`` (``L = fade.shape[0]``; ``u = h w``, ``w`` its state at the block's start),
+    into ``o[:L]``: over chunks of ``T = pw.shape[1]`` samples, ``p^t`` (``t < T``) from
+    :func:`pole_powers` and ``u`` carried from chunk to chunk by ``pc = p^T``."""
+    L, T = fade.shape[0], pw.shape[1]
+    re, im = pw[0], pw[1]
+    for s in range(0, L, T):
+        n = min(T, L - s)
+        a, fd = o[s:s + n], fade[s:s + n]
+        ur, ui = u.real, u.imag
+        for t in range(n):
+            a[t] += (ui * re[t] + ur * im[t]) * fd[t]
+        u *= pc
+
+
 @njit_inner(cache=True, inline="always")
 def resonant_run(view, act, lw, bg, track, n0, F, K):
     """:func:`broadband_resonant` of a block with ``K > 0`` modes running (their states
-    already zeroed where the block is fresh). Returns the largest delay written [samples]."""
+    already zeroed where the block is fresh). Returns the largest delay written [samples].
+
+    The modes forced (kept, on a body some exact actuator pushes) run the recursion
+    (:func:`modes_run`); the others only ring out, faded over the block: their state is
+    ``w p^t`` from the block's, which needs no recursion: each is heard from the pole's powers
+    over a chunk (:func:`pole_powers`, :func:`free_heard`: vectorised over the samples), the
+    state carried from chunk to chunk by ``p^{CHUNK}``."""
     acc, rec = track.acc, track.rec
     sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
     keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
@@ -265,77 +307,84 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
     M = min(M, acc.shape[0])
     J, L = F.shape
     first = rec[0].start
-    nf = 0  # (the bodies with modes running: their forces, rows of f; body b's modes are kb[b]:kb[b + 1])
+    I = np.zeros(4 * K + 3 * nb + 1 + 2 * M, np.int64)
+    idx, body, row, steady = I[:K], I[K:2 * K], I[2 * K:3 * K], I[3 * K:4 * K]
+    forced, heard = I[4 * K:4 * K + nb], I[4 * K + nb:4 * K + 2 * nb]
+    kb = I[4 * K + 2 * nb:4 * K + 3 * nb + 1]  # (body b's forced modes: kb[b]:kb[b + 1])
+    lo_d, hi_d = I[4 * K + 3 * nb + 1:4 * K + 3 * nb + 1 + M], I[4 * K + 3 * nb + 1 + M:]
+    Ks = 0  # (the forced modes, every body's in one run)
+    nf = 0  # (the bodies with forced modes: their forces, rows of f)
     for b in range(nb):
-        if sidx[b] >= 0:
-            for k in range(nmax):
-                if keep[b, k] or level[b, k] > 0.0:
-                    nf += 1
-                    break
-    Kp = (K + 3) // 4 * 4  # (groups of four: the rest filled with silent modes)
-    P = np.zeros((5 + 2 * M, Kp))  # (rows: pole re, im, input gain, state re, im; per microphone h re, im)
-    pr, pi, gin, wr, wi, h = P[0], P[1], P[2], P[3], P[4], P[5:]
-    I = np.zeros(4 * Kp + nb + 1 + 2 * M, np.int64)
-    idx, body, row, steady = I[:Kp], I[Kp:2 * Kp], I[2 * Kp:3 * Kp], I[3 * Kp:4 * Kp]
-    kb = I[4 * Kp:4 * Kp + nb + 1]
-    lo_d, hi_d = I[4 * Kp + nb + 1:4 * Kp + nb + 1 + M], I[4 * Kp + nb + 1 + M:]
-    f = np.zeros((nf, L))
-    K = 0
-    nf = 0
-    for b in range(nb):
-        kb[b] = K
-        s = sidx[b]
-        if s < 0:
+        if sidx[b] < 0:
             continue
-        c = 0
-        for k in range(nmax):
-            if keep[b, k] or level[b, k] > 0.0:
-                c += 1
-        if c == 0:
-            continue
-        forced = False
-        fb = f[nf]
         if sign[b] != 0.0:
             for i in range(ptr[b], ptr[b + 1]):
                 j = rows[i] // 2
-                if not exact[j] or (act.a0[j] == 0.0 and act.a1[j] == 0.0):
-                    continue
-                forced = True
-                coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
-                Fj = F[j]
-                for q in range(L):
-                    fb[q] += coef * Fj[q]
+                if exact[j] and not (act.a0[j] == 0.0 and act.a1[j] == 0.0):
+                    forced[b] = 1
+        c = 0
+        for k in range(nmax):
+            if keep[b, k] or level[b, k] > 0.0:
+                heard[b] = 1
+                if forced[b] == 1 and keep[b, k]:
+                    c += 1
+        Ks += c
+        nf += 1 if c > 0 else 0
+    Kp = (Ks + 3) // 4 * 4  # (groups of four: the rest filled with silent modes)
+    P = np.zeros((5 + 2 * M, Kp))  # (rows: pole re, im, input gain, state re, im; per microphone h re, im)
+    pr, pi, gin, wr, wi, h = P[0], P[1], P[2], P[3], P[4], P[5:]
+    f = np.zeros((nf, L))
+    Ks = 0
+    nf = 0
+    for b in range(nb):
+        kb[b] = Ks
+        s = sidx[b]
+        if s < 0 or forced[b] == 0:
+            continue
+        c = 0
+        for k in range(nmax):
+            c += 1 if keep[b, k] else 0
+        if c == 0:
+            continue
+        fb = f[nf]
+        for i in range(ptr[b], ptr[b + 1]):
+            j = rows[i] // 2
+            if not exact[j] or (act.a0[j] == 0.0 and act.a1[j] == 0.0):
+                continue
+            coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
+            Fj = F[j]
+            for q in range(L):
+                fb[q] += coef * Fj[q]
         o = view.table[s].obj
         m0 = view.mode_off[o]
         directional = view.order[o] >= 0
         for k in range(nmax):
-            if not (keep[b, k] or level[b, k] > 0.0):
+            if not keep[b, k]:
                 continue
             p = view.poles[m0 + k]
-            on = forced and keep[b, k]
-            idx[K] = k
-            body[K] = b
-            row[K] = nf
-            pr[K] = p.real
-            pi[K] = p.imag
-            steady[K] = 1 if on else 0
-            gin[K] = bg.gin[b, k] if on else 0.0
-            wr[K] = z[b, k].real
-            wi[K] = z[b, k].imag
+            idx[Ks] = k
+            body[Ks] = b
+            row[Ks] = nf
+            pr[Ks] = p.real
+            pi[Ks] = p.imag
+            steady[Ks] = 1
+            gin[Ks] = bg.gin[b, k]
+            wr[Ks] = z[b, k].real
+            wi[Ks] = z[b, k].imag
             for m in range(M):
                 hm = bg.gout[b, m, k]
                 if directional and view.channels[m].owner == AIR:
                     hm *= Fd[b, m, k]
-                h[2 * m, K] = hm.real
-                h[2 * m + 1, K] = hm.imag
-            K += 1
+                h[2 * m, Ks] = hm.real
+                h[2 * m + 1, Ks] = hm.imag
+            Ks += 1
         nf += 1
-    kb[nb] = K
+    kb[nb] = Ks
     # each microphone's samples from its nearest body's delay on, every body at its own
     for m in range(M):
         lo_d[m] = 1 << 62
     for b in range(nb):
-        if kb[b + 1] > kb[b]:
+        if heard[b] == 1:
             for m in range(M):
                 lo_d[m] = min(lo_d[m], D[b, m])
                 hi_d[m] = max(hi_d[m], D[b, m])
@@ -343,25 +392,49 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
     for m in range(M):
         spread = max(spread, hi_d[m] - lo_d[m])
     out = np.zeros((M, L + spread))
-    X = np.empty((2 * Kp, min(L, CHUNK)))
-    for s in range(0, L, CHUNK):  # (a chunk's states stay in the first-level cache)
-        n = min(CHUNK, L - s)
-        modes_run(X, f, s, n, row, pr, pi, gin, wr, wi)
+    CH = min(L, CHUNK)
+    if Ks > 0:
+        X = np.empty((2 * Kp, CH))
+        for s in range(0, L, CHUNK):  # (a chunk's states stay in the first-level cache)
+            n = min(CHUNK, L - s)
+            modes_run(X, f, s, n, row, pr, pi, gin, wr, wi)
+            for b in range(nb):
+                if kb[b + 1] > kb[b]:
+                    for m in range(0, M - 1, 2):
+                        e0 = D[b, m] - lo_d[m] + s
+                        e1 = D[b, m + 1] - lo_d[m + 1] + s
+                        modes_heard_pair(out[m, e0:], out[m + 1, e1:], X, n, kb[b], kb[b + 1], h, m, steady, s, L)
+                    if M % 2 == 1:
+                        m = M - 1
+                        e = D[b, m] - lo_d[m] + s
+                        modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], h[2 * m], h[2 * m + 1], steady, s, L)
+    if Ks < K:  # (the free modes: ringing out, faded as modes_heard fades them)
+        pw = np.empty((2, CHUNK))
+        fade = np.empty(L)
+        inv = 1.0 / L
+        for q in range(L):
+            fade[q] = (L - q) * inv
         for b in range(nb):
-            if kb[b + 1] > kb[b]:
-                for m in range(0, M - 1, 2):
-                    e0 = D[b, m] - lo_d[m] + s
-                    e1 = D[b, m + 1] - lo_d[m + 1] + s
-                    modes_heard_pair(out[m, e0:], out[m + 1, e1:], X, n, kb[b], kb[b + 1], h, m, steady, s, L)
-                if M % 2 == 1:
-                    m = M - 1
-                    e = D[b, m] - lo_d[m] + s
-                    modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], h[2 * m], h[2 * m + 1], steady, s, L)
-    for r in range(K):
+            if heard[b] == 0:
+                continue
+            o = view.table[sidx[b]].obj
+            m0 = view.mode_off[o]
+            directional = view.order[o] >= 0
+            for k in range(nmax):
+                if not (keep[b, k] or level[b, k] > 0.0) or (forced[b] == 1 and keep[b, k]):
+                    continue
+                pc = pole_powers(pw, view.poles[m0 + k])
+                for m in range(M):
+                    hm = bg.gout[b, m, k]
+                    if directional and view.channels[m].owner == AIR:
+                        hm *= Fd[b, m, k]
+                    free_heard(out[m, D[b, m] - lo_d[m]:], pw, pc, hm * z[b, k], fade)
+                level[b, k] = 0.0  # (faded out: it stops)
+                z[b, k] = 0.0
+    for r in range(Ks):
         b, k = body[r], idx[r]
-        on = steady[r] != 0
-        level[b, k] = 1.0 if on else 0.0  # (a mode no longer forced has faded out: it stops)
-        z[b, k] = complex(wr[r], wi[r]) if on else 0.0
+        level[b, k] = 1.0
+        z[b, k] = complex(wr[r], wi[r])
     rr = rec[0]
     dmax = 0
     for m in range(M):
