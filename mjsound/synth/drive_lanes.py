@@ -222,14 +222,18 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span, n, work):
         pr, pi = pr * hr + pi * hi, pi * hr - pr * hi
         T[0, q], T[1, q], T[2, q], T[3, q], T[4, q], T[5, q] = S[0, q], S[1, q], S[2, q], S[3, q], pr, pi
         G[0, q], G[1, q], G[2, q], G[3, q] = eSr, eSi, Qr, Qi
+    whole = True  # (every line sounds through the block: the lanes are set once)
     for q in range(n):
         lane[q] = -1  # (each line's lane in the last restart; -1: none)
+        whole = whole and span[0, q] <= 0 and span[1, q] >= L
     na = 0  # (lanes in use: the lines sounding through the restart)
     for s in range(0, L, SUB):
         nk = min(SUB, L - s)
-        same = True  # (the same lines in the same lanes as the last restart)
+        same = s > 0 or not whole  # (the same lines in the same lanes as the last restart)
         i = 0
         for q in range(n):
+            if whole:
+                break
             lo, hi = span[0, q], span[1, q]
             if lo <= s and s + nk <= hi:
                 same = same and lane[q] == i
