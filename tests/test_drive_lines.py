@@ -209,7 +209,7 @@ def test_lines_render_with_kept_working_arrays_is_the_same_as_without():
 
     big = [[1 / 3, 2 / 3, 1.0, 2.0, 4.0, 6.0, 10.0, 20.0, 30.0], [10.0, 20.0, 30.0, 126.0, 252.0], [3.0, 7.5, 9.0]]
     small = [[10.0, 20.0, 30.0, 126.0, 252.0], [1.0, 2.0]]
-    kept = lines_scratch(len(sum(big, [])), 3, 800)
+    kept = lines_scratch(len(sum(big, [])), 3, 800, len(big))
     block(kept, big, [3000.0, -20.0, 20000.0], [-1000.0, 400.0, 20000.0], 1)  # (another block first)
     for orders, w0, w1 in ((small, [50.0, 900.0], [60.0, 700.0]), (big, [20.0, 300.0, 5.0], [25.0, 280.0, 6.0])):
         want, n = block(lines_scratch(0, 0, 0), orders, w0, w1, 2)

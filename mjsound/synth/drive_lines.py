@@ -102,14 +102,18 @@ class LinesScratch(NamedTuple):
     ph_of: np.ndarray  # (C,) float64: its phase at the block's start
     y: np.ndarray  # (M, L + 1) float64: the decimated broadband
     buf: np.ndarray  # (L,) float64: one channel's broadband samples
+    kj: np.ndarray  # (J,) int64: the actuators whose broadband is generated here
+    ky: np.ndarray  # (J, L) float64: ... their low-passed noises at the decimated points
+    tq: np.ndarray  # (L,) float64: the decimated points' times (fractions of the block)
     lanes: LaneScratch  # (.drive_lanes.lines_pass's)
 
 
-def lines_scratch(C: int, M: int, L: int) -> LinesScratch:
-    """:class:`LinesScratch` for ``C`` lines, ``M`` microphones, blocks of up to ``L`` samples."""
+def lines_scratch(C: int, M: int, L: int, J: int = 0) -> LinesScratch:
+    """:class:`LinesScratch` for ``C`` lines, ``M`` microphones, blocks of up to ``L`` samples,
+    ``J`` actuators."""
     z = np.zeros
     return LinesScratch(z((6, C)), z((4 * M + 4, C)), z((2, C), np.int64), z(C, np.int64), z(C), z((M, L + 1)),
-                        z(L), lane_scratch(C))
+                        z(L), z(J, np.int64), z((J, L)), z(L), lane_scratch(C))
 
 
 #: No scratch: :func:`lines_render` makes its working arrays each block.
@@ -357,12 +361,18 @@ def lines_render(track, act, lw, n0, L, fs, F):
     for m in range(M):  # (column 0: the last block's end, from the noise state)
         for i in range(nb + 1):
             y[m, i] = 0.0
-    any_bb = False
+    # (each actuator's noise at the decimated points first, then summed per channel along a
+    # row of y with the gains' ends held in registers: the sum's order over the actuators kept)
+    kj, ky, tq = sc.kj, sc.ky, sc.tq
+    if kj.shape[0] < J or ky.shape[1] < nb or tq.shape[0] < nb:
+        kj, ky, tq = np.empty(J, np.int64), np.empty((J, nb)), np.empty(nb)
+    for i in range(nb):
+        tq[i] = (min(L - 1, (i + 1) * R - 1) + 1) / L
+    nk = 0
     for j in range(J):
         b = noise[j].broadband
         if b <= 0.0 or (a0[j] == 0.0 and a1[j] == 0.0) or exact[j]:
             continue
-        any_bb = True
         fc = noise_cutoff_hz(tones, comp_off, j, 0.5 * (w0[j] + w1[j]), fs)
         alpha = 1.0 - math.exp(-two_pi * fc * R / fs)
         scale = SQRT3 / math.sqrt(R)  # (white noise at fs / R: the same density below f_c)
@@ -370,15 +380,27 @@ def lines_render(track, act, lw, n0, L, fs, F):
         yl = noise[j].lp
         for m in range(M):
             y[m, 0] += a0[j] * b * B0[j, m] * yl
+        row = ky[nk]
         for i in range(nb):
-            q = min(L - 1, (i + 1) * R - 1)
             state, x = noise_draw(state)
             yl = alpha * (x * scale) + (1.0 - alpha) * yl
-            t = (q + 1) / L
-            for m in range(M):
-                y[m, i + 1] += (a0[j] + (a1[j] - a0[j]) * t) * b * (B0[j, m] + (B1[j, m] - B0[j, m]) * t) * yl
+            row[i] = yl
         noise[j].rng = np.int64(state)
         noise[j].lp = yl
+        kj[nk] = j
+        nk += 1
+    any_bb = nk > 0
+    for k in range(nk):
+        j = kj[k]
+        b = noise[j].broadband
+        ga, gd = a0[j], a1[j] - a0[j]
+        row = ky[k]
+        for m in range(M):
+            g0, g1 = B0[j, m], B1[j, m] - B0[j, m]
+            ym = y[m, 1:]
+            for i in range(nb):
+                t = tq[i]
+                ym[i] += (ga + gd * t) * b * (g0 + g1 * t) * row[i]
     some_exact = False
     for j in range(J):
         some_exact = some_exact or (exact[j] and (a0[j] != 0.0 or a1[j] != 0.0))
