@@ -15,7 +15,10 @@ with the lines. Those modes run here, in the lines' kernel (:func:`broadband_res
 exact rendering's recursion ``z <- p z + f``, heard as ``Im(g z)`` at each microphone's
 delay, into the pulse track); a mode whose force stops rings on over one more block, faded
 out linearly (the exact rendering's modes ring out freely: the lines leave out that ring-out
-for the tones too).
+for the tones too), heard from its pole's powers ``w p^t`` rather than run sample by sample.
+
+Cost: the forced modes' recursion (four modes at a time, :func:`modes_run`) is most of a
+block's time; a block with no mode running returns after a pass over the flags.
 """
 
 from __future__ import annotations
