@@ -12,8 +12,14 @@ sliding streams' (:func:`.streams.stream_gains`, the exact rendering's):
 
 (an input gain ``G_k / (fs wd_k)`` times an output factor per microphone), with the integer
 delay ``D_m = ceil(r_m fs / c)`` [samples] (0 at a contact microphone) and
-the sub-sample rest ``dts_m = D_m / fs - r_m / c`` [s] as each mode's factor (its exp, cosine
-and sine made again only when ``dts_m`` changed: a body at rest keeps them).
+the sub-sample rest ``dts_m = D_m / fs - r_m / c`` [s] as each mode's factor ``e^{lam_k dts_m}``
+(a moving body's ``dts_m`` changes every block: made each time, all of a body's at once by a
+series that vectorises, :func:`exp_in_place`, instead of libm's exp, cosine and sine a mode).
+
+**Reference counts**: :func:`bodies_gains` is compiled without numba's reference counting
+(``_nrt=False``; it allocates nothing): a kernel taking the state records otherwise adds one
+to and drops one from the count of every array they hold (~100, an atomic add each) at each
+call, and again for each view it makes.
 
 **The anchor is fixed in the body** (a hinge's anchor is fixed in both bodies it joins; a
 slide's in the joint's body), so the nearest surface sample is searched again only when the
@@ -33,7 +39,7 @@ from .drive_tones import aim_at_drive
 from .records import AIR
 from .streams import nearest_sorted
 
-__all__ = ["ANCHOR_TOL_M", "FACTOR_ZMAX", "FACTOR_TERMS", "factors_into", "delay_factors", "bodies_gains"]
+__all__ = ["ANCHOR_TOL_M", "FACTOR_RANGE", "FACTOR_TERMS", "exp_in_place", "delay_factors", "bodies_gains"]
 
 #: How far [m] a drive's anchor may move in its body's frame before the nearest surface sample
 #: is searched again (a joint's anchor is fixed in the body up to rounding; surface samples are
@@ -41,10 +47,11 @@ __all__ = ["ANCHOR_TOL_M", "FACTOR_ZMAX", "FACTOR_TERMS", "factors_into", "delay
 ANCHOR_TOL_M = 1e-6
 
 
-#: :func:`delay_factors` makes ``e^z`` by series for ``|Re z|, |Im z|`` up to this (a mode
-#: below the Nyquist frequency over at most one sample has ``|Im z| <= pi``); a larger or
-#: non-finite ``z`` takes libm's ``exp``, ``cos``, ``sin`` (as the exact rendering does).
-FACTOR_ZMAX = 64.0
+#: :func:`exp_in_place` makes ``e^z`` as ``(e^{z/4})^4`` by series where every ``|Re z|, |Im z|``
+#: is at most this (a mode below the Nyquist frequency over at most one sample has ``|Im z| <
+#: pi``; its damping ``|Re z| <= 4`` while under 4 fs [1/s]); else by libm's ``exp``, ``cos``,
+#: ``sin`` (as the exact rendering does).
+FACTOR_RANGE = 4.0
 
 #: Terms of :func:`_even_odd`'s series on ``|u| <= 1``: those up to ``u^19``; the first left
 #: out is below ``1 / 20! < 5e-19``, under an ulp of the result.
@@ -72,60 +79,52 @@ def _even_odd(u, sgn):
 
 
 @njit(cache=True, inline="always", fastmath={"contract"})
-def factors_into(lam, m0, n, dts, out, b, m):
-    """``out[b, m, k] = e^{z_k}``, ``z_k = lam[m0 + k] dts``, ``k < n`` (``lam`` complex128
-    [1/s], ``dts`` [s], ``out`` (B, M, nmax) complex128: indexed in place, no view made): where
-    every ``|Re z|, |Im z| <= ``:data:`FACTOR_ZMAX`, by scaling and squaring,
+def exp_in_place(z):
+    """``z = e^z`` for each of ``z`` ((n,) complex128, written in place): where every ``|Re z|,
+    |Im z| <= ``:data:`FACTOR_RANGE`, by scaling and squaring,
 
-        e^z = w^(2^s),   w = e^{z / 2^s} = (cosh x + sinh x) (cos y + j sin y),   x + j y = z / 2^s
+        e^z = w^4,   w = e^{z / 4} = (cosh x + sinh x) (cos y + j sin y),   x + j y = z / 4,
 
-    ``s`` the least with ``|x|, |y| <= 1`` for all ``k`` (the scaling is exact; the series:
-    :func:`_even_odd`); else (one larger or not finite) ``e^{Re z} (cos Im z + j sin Im z)``
-    for each. A squaring doubles the relative error: the factors hold a few ulps (``2^s``;
-    ``s <= 2`` for ``|z| <= 4``). Unlike libm's ``exp``, ``cos``, ``sin`` (a call each per
-    ``z``: numba has no vector forms of them without SVML) the loops vectorise."""
-    zmax = 0.0
-    for k in range(n):
-        z = lam[m0 + k]
-        a = max(abs(z.real * dts), abs(z.imag * dts))
-        zmax = a if not a <= zmax else zmax  # (NaN: taken, so it fails the range below)
-    if not zmax <= FACTOR_ZMAX:
-        for k in range(n):
-            z = lam[m0 + k]
-            e = np.exp(z.real * dts)
-            out[b, m, k] = complex(e * np.cos(z.imag * dts), e * np.sin(z.imag * dts))
+    (the scaling is exact; the series: :func:`_even_odd`), in one loop that vectorises (over
+    the real and imaginary parts as float64 pairs); else (one larger or not finite)
+    ``e^{Re z} (cos Im z + j sin Im z)`` for each, by libm (a call each per ``z``: numba has
+    no vector forms without SVML). The two squarings make the factors' relative error a few
+    ulps (``tests/test_drive_gains.py``: under 3e-15)."""
+    n = z.shape[0]
+    v = z.view(np.float64)  # (re, im pairs: numba's complex loads and stores do not vectorise)
+    out = 0
+    for q in range(n):  # (a count, not a branch: the check vectorises too)
+        out += not (abs(v[2 * q]) <= FACTOR_RANGE and abs(v[2 * q + 1]) <= FACTOR_RANGE)
+    if out:
+        for q in range(n):
+            x, y = v[2 * q], v[2 * q + 1]
+            e = np.exp(x)
+            v[2 * q] = e * np.cos(y)
+            v[2 * q + 1] = e * np.sin(y)
         return
-    s = 0
-    p2 = 1.0
-    while zmax * p2 > 1.0:
-        s += 1
-        p2 *= 0.5
-    scale = dts * p2
-    for k in range(n):
-        z = lam[m0 + k]
-        ch, sh = _even_odd(z.real * scale, 1.0)
-        co, si = _even_odd(z.imag * scale, -1.0)
+    for q in range(n):
+        ch, sh = _even_odd(v[2 * q] * 0.25, 1.0)
+        co, si = _even_odd(v[2 * q + 1] * 0.25, -1.0)
         e = ch + sh
-        out[b, m, k] = complex(e * co, e * si)
-    for _ in range(s):
-        for k in range(n):
-            out[b, m, k] = out[b, m, k] * out[b, m, k]
+        wr, wi = e * co, e * si
+        wr, wi = wr * wr - wi * wi, 2.0 * wr * wi
+        v[2 * q] = wr * wr - wi * wi
+        v[2 * q + 1] = 2.0 * wr * wi
 
 
 @njit(cache=True)
 def delay_factors(lam, dts):
     """``e^{lam dts}`` ((n,) complex128) for poles ``lam`` ((n,) complex128 [1/s]) and a delay
-    ``dts`` [s], as :func:`bodies_gains` makes them (:func:`factors_into`).
+    ``dts`` [s], as :func:`bodies_gains` makes them (:func:`exp_in_place`).
 
     Example: ``delay_factors(np.array([1j * np.pi]), 1.0)`` is ``[-1 + ~1e-16j]``.
     """
-    n = lam.shape[0]
-    out = np.empty((1, 1, n), np.complex128)
-    factors_into(lam, 0, n, dts, out, 0, 0)
-    return out[0, 0]
+    z = lam * dts
+    exp_in_place(z)
+    return z
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
     """Per driven body ``b``: ``act.sign[b]`` (the strongest acting drive's side sign, +1 the
     joint's body, -1 its parent; 0 where no drive acts), its stream's point and direction
@@ -133,17 +132,17 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
     its gains ``bg.gr + j bg.gi`` (B, M, nmax), as the input gain ``bg.gin`` (B, nmax) times
     the output factor ``bg.gout`` (B, M, nmax), and integer delays ``bg.D`` (B, M) [samples]
     (module docstring; 0 beyond its modes, and everywhere for a body whose object has no
-    points or modes). Returns whether some body is driven. The delay factors made again
-    (a moving body's ``dts`` changes every block): :func:`delay_factors`, a microphone's modes
-    at once (their arguments ``lam_k dts`` in ``bg.gr, gi`` first).
+    points or modes). Returns whether some body is driven. The delay factors: each air
+    microphone's arguments ``lam_k dts_m`` into the body's row of ``bg.dfac`` (packed:
+    microphone ``m``'s modes at ``m n``), then :func:`exp_in_place` of them all.
 
     Parameters
     ----------
     ks : :class:`.records.SynthState` (objects, poses, microphones, channels, constants, streams)
     act : :class:`.drive_lines.Actuators` (``acting``, ``a1``: which drives act, how strongly)
     bg : :class:`.drive_lines.BodyGains` (``loc``, ``near``: each drive side's last searched
-        anchor in its body's frame [m] (NaN: none yet) and its nearest sample; ``dts``,
-        ``dfac``: the sub-sample delays [s] the delay factors were made for, and those)
+        anchor in its body's frame [m] (NaN: none yet) and its nearest sample; ``dts``: the
+        sub-sample delays [s] of the last gains made; ``dfac``: their factors, packed)
     anchor, axis : (n_joints, 3) float64, MuJoCo's ``data.xanchor``, ``data.xaxis``
     """
     ob, cst, st = ks.objects, ks.consts[0], ks.streams
@@ -153,7 +152,6 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
     M = min(gr.shape[1], ks.mics.shape[0])
     fs, c, rmin = cst.fs, cst.c, cst.rmin
     tol2 = ANCHOR_TOL_M * ANCHOR_TOL_M
-    nrm = np.empty(3)
     any_driven = False
     for b in range(sidx.shape[0]):
         sign[b] = 0.0
@@ -168,7 +166,8 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
         if best < 0:
             continue
         rec = st.table[s]
-        sg, jt, due = aim_at_drive(rec, rows[best], drives, axis, anchor, k0, regain, nrm)
+        # (the direction made into the record's own n, which stream_aim then turns by the side's sign)
+        sg, jt, due = aim_at_drive(rec, rows[best], drives, axis, anchor, k0, regain, rec.n)
         sign[b] = sg
         any_driven = True
         if not due:
@@ -195,7 +194,7 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
             pl0 += x * ks.R[o, q, 0]
             pl1 += x * ks.R[o, q, 1]
             pl2 += x * ks.R[o, q, 2]
-            v = nrm[q] * sg
+            v = rec.n[q]
             d0 += v * ks.R[o, q, 0]
             d1 += v * ks.R[o, q, 1]
             d2 += v * ks.R[o, q, 2]
@@ -213,9 +212,32 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
         for k in range(n):  # (the input gains as made, until the microphones' gains are: then 0 where not finite)
             G = d0 * shk[sb + k] + d1 * shk[sb + n + k] + d2 * shk[sb + 2 * n + k]
             gin[b, k] = G / (fs * ob.wd[m0 + k])
+        # the delay factors: first each air microphone's arguments z = lam dts (0 at a contact
+        # microphone), packed (microphone m's modes at m n), then e^z for all of them at once
+        fac = dfac[b].reshape(dfac.shape[1] * nmax)  # (a view of the body's row: no copy)
+        for m in range(M):
+            if ks.channels[m].owner != AIR:  # (a contact microphone: its own object only, no delay)
+                for k in range(n):
+                    fac[m * n + k] = 0.0
+                continue
+            dx = ks.mics[m, 0] - ks.pos[o, 0]
+            dy = ks.mics[m, 1] - ks.pos[o, 1]
+            dz = ks.mics[m, 2] - ks.pos[o, 2]
+            r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            r = r if r >= rmin else rmin  # (streams.mic_distance, without its view of the pose)
+            ta = r / c
+            Dm = np.int64(np.ceil(ta * fs - cst.tol)) if np.isfinite(ta) else 0
+            if Dm < 0:
+                Dm = 0
+            D[b, m] = Dm
+            dts = Dm / fs - ta
+            bg.dts[b, m] = dts
+            for k in range(n):
+                fac[m * n + k] = ob.lam[m0 + k] * dts
+        exp_in_place(fac[:M * n])
         for m in range(M):
             owner = ks.channels[m].owner
-            if owner != AIR:  # (a contact microphone: its own object only, no delay)
+            if owner != AIR:
                 w_off = ks.channels[m].w_off
                 for k in range(n):
                     if owner == o:
@@ -234,22 +256,13 @@ def bodies_gains(ks, act, bg, anchor, axis, k0, regain):
             dy = ks.mics[m, 1] - ks.pos[o, 1]
             dz = ks.mics[m, 2] - ks.pos[o, 2]
             r = np.sqrt(dx * dx + dy * dy + dz * dz)
-            r = r if r >= rmin else rmin  # (streams.mic_distance, without its view of the pose)
-            ta = r / c
-            Dm = np.int64(np.ceil(ta * fs - cst.tol)) if np.isfinite(ta) else 0
-            if Dm < 0:
-                Dm = 0
-            D[b, m] = Dm
-            dts = Dm / fs - ta
-            if not (bg.dts[b, m] == dts):  # (the delay factors depend on dts alone: a body at rest keeps them)
-                bg.dts[b, m] = dts
-                factors_into(ob.lam, m0, n, dts, dfac, b, m)
+            r = r if r >= rmin else rmin
             refl = ks.channels[m].w_off  # (>= 0: an image microphone, its reflection per mode)
             for k in range(n):
                 h = ob.w[m0 + k] / r
                 if refl >= 0:
                     h *= ks.chan_w[refl + m0 + k].real
-                f = dfac[b, m, k]
+                f = fac[m * n + k]
                 x = gin[b, k] * h * f.real
                 y = gin[b, k] * h * f.imag
                 ok = np.isfinite(x) and np.isfinite(y)

@@ -143,8 +143,8 @@ class BodyGains(NamedTuple):
     gin: np.ndarray  # (B, nmax) float64: ... as an input gain per mode (phi . n / (fs wd))
     gout: np.ndarray  # (B, M, nmax) complex128: ... times an output factor per microphone
     D: np.ndarray  # (B, M) int64: delay to each microphone [samples] (0: a contact microphone)
-    dts: np.ndarray  # (B, M) float64: the sub-sample delay [s] the factors dfac were made for (NaN: none)
-    dfac: np.ndarray  # (B, M, nmax) complex128: each mode's sub-sample delay factor e^{lam dts}
+    dts: np.ndarray  # (B, M) float64: the sub-sample delay [s] of the last gains made (NaN: none yet)
+    dfac: np.ndarray  # (B, M, nmax) complex128: their delay factors e^{lam dts}, each body's row packed (mic m's modes at m n)
     loc: np.ndarray  # (R, 3) float64: each drive side's anchor in its body's frame at the last search [m] (NaN: none)
     near: np.ndarray  # (R,) int64: ... and its nearest surface sample
     static: np.ndarray  # (B, M, nmax) float64: each mode's static response Im g / (1 - p)
@@ -199,7 +199,7 @@ class DriveRead(NamedTuple):
 
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # (no reference counts: drive_gains' docstring)
 def drive_read(rd, act, qvel, force, fresh):
     """A new block's ends: the last end becomes the start (``act.w0, a0``; ``fresh``: the
     start is now too) and ``act.w1, a1`` each actuator's rotor speed ``w = ratio qdot``
