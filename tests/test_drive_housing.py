@@ -117,3 +117,60 @@ def test_housing_coefficients_and_bad_input():
     with pytest.raises(ValueError, match="housing"):
         ActuatorPreset(10.0, 0.01, housing=-1.0)
     assert abs(float(a_weighting_db(1000.0))) < 0.01 and abs(float(a_weighting_db(100.0)) + 19.1) < 0.05
+
+
+def test_housing_weights_match_the_plain_formula():
+    """The kernel against the plain float64 formula, ``W_cm += K A_c e^{-j t_c (r fs / c - D_m)}
+    / r``, ``t_c = o_c w / fs``, ``B_jm += K / r``, on a made-up state: gear-mesh harmonics (2x,
+    3x of earlier orders, made as powers of their base's phasor), an order of no base, one
+    above 0.45 fs (left out), a silent housing, a contact, an image and a too-near microphone,
+    delays longer than a sample beyond the microphone's: within 1e-13 of each term."""
+    from collections import namedtuple
+
+    from mjsound.synth.drive_housing import housing_weights
+    from mjsound.synth.drive_lines import Actuators, LineWeights
+    from mjsound.synth.drive_tones import DRIVE, NOISE, TONE
+    from mjsound.synth.records import AIR, CHANNEL, SYNTH_CONSTS
+
+    fs, c, rmin = 16000.0, 343.0, 0.05
+    orders = [[10.0, 20.0, 30.0, 126.0, 252.0], [7.0, 10.5, 21.0, 14.0], [3.0, 6.0], [5.0, 900.0, 1800.0]]
+    comp_off = np.cumsum([0] + [len(o) for o in orders])
+    tones = np.zeros(comp_off[-1], TONE)
+    tones["order"] = np.concatenate(orders)
+    tones["amp"] = np.linspace(0.01, 0.05, len(tones))
+    J = len(orders)
+    drives = np.zeros(J, DRIVE)
+    drives["joint"] = [0, 1, 2, 3]
+    housing = np.array([0.01, 0.02, 0.0, 0.015])
+    w1 = np.array([120.0, -80.0, 50.0, 30.0])  # (rotor rad/s: order 1800 at 30 rad/s is above 0.45 fs)
+    anchor = np.array([[0.0, 0.0, 0.5], [0.3, 0.1, 0.4], [0.0, 0.2, 0.3], [1.0, 1.0, 1.02]])
+    mics = np.array([[0.0, 0.0, 1.5], [1.0, 1.0, 1.0], [2.0, -1.0, 1.0], [0.5, 0.5, 0.5]])
+    channels = np.zeros(4, CHANNEL)
+    channels["owner"] = [AIR, AIR, AIR, 3]  # (an air, an air, an image, a contact microphone)
+    channels["w_off"] = [-1, -1, 0, 0]
+    consts = np.zeros(1, SYNTH_CONSTS)
+    consts[0]["c"], consts[0]["fs"], consts[0]["rmin"] = c, fs, rmin
+    KS = namedtuple("KS", "consts mics channels")
+    z = np.zeros
+    act = Actuators(comp_off, tones, z(J, NOISE), drives, z(1, np.int64), z(0, np.int64), z(0, np.int64), z(0),
+                    z(J, np.bool_), z(J), w1, z(J), z(J), housing)
+    M = len(mics)
+    Dm = np.array([1, 3, 7, 0])
+    lw = LineWeights(z((len(tones), M), complex), z((len(tones), M), complex) + 0.5j, z((J, M)), z((J, M)) + 0.25,
+                     Dm, z(J, np.bool_), z((J, 2)))
+    housing_weights(KS(consts, mics, channels), act, lw, anchor, fs)
+    W, B = 0.5j + np.zeros((len(tones), M), complex), 0.25 + np.zeros((J, M))
+    for j in range(J):
+        for m in range(2):  # (the air microphones; not the image or contact one)
+            if housing[j] == 0.0:
+                continue
+            r = max(np.linalg.norm(mics[m] - anchor[j]), rmin)
+            B[j, m] += housing[j] / r
+            for q in range(comp_off[j], comp_off[j + 1]):
+                t = tones["order"][q] * w1[j] / fs
+                if abs(t) < 2 * np.pi * 0.45:
+                    W[q, m] += housing[j] / r * tones["amp"][q] * np.exp(-1j * t * (r * fs / c - Dm[m]))
+    assert np.abs(lw.W1 - W).max() < 1e-13 * np.abs(W - 0.5j).max()
+    assert np.array_equal(lw.W1[:, 2:], W[:, 2:]) and np.array_equal(lw.B1[:, 2:], B[:, 2:])
+    assert np.abs(lw.B1 - B).max() < 1e-15
+    assert np.count_nonzero(lw.W1[:, :2] - 0.5j) == 2 * (len(tones) - 1 - 2)  # (one above 0.45 fs, a silent pair)

@@ -38,7 +38,7 @@ from .records import AIR
 __all__ = ["housing_weights"]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # (no reference counts: .drive_gains' docstring)
 def housing_weights(ks, act, lw, anchor, fs):
     """Add each actuator's housing part (module docstring) to the lines' weights ``lw.W1``
     (C, M) and static broadband gains ``lw.B1`` (J, M) at the air microphones, at the rotor
@@ -84,9 +84,26 @@ def housing_weights(ks, act, lw, anchor, fs):
             g = K / r
             dd = r * fs / c - Dm[m]  # (samples of delay beyond the microphone's)
             B[j, m] += g
+            o1 = o2 = math.nan  # (the last two components' orders and phasors: a harmonic's base; NaN: none)
+            c1 = s1 = c2 = s2 = 0.0
             for q in range(comp_off[j], comp_off[j + 1]):
-                t = tones[q].order * w[j] / fs
+                order = tones[q].order
+                t = order * w[j] / fs
                 if not abs(t) < limit:
                     continue
-                x = -t * dd
-                W[q, m] += g * tones[q].amp * complex(math.cos(x), math.sin(x))
+                # e^{-j t dd}; for a harmonic (order h o_b, h 2 or 3) of one of the last two, the
+                # base's phasor to the power h (its phase h times the base's but for rounding:
+                # one cosine and sine fewer)
+                if order == 2.0 * o1 or order == 2.0 * o2:
+                    br, bi = (c1, s1) if order == 2.0 * o1 else (c2, s2)
+                    cr, ci = br * br - bi * bi, 2.0 * br * bi
+                elif order == 3.0 * o1 or order == 3.0 * o2:
+                    br, bi = (c1, s1) if order == 3.0 * o1 else (c2, s2)
+                    sr, si = br * br - bi * bi, 2.0 * br * bi
+                    cr, ci = sr * br - si * bi, sr * bi + si * br
+                else:
+                    x = -t * dd
+                    cr, ci = math.cos(x), math.sin(x)
+                o2, c2, s2 = o1, c1, s1
+                o1, c1, s1 = order, cr, ci
+                W[q, m] += g * tones[q].amp * complex(cr, ci)
