@@ -64,7 +64,7 @@ KERNEL_GROUPS = {
             "synth/bandlimited.py",
             "synth/bank_loops.py", "synth/constants.py", "synth/contact_coupling.py", "synth/directivity.py",
             "synth/dispatch.py", "synth/drive_broadband.py", "synth/drive_gains.py", "synth/drive_housing.py",
-            "synth/drive_lanes.py", "synth/drive_lines.py", "synth/drive_weights.py",
+            "synth/drive_directions.py", "synth/drive_lanes.py", "synth/drive_lines.py", "synth/drive_weights.py",
             "synth/drive_tones.py", "synth/impact_energy.py", "synth/interrupt.py", "synth/kernels.py", "synth/packing.py", "synth/pulse.py", "synth/queue.py",
             "synth/records.py", "synth/reverb.py", "synth/sorting.py", "synth/streams.py"),
 }

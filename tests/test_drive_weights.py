@@ -1,6 +1,8 @@
 """The lines' per-block weights' kernels (mjsound.synth.drive_weights, the direction factors'
 harmonics of mjsound.synth.directivity) against their plain references."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy.special import sph_harm_y
@@ -133,3 +135,27 @@ def test_direction_factors_are_the_fits_at_each_microphones_direction():
             assert not np.allclose(got, ref, rtol=1e-6)  # (the old factors, not those of now)
         else:
             np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-14)
+
+
+def test_phase_steps_are_the_components_cosines_and_sines():
+    """Each component's step t = order w / fs (0 from 0.45 of a turn on) and cos t, sin t:
+    those of a component at 2 or 3 times the order of one before it of the same actuator
+    (from its own by the double- and triple-angle products) as the others within 4 ulp of
+    the math module's."""
+    from mjsound.synth.drive_tones import TONE
+    from mjsound.synth.drive_weights import _phase_steps
+
+    orders = [10.0, 20.0, 30.0, 126.0, 252.0, 1 / 3, 2 / 3, 1.0, 6.0, 7.0, 40.0]
+    comp_off = np.array([0, 5, 11], np.int64)
+    tones = np.zeros(len(orders), TONE)
+    tones["order"] = orders
+    fs = 16000.0
+    for w in ([3.1, -40.0], [200.0, 1e-3], [0.0, 650.0]):
+        w = np.array(w)
+        th, cth, sth = (np.full(len(orders), 9.0) for _ in range(3))
+        call_inner(_phase_steps, tones, comp_off, w, fs, 2 * np.pi * 0.45, th, cth, sth)
+        t = np.array(orders) * np.repeat(w, np.diff(comp_off)) / fs
+        np.testing.assert_array_equal(th, np.where(np.abs(t) < 2 * np.pi * 0.45, t, 0.0))
+        cos, sin = np.array([math.cos(x) for x in t]), np.array([math.sin(x) for x in t])
+        np.testing.assert_allclose(cth, cos, rtol=0, atol=4 * 2.0**-52)
+        np.testing.assert_allclose(sth, sin, rtol=0, atol=4 * 2.0**-52)

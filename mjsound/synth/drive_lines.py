@@ -58,6 +58,7 @@ from .bandlimited import ring_add
 from .bank_loops import FAST
 from .drive_lanes import LaneScratch, cpow, lane_scratch, lines_pass, turn
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant
+from .drive_directions import DriveDirections, drive_directions
 from .drive_gains import bodies_gains
 from .drive_housing import housing_weights
 from .drive_tones import advance_phase, audible_span, noise_cutoff_hz
@@ -176,15 +177,16 @@ class SceneView(NamedTuple):
     sh: np.ndarray  # (rows, harmonics) scratch (its first row is used)
     sh_tab: np.ndarray
     params: np.ndarray  # (1,) DIRECTIONS
+    dd: DriveDirections = None  # the fits' float32 copy for the weights (.drive_directions)
 
 
 def scene_view(synth, dr) -> SceneView:
     """:class:`SceneView` of a :class:`.records.SynthState` and :class:`.records.DirectionState`
-    (the poles made here, once)."""
+    (the poles and the fits' float32 copy made here, once)."""
     st, ob = synth.streams, synth.objects
     poles = np.exp(ob.lam / float(synth.consts[0]["fs"]))
     return SceneView(st.table, poles, ob.mode_off, synth.mics, synth.pos, synth.R, synth.channels, dr.order,
-                     dr.msh_off, dr.coef_r, dr.coef_i, dr.sh, dr.sh_tab, dr.params)
+                     dr.msh_off, dr.coef_r, dr.coef_i, dr.sh, dr.sh_tab, dr.params, drive_directions(dr, ob.mode_off))
 
 
 class DriveRead(NamedTuple):

@@ -24,7 +24,9 @@ import numpy as np
 from ..jit import njit, njit_inner
 from .bank_loops import FAST
 from .directivity import _factor, real_sh
+from .drive_directions import _floored, direction_factors
 from .drive_broadband import RESONANT_OFF, RESONANT_ON
+from .drive_lanes import cpow
 from .drive_tones import noise_cutoff_hz
 from .records import AIR
 
@@ -53,7 +55,8 @@ def line_weights(view, act, lw, bg, fs):
     broadband power (``bg.static``, ``bg.resonant``). The bodies' gains and delays are
     ``bg.gr, gi, D`` (:func:`.drive_gains.bodies_gains`); an air microphone hears a
     directional object's modes times their direction factor towards it now (as the exact
-    rendering's forcing rows; ``bg.U, Fd`` the factors' cache).
+    rendering's forcing rows, from the fits' float32 copy ``view.dd``:
+    :func:`.drive_directions.direction_factors`; ``bg.U, Fd`` the factors' cache).
 
     A body's weight for a component of step ``theta`` sums, per microphone, the real and
     imaginary parts of its modes' gains ``g = g_r + j g_i`` against two complex numbers per
@@ -113,12 +116,7 @@ def line_weights(view, act, lw, bg, fs):
     hs = buf[o3:o3 + 2 * cmax * M].reshape((2, cmax, M))
     heard = buf[o3 + 2 * cmax * M:o3 + 2 * cmax * M + M]
     # each component's phase step per sample and its cosine and sine, once (0 above the cut-off)
-    for j in range(J):
-        for c in range(comp_off[j], comp_off[j + 1]):
-            t = tones[c].order * w[j] / fs
-            th[c] = t if abs(t) < limit else 0.0
-            cth[c] = math.cos(t)
-            sth[c] = math.sin(t)
+    _phase_steps(tones, comp_off, w, fs, limit, th, cth, sth)
     two_pi = 2.0 * math.pi
     for j in range(J):  # (res: the resonant broadband power per unit force scale)
         res[j] = 0.0
@@ -142,7 +140,7 @@ def line_weights(view, act, lw, bg, fs):
                 xr[m, k] = gr[b, m, k]
                 xi[m, k] = gi[b, m, k]
         if order[o] >= 0:
-            _direction_factors(xr, xi, n, o, m0, view, U[b], Fd[b], heard)
+            direction_factors(xr, xi, n, o, view, U[b], Fd[b], heard)
         for m in range(M):  # the static response Im H(0) = Im sum g / (1 - p)
             for k in range(n):
                 static[b, m, k] = (xi[m, k] * (1.0 - pr[k]) + xr[m, k] * pi[k]) * q0[k]
@@ -196,7 +194,34 @@ def line_weights(view, act, lw, bg, fs):
     return dmax
 
 
-@njit_inner(cache=True, fastmath=FAST)
+@njit_inner(cache=True)
+def _phase_steps(tones, comp_off, w, fs, limit, th, cth, sth):
+    """Each component's phase step per sample ``t = order w / fs`` into ``th`` (0 where
+    ``|t| >= limit``: above the cut-off) and ``cos t``, ``sin t`` into ``cth, sth``; a
+    component at twice or three times the order of one before it of the same actuator (the
+    presets' harmonics) from that one's by the double- and triple-angle products (a sine and
+    cosine fewer; within a few ulp of ``math.cos``, ``math.sin``)."""
+    for j in range(w.shape[0]):
+        c0 = comp_off[j]
+        for c in range(c0, comp_off[j + 1]):
+            t = tones[c].order * w[j] / fs
+            th[c] = t if abs(t) < limit else 0.0
+            h = 0
+            cb = c0
+            while cb < c and h == 0:
+                ob = tones[cb].order
+                h = 2 if ob * 2.0 == tones[c].order else (3 if ob * 3.0 == tones[c].order else 0)
+                cb += 1
+            if h:
+                cr, ci = cpow(cth[cb - 1], sth[cb - 1], h)
+                cth[c] = cr
+                sth[c] = ci
+            else:
+                cth[c] = math.cos(t)
+                sth[c] = math.sin(t)
+
+
+@njit_inner(cache=True, fastmath=FAST, error_model="numpy")
 def _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs):
     """One body's ``2 W`` at each microphone for components ``c0 .. c1`` (phase steps ``th``,
     their cosines and sines ``cth, sth``; 0: none) into ``hs[0] + j hs[1]`` (c - c0, m), from
@@ -209,7 +234,8 @@ def _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs):
     ``A = (x_r - j x_i) / |x|^2``, ``x = 1 - p e^{-j theta}``; ``Bc = (y_r + j y_i) / |y|^2``,
     ``y = 1 - p e^{+j theta}`` (one division for both): the terms ``alpha, beta`` once per
     mode for every microphone (``ab`` (4, >= n) scratch), then one sum over the modes per
-    microphone (``fastmath``: both loops vectorised)."""
+    microphone (``fastmath``: both loops vectorised; ``error_model="numpy"``: the division
+    without Python's zero test, which kept the first loop scalar; ``|x|, |y| > 0`` as ``|p| < 1``)."""
     ar, ai, br, bi = ab[0], ab[1], ab[2], ab[3]
     for c in range(c0, c1):
         if th[c] == 0.0:
@@ -259,21 +285,11 @@ def _factor_pair(Y0, Y1, cr, ci):
     return r0, i0, r1, i1
 
 
-@njit_inner(cache=True, inline="always")
-def _floored(fr, fi, floor):
-    """``fr + j fi`` with its magnitude at least ``floor`` (its phase kept; a 0 or NaN: ``floor``)."""
-    a2 = fr * fr + fi * fi
-    if not a2 >= floor * floor:
-        if a2 > 0.0:
-            c = floor / np.sqrt(a2)
-            return complex(fr * c, fi * c)
-        return complex(floor, 0.0)
-    return complex(fr, fi)
-
-
 @njit(cache=True)
 def _direction_factors(xr, xi, n, o, m0, view, U, Fd, heard):
-    """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
+    """The float64 reference of :func:`.drive_directions.direction_factors` (the weights use
+    that one, on the fits' float32 copy; its tests compare with this one):
+    ``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
     each mode's direction factor towards air microphone ``m`` now (:func:`.directivity.hear_directions`'
     target: the fit at ``u = R^T (mic - pos) / r``, its magnitude floored), made again only
     when ``u`` turned by more than the synthesizer's step since the factors ``Fd[m]`` were
