@@ -23,9 +23,10 @@ __all__ = ["SUB", "LANES_MIN", "LaneScratch", "lane_scratch", "lines_pass", "tur
 #: Samples between the lines' exact restarts (a power of two: :func:`lines_pass`).
 SUB = 64
 #: Fewest lanes :func:`_sub_pass` runs (a multiple of 8, the lines padded with silent ones:
-#: LLVM's vector loop takes 8 lanes at a time; with the weights ramped on the adders its
-#: vector loop runs from 8 lanes on, so a few lines (Fetch's gripper) are not padded to 24).
-LANES_MIN = 8
+#: LLVM's vector loop there starts at 24 lanes (below, its scalar loop runs, ~3x slower per
+#: lane; the lines of one or two actuators: Fetch's gripper). Measured again with the weights
+#: ramped on the adders: 8 lanes were slower on Fetch's blocks than 24.
+LANES_MIN = 24
 
 
 class LaneScratch(NamedTuple):
