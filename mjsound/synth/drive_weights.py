@@ -33,6 +33,18 @@ from .records import AIR
 __all__ = ["line_weights"]
 
 
+@njit(cache=True, inline="always")
+def _cpow(z, n):
+    """``z^n`` for an integer ``n >= 0`` (by squaring: a delay's phase without a sine)."""
+    out = complex(1.0, 0.0)
+    while n > 0:
+        if n & 1:
+            out *= z
+        z *= z
+        n >>= 1
+    return out
+
+
 @njit(cache=True)
 def line_weights(view, act, lw, bg, fs):
     """Each component's complex weight ``lw.W1[c, m]`` (without the force scale; see the
@@ -91,7 +103,7 @@ def line_weights(view, act, lw, bg, fs):
     cmax = 0
     for j in range(J):
         cmax = max(cmax, comp_off[j + 1] - comp_off[j])
-    buf = np.empty(3 * C + 2 * J + (7 + 2 * M) * nmax + 2 * cmax * M + M + 4 * cmax)
+    buf = np.empty(3 * C + 2 * J + (7 + 2 * M) * nmax + 2 * cmax * M + M)
     th, cth, sth = buf[:C], buf[C:2 * C], buf[2 * C:3 * C]
     alpha, res = buf[3 * C:3 * C + J], buf[3 * C + J:3 * C + 2 * J]
     o1 = 3 * C + 2 * J
@@ -103,8 +115,6 @@ def line_weights(view, act, lw, bg, fs):
     o3 = o2 + 2 * M * nmax
     hs = buf[o3:o3 + 2 * cmax * M].reshape((2, cmax, M))
     heard = buf[o3 + 2 * cmax * M:o3 + 2 * cmax * M + M]
-    o4 = o3 + 2 * cmax * M + M
-    ph = buf[o4:o4 + 4 * cmax].reshape((4, cmax))
     # each component's phase step per sample and its cosine and sine, once (0 above the cut-off)
     _phase_steps(tones, comp_off, w, fs, limit, th, cth, sth)
     two_pi = 2.0 * math.pi
@@ -158,19 +168,14 @@ def line_weights(view, act, lw, bg, fs):
                     resonant[b, k] += e * a[j] * a[j]
             c0, c1 = comp_off[j], comp_off[j + 1]
             _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs)
-            for m in range(M):
-                # (this body's delay beyond the microphone's, dd >= 0 samples: the phase e^{-j th dd})
-                _delay_phases(cth, sth, c0, c1, D[b, m] - Dm[m], ph)
-                for c in range(c0, c1):
-                    if th[c] == 0.0:
-                        continue
-                    amp = 0.5 * coef * tones[c].amp
-                    q = c - c0
-                    ar = amp * ph[0, q]
-                    ai = amp * ph[1, q]
-                    hr = hs[0, q, m]
-                    hi = hs[1, q, m]
-                    W[c, m] += complex(ar * hr - ai * hi, ar * hi + ai * hr)
+            for c in range(c0, c1):
+                if th[c] == 0.0:
+                    continue
+                amp = 0.5 * coef * tones[c].amp
+                z = complex(cth[c], -sth[c])
+                for m in range(M):
+                    # (this body's delay beyond the microphone's, dd >= 0 samples: the phase e^{-j th dd})
+                    W[c, m] += amp * _cpow(z, D[b, m] - Dm[m]) * complex(hs[0, c - c0, m], hs[1, c - c0, m])
     for j in range(J):
         bb = noise[j].broadband
         b2 = 0.0
@@ -187,34 +192,6 @@ def line_weights(view, act, lw, bg, fs):
     for m in range(M):
         dmax = max(dmax, Dm[m])
     return dmax
-
-
-@njit_inner(cache=True)
-def _delay_phases(cth, sth, c0, c1, dd, ph):
-    """``ph[0, q] + j ph[1, q] = (cth[c] - j sth[c])^dd`` for the components ``c = c0 + q < c1``
-    (a delay of ``dd >= 0`` samples at each one's phase step), by squaring, the components
-    side by side (their chains independent: one wait per step for all; ``ph`` (4, >= c1 - c0)
-    scratch)."""
-    nq = c1 - c0
-    pr, pi, zr, zi = ph[0], ph[1], ph[2], ph[3]
-    for q in range(nq):
-        pr[q] = 1.0
-        pi[q] = 0.0
-        zr[q] = cth[c0 + q]
-        zi[q] = -sth[c0 + q]
-    e = dd
-    while e > 0:
-        if e & 1:
-            for q in range(nq):
-                a = pr[q] * zr[q] - pi[q] * zi[q]
-                pi[q] = pr[q] * zi[q] + pi[q] * zr[q]
-                pr[q] = a
-        e >>= 1
-        if e > 0:
-            for q in range(nq):
-                a = zr[q] * zr[q] - zi[q] * zi[q]
-                zi[q] = 2.0 * zr[q] * zi[q]
-                zr[q] = a
 
 
 @njit_inner(cache=True)
