@@ -44,7 +44,8 @@ sys.path.insert(0, __file__.rsplit("/", 1)[0])
 from bench_actuators import make  # noqa: E402
 
 from mjsound.sim.actuators import ActuatorSound  # noqa: E402
-from mjsound.synth.drive_broadband import broadband_force, broadband_modes, broadband_resonant  # noqa: E402
+from mjsound.synth.drive_broadband import (broadband_force, broadband_modes, broadband_resonant,  # noqa: E402
+                                           broadband_route)
 from mjsound.synth.drive_gains import bodies_gains  # noqa: E402
 from mjsound.synth.drive_housing import housing_weights  # noqa: E402
 from mjsound.synth.dispatch import PackedEntry  # noqa: E402
@@ -145,6 +146,7 @@ def _lines_drive_timed(state, k0, L, fs, fresh, resume, regain, F):
         return
     t1 = _ticks()
     dmax = line_weights(view, act, lw, bg, fs)
+    broadband_route(lw, L, fs)
     t2 = _ticks()
     housing_weights(ks, act, lw, anchor, fs)
     for b in range(bg.D.shape[0]):

@@ -416,7 +416,8 @@ class ActuatorSound:
         #: force scale (summed over the microphones), at the last block; the lines' working
         #: arrays (blocks of up to twice the cadence allocate none)
         self.weights = LineWeights(z((C, M), np.complex128), z((C, M), np.complex128), z((J, M)), z((J, M)),
-                                   z(M, np.int64), z(J, np.bool_), z((J, 2)), lines_scratch(C, M, 2 * self.cadence, J))
+                                   z(M, np.int64), z(J, np.bool_), z((J, 2)), lines_scratch(C, M, 2 * self.cadence, J),
+                                   z(J, np.int64))
         self._last = None  # (the next block starts from its own state)
 
     def _body_gains(self, state) -> BodyGains:

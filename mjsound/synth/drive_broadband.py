@@ -34,8 +34,8 @@ from .drive_tones import noise_cutoff_hz
 from .records import AIR
 from .streams import SQRT3, noise_draw
 
-__all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "broadband_modes", "broadband_force",
-           "broadband_resonant"]
+__all__ = ["RESONANT_ON", "RESONANT_OFF", "RESONANT_REST", "ROUTE_HOLD_S", "broadband_route", "broadband_modes",
+           "broadband_force", "broadband_resonant"]
 
 #: Fraction of an actuator's heard power in the modes' resonant response to its broadband
 #: part above which that part goes through the modes (-10 dB) ...
@@ -44,6 +44,49 @@ RESONANT_ON = 0.1
 RESONANT_OFF = 0.025
 #: The share of a body's resonant broadband power its dropped modes may hold (-20 dB).
 RESONANT_REST = 0.01
+#: How long [s] the share must stay below :data:`RESONANT_OFF` before the broadband part goes
+#: back to the static response. A line crossing one of its links' resonances is briefly loud
+#: (the share falls while the tone peaks), but the noise's resonant part is still heard at the
+#: modes' own frequencies, far from the tone: switching it off for the crossing left a gap
+#: of the links' high noise (8 ms, 40 dB down at 8-12 kHz, on the driven arm of
+#: ``scripts/arm_demo.py --preset servo``). A block longer than this (an env step's: Ant-v5,
+#: 50 ms) switches at its first block below, as without a hold: the route is chosen at a
+#: block's end, which a crossing inside the block does not reach.
+ROUTE_HOLD_S = 0.025
+
+
+@njit(cache=True)
+def broadband_route(lw, L, fs):
+    """Whether each actuator's broadband part goes through the modes this block
+    (``lw.exact``), from its resonant power and everything it makes heard (``lw.power``,
+    :func:`.drive_weights.line_weights`): on once the resonant share exceeds
+    :data:`RESONANT_ON`; off once it has stayed below :data:`RESONANT_OFF` for longer than
+    :data:`ROUTE_HOLD_S` (``lw.held`` (J,) int64: the samples it has been below while on,
+    this block of ``L`` samples included; a ``held`` of another length: no hold).
+
+    Parameters
+    ----------
+    lw : :class:`.drive_lines.LineWeights`
+    L : int, the block's samples; fs : float [Hz]
+    """
+    exact, power, held = lw.exact, lw.power, lw.held
+    hold = held.shape[0] == exact.shape[0]
+    limit = ROUTE_HOLD_S * fs
+    for j in range(exact.shape[0]):
+        res, total = power[j, 0], power[j, 1]
+        if not exact[j]:
+            exact[j] = res > RESONANT_ON * total
+            if hold:
+                held[j] = 0
+        elif res > RESONANT_OFF * total:
+            if hold:
+                held[j] = 0
+        elif hold and held[j] + L <= limit:
+            held[j] += L  # (below, but not for long yet: a resonance crossing)
+        else:
+            exact[j] = False
+            if hold:
+                held[j] = 0
 
 #: Samples per pass of :func:`broadband_resonant` (its modes' states over them: 64 kB at 32 modes).
 CHUNK = 128

@@ -57,7 +57,7 @@ from ..jit import njit
 from .bandlimited import ring_add
 from .bank_loops import FAST
 from .drive_lanes import LaneScratch, cpow, lane_scratch, lines_pass, turn
-from .drive_broadband import broadband_force, broadband_modes, broadband_resonant
+from .drive_broadband import broadband_force, broadband_modes, broadband_resonant, broadband_route
 from .drive_directions import DriveDirections, drive_directions
 from .drive_gains import bodies_gains
 from .drive_housing import housing_weights
@@ -119,6 +119,8 @@ def lines_scratch(C: int, M: int, L: int, J: int = 0) -> LinesScratch:
 
 #: No scratch: :func:`lines_render` makes its working arrays each block.
 NO_SCRATCH = lines_scratch(0, 0, 0)
+#: ``LineWeights.held`` of no hold (the route follows each block's share alone).
+NO_HOLD = np.zeros(0, np.int64)
 
 
 class LineWeights(NamedTuple):
@@ -133,6 +135,7 @@ class LineWeights(NamedTuple):
     exact: np.ndarray  # (J,) bool: the broadband part goes through the modes (.drive_broadband)
     power: np.ndarray  # (J, 2) float64: its resonant power and everything heard, per unit force scale
     scratch: LinesScratch = NO_SCRATCH  # (lines_render's working arrays: lines_scratch)
+    held: np.ndarray = NO_HOLD  # (J,) int64: samples the resonant share has been low while on (.drive_broadband.broadband_route; length 0: no hold)
 
 
 class BodyGains(NamedTuple):
@@ -444,7 +447,8 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
     :class:`SceneView`, :class:`.records.SynthState`, :class:`.records.TrackState`, and):
     :func:`drive_read` of ``dv`` (unless ``resume``:
     the block's read is kept), the driven bodies' gains (:func:`.drive_gains.bodies_gains`),
-    :func:`.drive_weights.line_weights` and the housing's airborne part
+    :func:`.drive_weights.line_weights`, the broadband's route
+    (:func:`.drive_broadband.broadband_route`) and the housing's airborne part
     (:func:`.drive_housing.housing_weights`), the broadband's modes where some actuator's goes through them
     (:func:`.drive_broadband.broadband_modes`, :func:`.drive_broadband.broadband_force` into
     ``F`` (J, L)), the weights' start (``fresh``: the same as the end), :func:`lines_render`
@@ -491,6 +495,7 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
         broadband_resonant(view, act, lw, bg, track, k0, F, False)
         return
     dmax = line_weights(view, act, lw, bg, fs)
+    broadband_route(lw, L, fs)
     housing_weights(ks, act, lw, anchor, fs)  # (after the broadband's route is chosen: it leaves that alone)
     for b in range(bg.D.shape[0]):  # (the resonant modes are heard at their own body's delays)
         if act.sidx[b] >= 0:

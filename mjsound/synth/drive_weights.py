@@ -25,7 +25,6 @@ from ..jit import njit, njit_inner
 from .bank_loops import FAST
 from .directivity import _factor, real_sh
 from .drive_directions import _floored, direction_factors
-from .drive_broadband import RESONANT_OFF, RESONANT_ON
 from .drive_lanes import cpow
 from .drive_tones import noise_cutoff_hz
 from .records import AIR
@@ -50,8 +49,8 @@ def line_weights(view, act, lw, bg, fs):
     """Each component's complex weight ``lw.W1[c, m]`` (without the force scale; see the
     module) at the rotor speeds ``act.w1`` [rad/s], each actuator's broadband gain
     ``lw.B1[j, m]`` (the static ``Im H(0)``), each microphone's delay ``lw.Dm[m]`` [samples],
-    whether each actuator's broadband part goes through the modes (``lw.exact``, ``lw.power``:
-    :mod:`.drive_broadband`) and, per driven body, its modes' static response and resonant
+    each actuator's resonant broadband power and everything it makes heard (``lw.power``:
+    what :func:`.drive_broadband.broadband_route` chooses the broadband's route by) and, per driven body, its modes' static response and resonant
     broadband power (``bg.static``, ``bg.resonant``). The bodies' gains and delays are
     ``bg.gr, gi, D`` (:func:`.drive_gains.bodies_gains`); an air microphone hears a
     directional object's modes times their direction factor towards it now (as the exact
@@ -73,7 +72,7 @@ def line_weights(view, act, lw, bg, fs):
     Returns the largest of ``lw.Dm``.
     """
     gr, gi, D, static, resonant, U, Fd = bg.gr, bg.gi, bg.D, bg.static, bg.resonant, bg.U, bg.Fd
-    W, B, Dm, exact, power = lw.W1, lw.B1, lw.Dm, lw.exact, lw.power
+    W, B, Dm, power = lw.W1, lw.B1, lw.Dm, lw.power
     sidx, sign, ptr, rows, comp_off, tones, noise, w, a = (act.sidx, act.sign, act.ptr, act.rows, act.comp_off,
                                                            act.tones, act.noise, act.w1, act.a1)
     table, poles, mode_off, order = view.table, view.poles, view.mode_off, view.order
@@ -187,7 +186,6 @@ def line_weights(view, act, lw, bg, fs):
                 total += 0.5 * (W[c, m].real ** 2 + W[c, m].imag ** 2)
         power[j, 0] = res[j]
         power[j, 1] = total
-        exact[j] = res[j] > (RESONANT_OFF if exact[j] else RESONANT_ON) * total
     dmax = 0
     for m in range(M):
         dmax = max(dmax, Dm[m])
