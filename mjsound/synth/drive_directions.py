@@ -221,7 +221,7 @@ def _floored(fr, fi, floor):
 def direction_factors(xr, xi, n, o, view, U, Fd, heard):
     """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
     each mode's direction factor towards air microphone ``m`` now, as
-    :func:`.drive_weights._direction_factors` (the same directions, step, floor and cache
+    the float64 fits' sums (the tests' reference, ``tests/drive_directions_reference.py``: the same directions, step, floor and cache
     ``U``, ``Fd``; ``heard`` (>= M,) scratch), the factors from the float32 blocks
     ``view.dd`` (:class:`DriveDirections`): the microphones whose direction turned two at a
     time (:func:`sh_pair`, :func:`_chunk_factors`; an odd one paired with itself)."""
