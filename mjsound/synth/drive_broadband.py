@@ -74,19 +74,13 @@ def broadband_route(lw, L, fs):
     limit = ROUTE_HOLD_S * fs
     for j in range(exact.shape[0]):
         res, total = power[j, 0], power[j, 1]
-        if not exact[j]:
-            exact[j] = res > RESONANT_ON * total
-            if hold:
-                held[j] = 0
-        elif res > RESONANT_OFF * total:
-            if hold:
-                held[j] = 0
-        elif hold and held[j] + L <= limit:
+        low = exact[j] and not res > RESONANT_OFF * total
+        if low and hold and held[j] + L <= limit:
             held[j] += L  # (below, but not for long yet: a resonance crossing)
-        else:
-            exact[j] = False
-            if hold:
-                held[j] = 0
+            continue
+        exact[j] = res > (RESONANT_OFF if exact[j] else RESONANT_ON) * total
+        if hold:
+            held[j] = 0
 
 #: Samples per pass of :func:`broadband_resonant` (its modes' states over them: 64 kB at 32 modes).
 CHUNK = 128
