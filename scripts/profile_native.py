@@ -23,7 +23,10 @@ Cases:
 * ``demo``: the demo scene's 3 s, over and over (shares of the whole process).
 
 Usage: python scripts/profile_native.py [--case ant|demo] [--seconds 4] [--top 20] [--rounds 2] [--free-field]
-(``--free-field``: the wrapped Ant-v5 with ``reflections=False``, to compare with the default floor).
+       [--actuators PRESET]
+(``--free-field``: the wrapped Ant-v5 with ``reflections=False``, to compare with the default floor;
+``--actuators qdd``: the wrapped Ant-v5 with that preset on every actuator against the same
+without, per library and per kernel: where the drives' cost goes).
 Needs ``perf`` and ``/proc/sys/kernel/perf_event_paranoid`` <= 2 (a process's own samples).
 """
 
@@ -48,6 +51,9 @@ import os, sys, time, warnings
 warnings.filterwarnings("ignore")
 import numpy as np
 case, wrapped, ready, stop, marks = sys.argv[1], sys.argv[2] == "1", sys.argv[3], sys.argv[4], sys.argv[5]
+if os.environ.get("MJSOUND_PROFILE_ACTUATORS"):  # (both variants wrapped; argv[2]: actuators on)
+    sys.argv.append(sys.argv[2])
+    wrapped = True
 steps = 0
 window = []  # (steps, CPU seconds) when the parent's perf window opened and when it closed
 def check_marks():
@@ -61,7 +67,9 @@ if case == "ant":
     from mjsound.wrappers import AudioObservation
     env = gym.make("Ant-v5")
     if wrapped:
-        env = AudioObservation(env, sample_rate=16000, reflections=os.environ.get("MJSOUND_PROFILE_FREE_FIELD") != "1")
+        acts = os.environ.get("MJSOUND_PROFILE_ACTUATORS", "")
+        env = AudioObservation(env, sample_rate=16000, reflections=os.environ.get("MJSOUND_PROFILE_FREE_FIELD") != "1",
+                               sim_kwargs={"actuators": acts} if acts and sys.argv[6] == "1" else {})
     rng = np.random.default_rng(0)
     acts = rng.uniform(-1, 1, (2000, env.action_space.shape[0]))
     env.reset(seed=0)
@@ -218,25 +226,33 @@ def main(argv=None) -> int:
     p.add_argument("--top", type=int, default=20, help="numba kernels listed")
     p.add_argument("--rounds", type=int, default=2, help="ant: processes per variant, alternated")
     p.add_argument("--free-field", action="store_true", help="ant: the wrapped env with reflections=False")
+    p.add_argument("--actuators", default="", metavar="PRESET",
+                   help="ant: the wrapped env with PRESET on every actuator against the same without (issue 38's cost)")
     args = p.parse_args(argv)
     if args.free_field:  # (read by the child)
         os.environ["MJSOUND_PROFILE_FREE_FIELD"] = "1"
     if shutil.which("perf") is None:
         raise SystemExit("profile_native: needs Linux perf on PATH (linux-tools / linux-perf)")
-    with tempfile.TemporaryDirectory(prefix="mjsound-numba-") as cache:
+    if args.actuators:  # (read by the child: both variants wrapped, "bare" the one without drives)
+        os.environ["MJSOUND_PROFILE_ACTUATORS"] = args.actuators
+    with tempfile.TemporaryDirectory(prefix="mjsound-numba-") as cache, \
+            tempfile.TemporaryDirectory(prefix="mjsound-numba-") as cache_off:
         if args.case == "ant":
             # (alternated: wrapped, bare, wrapped, bare ..., so that a drift of the machine's
-            # speed weighs on both; averaged per variant)
+            # speed weighs on both; averaged per variant. With --actuators each variant has a
+            # numba cache of its own: its first process compiles and names its kernels)
             runs = {True: [], False: []}
             for _ in range(args.rounds):
                 for wrapped in (True, False):
-                    runs[wrapped].append(per_step(args.case, wrapped, args.seconds, cache))
-            (libs, kernels, step_w), (bare, _, step_b) = (_mean(runs[True]), _mean(runs[False]))
+                    c = cache_off if args.actuators and not wrapped else cache
+                    runs[wrapped].append(per_step(args.case, wrapped, args.seconds, c))
+            (libs, kernels, step_w), (bare, kernels_b, step_b) = (_mean(runs[True]), _mean(runs[False]))
+            a, b = ("actuators", "without") if args.actuators else ("wrapped", "bare")
             keys = sorted(set(libs) | set(bare), key=lambda k: -max(libs[k], bare[k]))
-            print(f"Ant-v5 env step, CPU: bare {step_b:.0f} us, wrapped {step_w:.0f} us ({step_w / step_b:.2f} x; "
+            print(f"Ant-v5 env step, CPU: {b} {step_b:.0f} us, {a} {step_w:.0f} us ({step_w / step_b:.2f} x; "
                   f"each process's CPU time over its sampled steps, mean of {args.rounds} process(es) each; "
-                  f"bare per process: {', '.join(f'{r[2]:.0f}' for r in runs[False])} us)")
-            print("library                          bare us  wrapped us   added us  (% of the bare step)")
+                  f"{b} per process: {', '.join(f'{r[2]:.0f}' for r in runs[False])} us)")
+            print(f"library                          {b:>7s} us  {a:>9s} us   added us  (% of the {b} step)")
             for k in keys[:12]:
                 add = libs[k] - bare[k]
                 print(f"{k[:32]:32s} {bare[k]:7.1f}  {libs[k]:9.1f}  {add:+9.1f}  ({100 * add / step_b:+.1f})")
@@ -249,9 +265,15 @@ def main(argv=None) -> int:
             for k, v in libs.most_common(10):
                 print(f"{k[:32]:32s} {v:6.1f}")
             what = "% of samples"
-        print(f"numba kernels ({what}):")
-        for k, v in kernels.most_common(args.top):
-            print(f"  {v:6.2f}  {k}")
+        if args.case == "ant" and args.actuators:
+            print(f"numba kernels ({what}; without the drives, with, added):")
+            ks = sorted(set(kernels) | set(kernels_b), key=lambda k: -abs(kernels[k] - kernels_b[k]))
+            for k in ks[:args.top]:
+                print(f"  {kernels_b[k]:6.2f}  {kernels[k]:6.2f}  {kernels[k] - kernels_b[k]:+6.2f}  {k}")
+        else:
+            print(f"numba kernels ({what}):")
+            for k, v in kernels.most_common(args.top):
+                print(f"  {v:6.2f}  {k}")
     return 0
 
 
