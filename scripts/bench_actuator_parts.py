@@ -49,7 +49,8 @@ from mjsound.synth.drive_broadband import (broadband_force, broadband_modes, bro
 from mjsound.synth.drive_gains import bodies_gains  # noqa: E402
 from mjsound.synth.drive_housing import housing_weights  # noqa: E402
 from mjsound.synth.dispatch import PackedEntry  # noqa: E402
-from mjsound.synth.drive_lines import DONE, GROW_TRACK, drive_read, lines_drive, lines_render  # noqa: E402
+from mjsound.synth.drive_lines import (DONE, GROW_LINES, GROW_TRACK, drive_read, lines_drive,  # noqa: E402
+                                      lines_render_in, scratch_fits)
 from mjsound.synth.packing import unpack  # noqa: E402
 from mjsound.synth.drive_weights import line_weights  # noqa: E402
 from mjsound.wrappers import AudioObservation  # noqa: E402
@@ -96,7 +97,7 @@ def _resonant(view, act, lw, bg, track, k0, F, n):
 @njit
 def _render(track, act, lw, k0, L, fs, F, n):
     for _ in range(n):
-        lines_render(track, act, lw, k0, L, fs, F)
+        lines_render_in(track, act, lw, lw.scratch, k0, L, fs, F)
 
 
 @njit
@@ -135,6 +136,10 @@ def _lines_drive_timed(state, k0, L, fs, fresh, resume, regain, F):
     io[0] = DONE
     io[2] = 0
     io[3] = 0
+    if not scratch_fits(lw.scratch, lw.W1.shape[0], min(lw.W1.shape[1], track.acc.shape[0]), L, act.a0.shape[0]):
+        io[0] = GROW_LINES
+        io[1] = L
+        return
     if not resume:
         io[4] = 1 if drive_read(rd, act, qvel, force, fresh) else 0
         if io[4] == 1:
@@ -171,7 +176,7 @@ def _lines_drive_timed(state, k0, L, fs, fresh, resume, regain, F):
         lw.W0[:, :] = lw.W1
         lw.B0[:, :] = lw.B1
     t4 = _ticks()
-    io[2] = lines_render(track, act, lw, k0, L, fs, F)
+    io[2] = lines_render_in(track, act, lw, lw.scratch, k0, L, fs, F)
     t5 = _ticks()
     broadband_resonant(view, act, lw, bg, track, k0, F, fresh)
     t6 = _ticks()

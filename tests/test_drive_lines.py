@@ -220,3 +220,32 @@ def test_lines_render_with_kept_working_arrays_is_the_same_as_without():
     want, n = block(lines_scratch(0, 0, 0), big, [20.0, 300.0, 5.0], [25.0, 280.0, 6.0], 3, M=4, L=1000)
     got, m = block(lines_scratch(4, 2, 100), big, [20.0, 300.0, 5.0], [25.0, 280.0, 6.0], 3, M=4, L=1000)
     assert n == m > 0 and np.array_equal(got, want)
+
+
+def test_a_block_longer_than_the_kept_working_arrays_grows_them_first():
+    """The kept working arrays hold blocks of up to twice the drives' cadence; a longer block
+    (an ``advance`` of 200 ms in one call) has larger ones made before the kernel renders it
+    (lines_drive's GROW_LINES: the kernels allocate nothing), and sounds bit for bit as with
+    arrays made large enough from the start."""
+    from mjsound.synth.drive_lines import lines_scratch
+
+    outs = []
+    for ahead in (False, True):
+        m = mujoco.MjModel.from_xml_string(arm_xml())
+        d = mujoco.MjData(m)
+        sim = AudioSimulator(m, d, microphones=[[0.5, 0.5, 0.8]], contact_mics=["s_link", "s_far"], progress=False,
+                             sample_rate=FS, quality="draft", actuators="qdd")
+        sound = sim.actuators
+        kept = sound.weights.scratch.buf.shape[0]
+        assert kept == 2 * sound.cadence < 3200
+        if ahead:
+            sound.weights = sound.weights._replace(scratch=lines_scratch(len(sound.tones), sound.weights.W1.shape[1],
+                                                                         4000, len(sound.ids)))
+        out = []
+        for _ in range(5):
+            d.ctrl[0] = 2.0
+            out.append(sim.advance(200))  # (one block of 3200 samples a call)
+        assert sound.weights.scratch.buf.shape[0] == (4000 if ahead else 3200)
+        outs.append(np.concatenate(out, axis=1))
+    assert np.abs(outs[0][1]).max() > 0.0
+    assert np.array_equal(outs[0], outs[1])

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..synth.constants import P_REF_PA
 from ..synth.dispatch import EntryPoint, PackedEntry
-from ..synth.drive_lines import (DONE, Actuators, BodyGains, DriveRead, LineWeights, drive_read, lines_scratch,
+from ..synth.drive_lines import (DONE, GROW_LINES, Actuators, BodyGains, DriveRead, LineWeights, drive_read, lines_scratch,
                                  lines_drive_packed, scene_view)
 from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
@@ -490,6 +490,11 @@ class ActuatorSound:
                 call(args, k0, L, self._fs, fresh, resume, self._regain, F)
             if io[0] == DONE:
                 break
-            resume = True
-            self._sim.pulses.track._grow(0, int(io[1]) - 1)  # (GROW_TRACK: the ring holds the block and the delays)
+            if io[0] == GROW_LINES:  # (a block longer than the working arrays hold: larger ones, nothing read yet)
+                self.weights = self.weights._replace(scratch=lines_scratch(len(self.tones), self.weights.W1.shape[1],
+                                                                           int(io[1]), len(self.ids)))
+                self._args_of = None
+            else:
+                resume = True
+                self._sim.pulses.track._grow(0, int(io[1]) - 1)  # (GROW_TRACK: the ring holds the block and the delays)
             args = self._lines_state(synth, d)

@@ -17,7 +17,7 @@ import numpy as np
 from ..jit import njit
 from .bank_loops import FAST, fma, fmuladd
 
-__all__ = ["SUB", "LANES_MIN", "LaneScratch", "lane_scratch", "lines_pass", "turn", "cpow"]
+__all__ = ["SUB", "LANES_MIN", "LaneScratch", "lane_scratch", "lanes_for", "lines_pass", "turn", "cpow"]
 
 
 #: Samples between the lines' exact restarts (a power of two: :func:`lines_pass`).
@@ -40,14 +40,20 @@ class LaneScratch(NamedTuple):
     lane: np.ndarray  # (n,) int64: each line's lane in the last restart (-1: none)
 
 
+@njit(cache=True, inline="always")
+def lanes_for(n):
+    """The lanes ``nv`` of ``n`` lines: ``n`` rounded up to a multiple of 8, at least :data:`LANES_MIN`."""
+    return max(LANES_MIN, (n + 7) // 8 * 8)
+
+
 def lane_scratch(n: int) -> LaneScratch:
-    """:class:`LaneScratch` for ``n`` lines (``nv``: ``n`` rounded up to the lanes' multiple)."""
+    """:class:`LaneScratch` for ``n`` lines (``nv``: :func:`lanes_for`)."""
     nv = max(LANES_MIN, (n + 7) // 8 * 8)
     return LaneScratch(np.zeros((6, n)), np.zeros((4, n)), np.zeros((6, nv), np.float32),
                        np.zeros((8, nv), np.float32), np.full(n, -1, np.int64))
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def _sub_pass(acc, first, c0, c1, k0, n_k, n, S, V):
     """``n_k`` samples of the gathered lines in float32 lanes (the first ``n`` columns, a
     multiple of 8: lanes past the lines are zero), two samples per pass over them, into
@@ -113,7 +119,7 @@ def _sub_pass(acc, first, c0, c1, k0, n_k, n, S, V):
         k += 2
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def _sub_pass1(acc, first, c0, k0, n_k, n, S, V):
     """:func:`_sub_pass` into one channel ``c0`` (``V``'s first 4 rows)."""
     mask = acc.shape[1] - 1
@@ -182,7 +188,7 @@ def _csq(r, i, times):
     return r, i
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lines_pass(acc, first, off0, off1, two, L, S, V, span, n, work):
     """The first ``n`` gathered lines over ``L`` samples into channels ``off0`` (and ``off1``
     when ``two``), each ``(channel, absolute sample of the block's first)``: rows of ``S``
@@ -191,8 +197,8 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span, n, work):
     step per sample (re, im each; channel 1's only read when ``two``); line ``q`` sounds on
     samples ``span[0, q] <= k < span[1, q]`` only (a line crossing the cut-off: in the
     restarts it covers partly, its samples there run one at a time, :func:`_span_part`; in
-    those it does not cover, it is left out). ``work``: :class:`LaneScratch` (arrays too
-    small for ``n`` lines are made for the call).
+    those it does not cover, it is left out). ``work``: :class:`LaneScratch` for at least ``n``
+    lines (nothing is allocated here: no reference counts, :mod:`.drive_gains`' docstring).
 
     The samples run in float32 lanes (:func:`_sub_pass`: the lines sounding through the
     restart, packed and padded to a multiple of 8 lanes, at least :data:`LANES_MIN`),
@@ -202,12 +208,8 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span, n, work):
     rounding does not accumulate past ``SUB`` samples (relative error ~1e-5)."""
     c0, k0 = off0
     c1, k1 = off1
-    nv = max(LANES_MIN, (n + 7) // 8 * 8)
+    nv = lanes_for(n)
     T, G, S32, V32, lane = work.T, work.G, work.S32, work.V32, work.lane
-    if T.shape[1] < n or S32.shape[1] < nv:
-        T, G = np.empty((6, n)), np.empty((4, n))  # (float64 at each restart: phasor, rate, the rates' product over SUB samples; their turns)
-        S32, V32 = np.zeros((6, nv), np.float32), np.zeros((8, nv), np.float32)
-        lane = np.empty(n, np.int64)
     lg = 0
     while (1 << lg) < SUB:
         lg += 1
@@ -287,7 +289,7 @@ def lines_pass(acc, first, off0, off1, two, L, S, V, span, n, work):
         _advance(T, G, n)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lanes_load(T, V, S32, V32, n, s):
     """Lanes ``0 .. n-1`` at the restart at sample ``s`` (line ``q`` in lane ``q``): the
     phasors and rates ``T`` (float64, rows 0-3) rounded to float32, the weights ``V[r] + s
@@ -305,7 +307,7 @@ def _lanes_load(T, V, S32, V32, n, s):
             dst[q] = v[q] + d[q] * s
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _advance(T, G, n):
     """The float64 recursion from one restart to the next (:func:`lines_pass`): the phasor
     ``z`` times ``P``, the rate times its turn ``G[0:2]``, ``P`` times its turn ``G[2:4]``
@@ -319,7 +321,7 @@ def _advance(T, G, n):
         pr[q], pi[q] = e * hr[q] - f * hi[q], e * hi[q] + f * hr[q]
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def _span_part(acc, first, offs, two, s, a, b, ph, v):
     """One line's samples ``a <= k < b`` (of the block) one at a time, into channel ``c0`` at
     ``k0 + k`` and (``two``) ``c1`` at ``k1 + k`` (``offs = (c0, k0, c1, k1)``): ``ph = (zr,

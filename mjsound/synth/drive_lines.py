@@ -56,7 +56,7 @@ import numpy as np
 from ..jit import njit
 from .bandlimited import ring_add
 from .bank_loops import FAST
-from .drive_lanes import LaneScratch, cpow, lane_scratch, lines_pass, turn
+from .drive_lanes import LaneScratch, cpow, lane_scratch, lanes_for, lines_pass, turn
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant, broadband_route
 from .drive_directions import DriveDirections, drive_directions
 from .drive_gains import bodies_gains
@@ -67,7 +67,8 @@ from .packing import unpack
 from .streams import SQRT3, noise_draw
 
 __all__ = ["Actuators", "LinesScratch", "lines_scratch", "LineWeights", "BodyGains", "SceneView", "scene_view", "DriveRead", "drive_read",
-           "line_weights", "lines_render", "lines_drive", "lines_drive_packed", "DONE", "GROW_TRACK"]
+           "line_weights", "lines_render", "lines_render_in", "scratch_fits", "lines_drive", "lines_drive_packed", "DONE",
+           "GROW_TRACK", "GROW_LINES"]
 
 
 class Actuators(NamedTuple):
@@ -119,6 +120,30 @@ def lines_scratch(C: int, M: int, L: int, J: int = 0) -> LinesScratch:
 
 #: No scratch: :func:`lines_render` makes its working arrays each block.
 NO_SCRATCH = lines_scratch(0, 0, 0)
+
+
+@njit(cache=True, inline="always")
+def scratch_fits(sc, C, M, L, J):
+    """Whether the working arrays ``sc`` (:class:`LinesScratch`) hold a block of ``L`` samples
+    of ``C`` lines, ``M`` microphones and ``J`` actuators (those :func:`lines_scratch` makes)."""
+    nv = lanes_for(C)
+    lanes = sc.lanes
+    return (sc.S.shape[1] >= C and sc.V.shape[0] >= 4 * M + 4 and sc.V.shape[1] >= C and sc.span.shape[1] >= C
+            and sc.line_of.shape[0] >= C and sc.ph_of.shape[0] >= C and sc.y.shape[0] >= M
+            and sc.y.shape[1] >= L + 1 and sc.buf.shape[0] >= L and sc.kj.shape[0] >= J and sc.ky.shape[0] >= J
+            and sc.ky.shape[1] >= L and sc.tq.shape[0] >= L and lanes.T.shape[1] >= C and lanes.G.shape[1] >= C
+            and lanes.S32.shape[1] >= nv and lanes.V32.shape[1] >= nv and lanes.lane.shape[0] >= C)
+
+
+@njit(cache=True)
+def _scratch_made(C, M, L, J):
+    """:func:`lines_scratch` in a kernel."""
+    nv = lanes_for(C)
+    lanes = LaneScratch(np.zeros((6, C)), np.zeros((4, C)), np.zeros((6, nv), np.float32),
+                        np.zeros((8, nv), np.float32), np.full(C, -1, np.int64))
+    return LinesScratch(np.zeros((6, C)), np.zeros((4 * M + 4, C)), np.zeros((2, C), np.int64), np.zeros(C, np.int64),
+                        np.zeros(C), np.zeros((M, L + 1)), np.zeros(L), np.zeros(J, np.int64), np.zeros((J, L)),
+                        np.zeros(L), lanes)
 #: ``LineWeights.held`` of no hold (the route follows each block's share alone).
 NO_HOLD = np.zeros(0, np.int64)
 
@@ -228,7 +253,7 @@ def drive_read(rd, act, qvel, force, fresh):
     return live
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def _ramp_fill(out, y0, dy):
     """``out[q] = y0 + dy q`` (by adding ``dy`` a sample, as :func:`_ramp_add`)."""
     y = y0
@@ -237,7 +262,7 @@ def _ramp_fill(out, y0, dy):
         y += dy
 
 
-@njit(cache=True, fastmath=FAST)
+@njit(cache=True, fastmath=FAST, _nrt=False)
 def _ramp_add(out, x, g0, dg):
     """``out[q] += (g0 + dg q) x[q]``, the gain ramped by adding ``dg`` a sample (vectorised:
     no integer-to-float conversion a sample)."""
@@ -249,6 +274,19 @@ def _ramp_add(out, x, g0, dg):
 
 @njit(cache=True)
 def lines_render(track, act, lw, n0, L, fs, F):
+    """:func:`lines_render_in` with ``lw.scratch`` where it holds the block
+    (:func:`scratch_fits`), else with working arrays made for the call. Returns the number of
+    lines rendered."""
+    C, M = lw.W1.shape
+    M = min(M, track.acc.shape[0])
+    J = act.a0.shape[0]
+    if scratch_fits(lw.scratch, C, M, L, J):
+        return lines_render_in(track, act, lw, lw.scratch, n0, L, fs, F)
+    return lines_render_in(track, act, lw, _scratch_made(C, M, L, J), n0, L, fs, F)
+
+
+@njit(cache=True, _nrt=False)  # (no reference counts: .drive_gains' docstring; it allocates nothing)
+def lines_render_in(track, act, lw, sc, n0, L, fs, F):
     """Add the block's lines and broadband part (module docstring) into the pulse track
     (:class:`.records.TrackState`: its ring ``acc``, channels x capacity a power of two,
     absolute sample ``k`` at ``k & (capacity - 1)``; its ``rec``'s pending span grows),
@@ -256,7 +294,8 @@ def lines_render(track, act, lw, n0, L, fs, F):
     ``rec.start``, handed out already, are not written), for ``0 <= q < L``; the components'
     phases and the noise's state advance over the block (as :func:`.drive_tones.drive_tones`),
     and the block's end weights become the next one's start. The lines' samples:
-    :func:`.drive_lanes.lines_pass`, two channels a pass.
+    :func:`.drive_lanes.lines_pass`, two channels a pass. The working arrays: ``sc``
+    (:class:`LinesScratch`, large enough for the block: :func:`scratch_fits`).
 
     Parameters
     ----------
@@ -288,14 +327,7 @@ def lines_render(track, act, lw, n0, L, fs, F):
         r.pending_from = lo if r.pending_until <= first else min(r.pending_from, lo)
         r.pending_until = max(r.pending_until, hi)
     # the lines gathered, each over its audible samples
-    sc = lw.scratch
-    S, V, span, line_of, ph_of = sc.S, sc.V, sc.span, sc.line_of, sc.ph_of
-    if S.shape[1] < C or V.shape[0] < 4 * M + 4:
-        S = np.empty((6, C))
-        V = np.zeros((4 * M + 4, C))
-        span = np.empty((2, C), np.int64)
-        line_of = np.empty(C, np.int64)  # (each line's component)
-        ph_of = np.empty(C)  # (... and its phase at the block's start)
+    S, V, span, line_of, ph_of = sc.S, sc.V, sc.span, sc.line_of, sc.ph_of  # (line_of: each line's component; ph_of: its phase at the block's start)
     nl = 0
     for j in range(J):
         silent = a0[j] == 0.0 and a1[j] == 0.0
@@ -362,15 +394,13 @@ def lines_render(track, act, lw, n0, L, fs, F):
             fc = abs(0.5 * (w0[j] + w1[j])) * (tones[c0].order if comp_off[j + 1] > c0 else 1.0) / two_pi
             R = min(R, max(1, int(fs / (16.0 * fc)) if fc > 0.0 else 64))
     nb = (L + R - 1) // R  # decimated points at samples R - 1, 2R - 1, ... (the last at L - 1)
-    y = sc.y if sc.y.shape[0] >= M and sc.y.shape[1] >= nb + 1 else np.empty((M, nb + 1))
+    y = sc.y
     for m in range(M):  # (column 0: the last block's end, from the noise state)
         for i in range(nb + 1):
             y[m, i] = 0.0
     # (each actuator's noise at the decimated points first, then summed per channel along a
     # row of y with the gains' ends held in registers: the sum's order over the actuators kept)
     kj, ky, tq = sc.kj, sc.ky, sc.tq
-    if kj.shape[0] < J or ky.shape[1] < nb or tq.shape[0] < nb:
-        kj, ky, tq = np.empty(J, np.int64), np.empty((J, nb)), np.empty(nb)
     for i in range(nb):
         tq[i] = (min(L - 1, (i + 1) * R - 1) + 1) / L
     nk = 0
@@ -410,7 +440,7 @@ def lines_render(track, act, lw, n0, L, fs, F):
     for j in range(J):
         some_exact = some_exact or (exact[j] and (a0[j] != 0.0 or a1[j] != 0.0))
     if any_bb or some_exact:
-        buf = sc.buf[:L] if sc.buf.shape[0] >= L else np.empty(L)
+        buf = sc.buf[:L]
         for m in range(M):
             if any_bb:  # (the decimated broadband, interpolated linearly)
                 for i in range(nb):
@@ -436,8 +466,10 @@ def lines_render(track, act, lw, n0, L, fs, F):
 
 
 #: :func:`lines_drive`'s outcome (``io[0]``): done, or the pulse track's ring must first grow
-#: to hold sample ``io[1] - 1`` (then call again with ``resume``: the block's read is kept).
-DONE, GROW_TRACK = 0, 1
+#: to hold sample ``io[1] - 1`` (then call again with ``resume``: the block's read is kept), or
+#: the lines' working arrays (``LineWeights.scratch``) must first be made for blocks of
+#: ``io[1]`` samples (:func:`lines_scratch`; nothing was read: call again as before).
+DONE, GROW_TRACK, GROW_LINES = 0, 1, 2
 
 
 @njit(cache=True)
@@ -457,8 +489,8 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
     Parameters
     ----------
     dv : (qvel, actuator_force, xanchor, xaxis), MuJoCo's ``data`` arrays
-    io : (5,) int64 (written): outcome (:data:`DONE`, :data:`GROW_TRACK`), the length to
-        grow to, lines rendered, modes kept, whether some joint moves (kept for ``resume``)
+    io : (5,) int64 (written): outcome (:data:`DONE`, :data:`GROW_TRACK`, :data:`GROW_LINES`),
+        the length to grow to, lines rendered, modes kept, whether some joint moves (kept for ``resume``)
     k0 : int, the block's first synth sample; L : int, its samples; fs : float [Hz]
     regain : int, samples between the driven bodies' gains (:func:`.drive_gains.bodies_gains`)
     """
@@ -467,6 +499,10 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
     io[0] = DONE
     io[2] = 0
     io[3] = 0
+    if not scratch_fits(lw.scratch, lw.W1.shape[0], min(lw.W1.shape[1], track.acc.shape[0]), L, act.a0.shape[0]):
+        io[0] = GROW_LINES
+        io[1] = L
+        return
     if not resume:
         io[4] = 1 if drive_read(rd, act, qvel, force, fresh) else 0
         if io[4] == 1:
@@ -517,7 +553,7 @@ def lines_drive(state, k0, L, fs, fresh, resume, regain, F):
     if fresh:
         lw.W0[:, :] = lw.W1
         lw.B0[:, :] = lw.B1
-    io[2] = lines_render(track, act, lw, k0, L, fs, F)
+    io[2] = lines_render_in(track, act, lw, lw.scratch, k0, L, fs, F)
     broadband_resonant(view, act, lw, bg, track, k0, F, fresh)
 
 
