@@ -11,8 +11,8 @@ import numpy as np
 
 from mjsound.synth.bandlimited import ring_add
 from mjsound.synth.drive_broadband import (RESONANT_OFF, RESONANT_ON, RESONANT_REST, ROUTE_HOLD_S, broadband_modes,
-                                          broadband_route, free_heard, modes_heard, modes_heard_pair, modes_run,
-                                          pole_powers)
+                                          broadband_route, complex_state, free_heard, heard_factors, modes_heard,
+                                          modes_heard_pair, modes_run, pole_powers, real_coefficients, real_state)
 from mjsound.synth.drive_lines import Actuators, BodyGains, LineWeights
 from mjsound.synth.drive_tones import DRIVE, NOISE, TONE
 
@@ -73,35 +73,60 @@ def reference(f, row, p, g, w, h, steady):
     return y, w
 
 
+def real_modes(p, g, w, h, K, Kp, zero_row, row):
+    """The arguments of modes_run and modes_heard for modes as resonant_run makes them: the
+    recursion's a1, a2, its unit c (1 where g = 0: their input the row of zeros), the state
+    (u, v) and each microphone's (A, B) (h: (microphones, Kp)), the fillers past K silent."""
+    a1, a2, c = np.zeros(Kp), np.zeros(Kp), p.imag * g
+    u, v, H = np.zeros(Kp), np.zeros(Kp), np.zeros((2 * len(h), Kp))
+    row = row.copy()
+    for k in range(Kp):
+        if k >= K or c[k] == 0.0:
+            c[k] = 1.0
+            row[k] = zero_row
+        if k < K:
+            a1[k], a2[k] = real_coefficients(p[k])
+            u[k], v[k] = real_state(p[k], c[k], w[k])
+            for m in range(len(h)):
+                H[2 * m, k], H[2 * m + 1, k] = heard_factors(p[k], c[k], h[m, k])
+    return a1, a2, c, u, v, H, row
+
+
 def test_the_modes_run_in_chunks_as_the_complex_recursion():
-    """Seven modes of three bodies (one group of four and one of three plus a silent filler),
-    over 300 samples in chunks of 128, 128, 44, two of them fading: each body's heard sum and
-    the end states match the complex recursion to 1e-12 of their scale."""
+    """Eight modes of three bodies (two groups of four and one of one plus three silent
+    fillers), over 300 samples in chunks of 128, 128, 44, as modes_run's real recursion of
+    Im w in units of its input gain: one mode at 20 Hz of 48 kHz (its Im p = 0.0026: the
+    real form divides by it and drifts by about an ulp of |p|^2 over Im p a sample: 3e-13),
+    one with no input gain (its input the row of zeros): each body's heard sum and the end
+    states match the complex recursion to 1e-12 of their scale."""
     rng = np.random.default_rng(1)
-    L, K, Kp = 300, 7, 8
-    f = rng.standard_normal((3, L))
-    row = np.array([0, 0, 0, 0, 0, 1, 2, 0])
+    L, K, Kp = 300, 9, 12
+    f = np.zeros((4, L))
+    f[:3] = rng.standard_normal((3, L))
+    row = np.array([0, 0, 0, 0, 0, 1, 1, 2, 0, 0, 0, 0])
     p = 0.9995 * np.exp(1j * rng.uniform(0.5, 3.0, Kp))
+    p[3] = np.exp(-30.0 / 48000) * np.exp(2j * np.pi * 20.0 / 48000)
     g = rng.standard_normal(Kp)
+    g[6] = 0.0
     w = rng.standard_normal(Kp) + 1j * rng.standard_normal(Kp)
-    p[K:] = g[K:] = w[K:] = 0.0  # (the filler)
-    h = rng.standard_normal(Kp) + 1j * rng.standard_normal(Kp)
-    steady = np.array([True, True, False, True, True, True, False, True])
-    y, w_end = reference(f, row, p, g, w, h, steady)
-    bodies = ((0, 5), (5, 6), (6, 7))
-    wr, wi = w.real.copy(), w.imag.copy()
+    p[K:] = g[K:] = w[K:] = 0.0  # (the fillers)
+    h = rng.standard_normal((1, Kp)) + 1j * rng.standard_normal((1, Kp))
+    y, w_end = reference(f, row, p, g, w, h[0], np.ones(Kp, bool))
+    a1, a2, c, u, v, H, rows = real_modes(p, g, w, h, K, Kp, 3, row)
+    bodies = ((0, 5), (5, 7), (7, 9))
     out = np.zeros((len(bodies), L))
-    X = np.empty((2 * Kp, 128))
+    S = np.empty((Kp, 129))
     for s in range(0, L, 128):
         n = min(128, L - s)
-        modes_run(X, f, s, n, row, p.real.copy(), p.imag.copy(), g, wr, wi)
+        modes_run(S, f, s, n, rows, a1, a2, u, v)
         for i, (k0, k1) in enumerate(bodies):
-            modes_heard(out[i, s:s + n], X, n, k0, k1, h.real.copy(), h.imag.copy(), steady, s, L)
+            modes_heard(out, i, s, S, n, k0, k1, np.vstack([H] * len(bodies)))
     for i, (k0, k1) in enumerate(bodies):
         want = y[k0:k1].sum(axis=0)
         assert np.abs(out[i] - want).max() < 1e-12 * np.abs(want).max()
-    assert np.abs((wr + 1j * wi)[:K] - w_end[:K]).max() < 1e-12 * np.abs(w_end).max()
-    assert wr[K] == wi[K] == 0.0  # (the filler stays silent)
+    got = np.array([complex_state(p[k], c[k], u[k], v[k]) for k in range(K)])
+    assert np.abs(got - w_end[:K]).max() < 1e-12 * np.abs(w_end).max()
+    assert not u[K:].any() and not v[K:].any()  # (the fillers stay silent)
 
 
 def test_ring_add_wraps_and_leaves_out_samples_before_the_first():
@@ -120,39 +145,36 @@ def test_ring_add_wraps_and_leaves_out_samples_before_the_first():
 
 
 def test_two_microphones_at_once_as_one_at_a_time():
-    """modes_heard_pair (two microphones per pass over the modes' states) adds what
-    modes_heard adds for each microphone alone (to 1e-15 of its scale: the same products
-    and sums, which the compiler may round in another order), into buffers at different
-    delays, steady and fading modes mixed, nothing outside them; and each microphone's sum
-    matches the complex recursion (reference) to 1e-12 of its scale."""
+    """modes_heard_pair (two microphones per pass over the modes' states, two modes a pass)
+    adds what modes_heard adds for each microphone alone (to 1e-15 of its scale: the same
+    products and sums, which the compiler may round in another order), into buffers at
+    different delays, bodies of four and of three modes, nothing outside them; and each
+    microphone's sum matches the complex recursion (reference) to 1e-12 of its scale."""
     rng = np.random.default_rng(4)
-    L, K, Kp = 300, 6, 8
-    f = rng.standard_normal((2, L))
+    L, K, Kp = 300, 7, 8
+    f = np.zeros((3, L))
+    f[:2] = rng.standard_normal((2, L))
     row = np.array([0, 0, 1, 1, 0, 1, 0, 0])
     p = 0.9995 * np.exp(1j * rng.uniform(0.5, 3.0, Kp))
     g = rng.standard_normal(Kp)
     w = rng.standard_normal(Kp) + 1j * rng.standard_normal(Kp)
-    p[K:] = g[K:] = w[K:] = 0.0  # (the fillers of the second group of four)
+    p[K:] = g[K:] = w[K:] = 0.0  # (the filler of the second group of four)
     h = rng.standard_normal((2, Kp)) + 1j * rng.standard_normal((2, Kp))
-    steady = np.array([True, False, True, True, False, True, True, True])
-    H = np.empty((4, Kp))  # (rows 2 m, 2 m + 1: microphone m's real and imaginary output factors)
-    H[0::2], H[1::2] = h.real, h.imag
+    a1, a2, c, u, v, H, rows = real_modes(p, g, w, h, K, Kp, 2, row)
     delays = (3, 17)
     pair = np.zeros((2, L + 20))
     alone = np.zeros((2, L + 20))
-    wr, wi = w.real.copy(), w.imag.copy()
-    X = np.empty((2 * Kp, 128))
+    S = np.empty((Kp, 129))
     for s in range(0, L, 128):
         n = min(128, L - s)
-        modes_run(X, f, s, n, row, p.real.copy(), p.imag.copy(), g, wr, wi)
+        modes_run(S, f, s, n, rows, a1, a2, u, v)
         for k0, k1 in ((0, 4), (4, K)):  # (two bodies)
-            modes_heard_pair(pair[0, delays[0] + s:], pair[1, delays[1] + s:], X, n, k0, k1, H, 0, steady, s, L)
+            modes_heard_pair(pair, 0, delays[0] + s, delays[1] + s, S, n, k0, k1, H)
             for m in (0, 1):
-                e = delays[m] + s
-                modes_heard(alone[m, e:e + n], X, n, k0, k1, H[2 * m], H[2 * m + 1], steady, s, L)
+                modes_heard(alone, m, delays[m] + s, S, n, k0, k1, H)
     assert np.abs(pair - alone).max() <= 1e-15 * np.abs(alone).max()  # (the same sums, up to their rounding's order)
     for m in (0, 1):
-        y, _ = reference(f, row, p, g, w, h[m], steady)
+        y, _ = reference(f, row, p, g, w, h[m], np.ones(Kp, bool))
         want = y[:K].sum(axis=0)
         got = pair[m, delays[m]:delays[m] + L]
         assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
@@ -163,8 +185,8 @@ def test_a_free_mode_rings_out_from_its_pole_s_powers_as_the_recursion():
     """A mode no longer forced (its ring-out faded over the block) heard from the pole's
     powers (pole_powers: doubling, p^t within 5e-14 of numpy's p**t over 128 samples) over a block
     of 300 samples in chunks of 128 (free_heard) matches the complex recursion without force
-    faded as modes_heard fades it (reference, not steady) to 1e-12 of its scale, at a delay,
-    nothing written outside the block."""
+    faded linearly over the block (reference, not steady) to 1e-12 of its scale, at a delay,
+    nothing written outside the block or into another microphone's row."""
     rng = np.random.default_rng(5)
     L = 300
     pw = np.empty((2, 128))
@@ -176,8 +198,10 @@ def test_a_free_mode_rings_out_from_its_pole_s_powers_as_the_recursion():
         w = complex(rng.standard_normal(), rng.standard_normal())
         h = complex(rng.standard_normal(), rng.standard_normal())
         fade = (L - np.arange(L)) / L
-        out = np.zeros(L + 10)
-        free_heard(out[4:], pw, pc, h * w, fade)
+        out = np.zeros((2, L + 10))
+        free_heard(out, 1, 4, pw, pc, h * w, fade)
+        assert not out[0].any()
+        out = out[1]
         y, _ = reference(np.zeros((1, L)), np.zeros(1, np.int64), np.array([p]), np.zeros(1), np.array([w]),
                          np.array([h]), np.array([False]))
         assert np.abs(out[4:4 + L] - y[0]).max() < 1e-12 * np.abs(y[0]).max()
@@ -238,3 +262,17 @@ def test_a_line_crossing_a_resonance_leaves_no_gap_in_the_links_noise():
     frames = x[int(0.2 * fs):int(0.9 * fs)].reshape(-1, int(0.002 * fs))
     db = 10 * np.log10(np.mean(frames ** 2, axis=1) + 1e-30)
     assert db.min() > np.median(db) - 20.0, (np.argmin(db) * 2 + 200, np.median(db) - db.min())
+
+
+def test_the_real_recursion_s_coefficients_are_the_pole_s_rounded_once():
+    """real_coefficients: a1 = 2 Re p exactly, a2 the float nearest -|p|^2 (Fractions: the
+    floats' exact values; half an ulp at most, where numpy's -|p|^2 is up to an ulp off)."""
+    from fractions import Fraction
+    rng = np.random.default_rng(7)
+    for p in np.exp(-rng.uniform(1e-5, 1e-2, 200)) * np.exp(1j * rng.uniform(1e-3, 3.1, 200)):
+        a1, a2 = real_coefficients(p)
+        want = -(Fraction(p.real) ** 2 + Fraction(p.imag) ** 2)
+        assert a1 == 2 * p.real
+        err = abs(Fraction(a2) - want)
+        assert err <= abs(Fraction(np.spacing(a2))) / 2
+        assert err <= abs(Fraction(np.nextafter(a2, 0.0)) - want) and err <= abs(Fraction(np.nextafter(a2, -2.0)) - want)

@@ -17,8 +17,11 @@ delay, into the pulse track); a mode whose force stops rings on over one more bl
 out linearly (the exact rendering's modes ring out freely: the lines leave out that ring-out
 for the tones too), heard from its pole's powers ``w p^t`` rather than run sample by sample.
 
-Cost: the forced modes' recursion (four modes at a time, :func:`modes_run`) is most of a
-block's time; a block with no mode running returns after a pass over the flags.
+Cost: the forced modes' recursion (:func:`modes_run`) and their hearing
+(:func:`modes_heard_pair`) are most of a block's time. The recursion runs in its real
+second-order form (two fused multiply-adds a sample, one on its path, instead of the complex
+form's five multiplies), four modes at a time; a block with no mode running returns after a
+pass over the flags.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import numpy as np
 
 from ..jit import njit, njit_inner
 from .bandlimited import ring_add
-from .bank_loops import FAST
+from .bank_loops import FAST, fma, fmuladd
 from .drive_tones import noise_cutoff_hz
 from .records import AIR
 from .streams import SQRT3, noise_draw
@@ -167,84 +170,148 @@ def broadband_force(act, lw, fs, F):
         noise[j].lp = y
 
 
-@njit(cache=True, fastmath=FAST)
-def modes_run(X, f, s, n, row, pr, pi, gin, wr, wi):
-    """``K`` modes (``K = pr.shape[0]``, a multiple of 4) over samples ``s <= q < s + n`` of
-    ``f`` (rows, L): mode ``k`` driven by row ``row[k]`` of ``f`` with input gain ``gin[k]``,
-    per sample ``b = w + g f[q]`` (the input on the real part) and ``w <- p b``; its heard
-    state ``(Im b, Re b)`` (``Im b = Im w``) into ``X[2 k, q - s], X[2 k + 1, q - s]``, its
-    state ``wr + j wi`` updated. Four modes at a time, their states held in registers, so
-    that their recursions overlap (a mode with ``p = g = 0`` and its state 0 fills a group:
-    it writes zeros)."""
-    K = pr.shape[0]
+@njit(cache=True, inline="always")
+def _two_product(a, b):
+    """``a b = p + e`` exactly: ``p`` the rounded product, ``e`` its rounding error."""
+    p = a * b
+    return p, fma(a, b, -p)
+
+
+@njit(cache=True)
+def real_coefficients(p):
+    """:func:`modes_run`'s coefficients of a mode with pole ``p``: ``a1 = 2 Re p`` (exact)
+    and ``a2 = -|p|^2`` rounded once (from its exact sum of two floats: :func:`_two_product`
+    and a two-sum). The roots of ``z^2 - a1 z - a2`` move from ``p`` by about ``ulp(a2) / (2
+    Im p)`` when ``a2`` is rounded: a drift of the mode's phase by that much a sample over
+    its ring (3e-13 of its scale over 300 samples at 20 Hz of 48 kHz, ``Im p = 0.0026``, the
+    lowest the synthesizer keeps: ``tests/test_drive_broadband.py``; about 2e-9 after a
+    second; carrying ``a2``'s rounding error as a third term would take a third multiply-add
+    a sample for 3e-14)."""
+    h1, l1 = _two_product(p.real, p.real)
+    h2, l2 = _two_product(p.imag, p.imag)
+    s = h1 + h2
+    t = s - h1
+    return 2.0 * p.real, -(s + ((h1 - (s - t)) + (h2 - t) + l1 + l2))
+
+
+@njit(cache=True, _nrt=False)
+def modes_run(S, f, s, n, row, a1, a2, u, v):
+    """``K`` modes (``K = a1.shape[0]``, a multiple of 4) over samples ``s <= q < s + n`` of
+    ``f`` (rows, L), each as a real second-order recursion: a mode ``w <- p (w + g f)``
+    driven by row ``row[k]`` of ``f`` has ``sigma_q = Im w_q``
+
+        sigma_{q+1} = 2 Re p sigma_q - |p|^2 sigma_{q-1} + Im p g f_q
+
+    (``p^2 - 2 Re p p + |p|^2 = 0``; the input is real: ``Im p g f_q`` is its part in
+    ``Im w_{q+1}``); run here in units of its input gain, ``x_q = sigma_q / (Im p g)``:
+    ``x_{q+1} = a1 x_q + a2 x_{q-1} + f_q``, ``a1 = 2 Re p``, ``a2 = -|p|^2``
+    (:func:`real_coefficients`). Writes ``x_{s+t}`` into ``S[k, t]``, ``0 <= t <= n`` (the
+    last, ``x_{s+n}``, is also the next chunk's first: :func:`modes_heard_pair` hears sample
+    ``t`` from ``S[k, t]`` and ``S[k, t + 1]``); ``u, v`` hold ``(x_{s-1}, x_s)`` and are
+    advanced to ``(x_{s+n-1}, x_{s+n})``.
+
+    Four modes at a time, in registers, each new value ``fma(a1, x_q, fma(a2, x_{q-1},
+    f_q))``: two fused multiply-adds a sample (the complex recursion takes five multiplies),
+    one on the recursion's path (the complex form has two). A mode with ``a1 = a2 = 0``, its
+    state 0 and a row of zeros fills a group: it writes zeros."""
+    K = a1.shape[0]
     for r in range(0, K, 4):
-        a0r, a0i, p0r, p0i, g0 = wr[r], wi[r], pr[r], pi[r], gin[r]
-        a1r, a1i, p1r, p1i, g1 = wr[r + 1], wi[r + 1], pr[r + 1], pi[r + 1], gin[r + 1]
-        a2r, a2i, p2r, p2i, g2 = wr[r + 2], wi[r + 2], pr[r + 2], pi[r + 2], gin[r + 2]
-        a3r, a3i, p3r, p3i, g3 = wr[r + 3], wi[r + 3], pr[r + 3], pi[r + 3], gin[r + 3]
+        c0, d0, u0, v0 = a1[r], a2[r], u[r], v[r]
+        c1, d1, u1, v1 = a1[r + 1], a2[r + 1], u[r + 1], v[r + 1]
+        c2, d2, u2, v2 = a1[r + 2], a2[r + 2], u[r + 2], v[r + 2]
+        c3, d3, u3, v3 = a1[r + 3], a2[r + 3], u[r + 3], v[r + 3]
         f0, f1, f2, f3 = f[row[r], s:], f[row[r + 1], s:], f[row[r + 2], s:], f[row[r + 3], s:]
-        x0i, x0r, x1i, x1r = X[2 * r], X[2 * r + 1], X[2 * r + 2], X[2 * r + 3]
-        x2i, x2r, x3i, x3r = X[2 * r + 4], X[2 * r + 5], X[2 * r + 6], X[2 * r + 7]
+        x0, x1, x2, x3 = S[r], S[r + 1], S[r + 2], S[r + 3]
         for q in range(n):
-            b0r = a0r + g0 * f0[q]
-            b1r = a1r + g1 * f1[q]
-            b2r = a2r + g2 * f2[q]
-            b3r = a3r + g3 * f3[q]
-            x0i[q] = a0i
-            x0r[q] = b0r
-            x1i[q] = a1i
-            x1r[q] = b1r
-            x2i[q] = a2i
-            x2r[q] = b2r
-            x3i[q] = a3i
-            x3r[q] = b3r
-            a0r, a0i = b0r * p0r - a0i * p0i, a0i * p0r + b0r * p0i
-            a1r, a1i = b1r * p1r - a1i * p1i, a1i * p1r + b1r * p1i
-            a2r, a2i = b2r * p2r - a2i * p2i, a2i * p2r + b2r * p2i
-            a3r, a3i = b3r * p3r - a3i * p3i, a3i * p3r + b3r * p3i
-        wr[r], wi[r], wr[r + 1], wi[r + 1] = a0r, a0i, a1r, a1i
-        wr[r + 2], wi[r + 2], wr[r + 3], wi[r + 3] = a2r, a2i, a3r, a3i
+            x0[q] = v0
+            x1[q] = v1
+            x2[q] = v2
+            x3[q] = v3
+            t0 = fma(c0, v0, fma(d0, u0, f0[q]))
+            t1 = fma(c1, v1, fma(d1, u1, f1[q]))
+            t2 = fma(c2, v2, fma(d2, u2, f2[q]))
+            t3 = fma(c3, v3, fma(d3, u3, f3[q]))
+            u0, v0 = v0, t0
+            u1, v1 = v1, t1
+            u2, v2 = v2, t2
+            u3, v3 = v3, t3
+        x0[n] = v0
+        x1[n] = v1
+        x2[n] = v2
+        x3[n] = v3
+        u[r], v[r], u[r + 1], v[r + 1] = u0, v0, u1, v1
+        u[r + 2], v[r + 2], u[r + 3], v[r + 3] = u2, v2, u3, v3
 
 
-@njit(cache=True, fastmath=FAST)
-def modes_heard(out, X, n, k0, k1, hr, hi, steady, s, L):
-    """Add ``sum_k Im(h_k b_k)`` over the modes ``k0 <= k < k1`` of :func:`modes_run`'s ``X``
-    (``Im(h b) = hr Im b + hi Re b``) into ``out[:n]``, sample ``t`` being the block's
-    ``s + t`` of ``L``: a mode not ``steady`` is faded out linearly over the block
-    (``(L - s - t) / L``: 1 to 0)."""
-    inv = 1.0 / L
+@njit(cache=True, fastmath=FAST, _nrt=False)
+def modes_heard(out, m, e, S, n, k0, k1, h):
+    """Add ``sum_k Im(h_k b_k)`` over the modes ``k0 <= k < k1`` of :func:`modes_run`'s ``S``
+    into ``out[m, e:e + n]`` (``b_q = w_q + g f_q``, the state with the sample's input, as
+    the exact rendering's voices hear it; ``h`` (2 M, K): rows ``2 m, 2 m + 1`` microphone
+    ``m``'s ``A, B``): ``b_{q+1} = p b_q + g f_{q+1}`` has ``Im b_{q+1} = Im p Re b_q +
+    Re p Im b_q``, so ``Re b_q = (sigma_{q+1} - Re p sigma_q) / Im p`` and, in the units of
+    :func:`modes_run` (``x = sigma / c``, ``c = Im p g``),
+
+        Im(h b_q) = A x_q + B x_{q+1},   B = c Im h / Im p,   A = c Re h - B Re p."""
+    a, A, B = out[m, e:e + n], h[2 * m], h[2 * m + 1]
     for k in range(k0, k1):
-        c, d = hr[k], hi[k]
-        xi, xr = X[2 * k], X[2 * k + 1]
-        if steady[k]:
-            for t in range(n):
-                out[t] += c * xi[t] + d * xr[t]
-        else:
-            for t in range(n):
-                out[t] += (c * xi[t] + d * xr[t]) * ((L - s - t) * inv)
+        c, d = A[k], B[k]
+        x, y = S[k, :n], S[k, 1:n + 1]
+        for t in range(n):
+            a[t] = fmuladd(d, y[t], fmuladd(c, x[t], a[t]))
 
 
-@njit(cache=True, fastmath=FAST)
-def modes_heard_pair(o0, o1, X, n, k0, k1, h, m, steady, s, L):
-    """:func:`modes_heard` for microphones ``m`` and ``m + 1`` at once (into ``o0[:n]``,
-    ``o1[:n]``; ``h`` (2 M, K): rows ``2 m, 2 m + 1`` the real and imaginary output factors
-    of microphone ``m``): each mode's states are read once for both microphones."""
-    inv = 1.0 / L
+@njit(cache=True, fastmath=FAST, _nrt=False)
+def modes_heard_pair(out, m, e0, e1, S, n, k0, k1, h):
+    """:func:`modes_heard` for microphones ``m`` and ``m + 1`` at once (into ``out[m, e0:e0 +
+    n]``, ``out[m + 1, e1:e1 + n]``): each mode's states are read once for both
+    microphones, two modes a pass over the buffers (each product a multiply-add of its
+    own, :func:`.bank_loops.fmuladd`). Compiled without reference counts (``_nrt=False``:
+    it allocates nothing; the views it makes would each add to and drop from the counts)."""
     c0, d0, c1, d1 = h[2 * m], h[2 * m + 1], h[2 * m + 2], h[2 * m + 3]
-    a = o0[:n]
-    b = o1[:n]
-    for k in range(k0, k1):
-        xi, xr = X[2 * k, :n], X[2 * k + 1, :n]
-        e0, f0, e1, f1 = c0[k], d0[k], c1[k], d1[k]
-        if steady[k]:
-            for t in range(n):
-                a[t] += e0 * xi[t] + f0 * xr[t]
-                b[t] += e1 * xi[t] + f1 * xr[t]
-        else:
-            for t in range(n):
-                fade = (L - s - t) * inv
-                a[t] += (e0 * xi[t] + f0 * xr[t]) * fade
-                b[t] += (e1 * xi[t] + f1 * xr[t]) * fade
+    a = out[m, e0:e0 + n]
+    b = out[m + 1, e1:e1 + n]
+    k = k0
+    while k + 1 < k1:
+        x, y, xx, yy = S[k, :n], S[k, 1:n + 1], S[k + 1, :n], S[k + 1, 1:n + 1]
+        e0_, f0, e1_, f1 = c0[k], d0[k], c1[k], d1[k]
+        g0, h0, g1, h1 = c0[k + 1], d0[k + 1], c1[k + 1], d1[k + 1]
+        for t in range(n):
+            a[t] = fmuladd(h0, yy[t], fmuladd(g0, xx[t], fmuladd(f0, y[t], fmuladd(e0_, x[t], a[t]))))
+            b[t] = fmuladd(h1, yy[t], fmuladd(g1, xx[t], fmuladd(f1, y[t], fmuladd(e1_, x[t], b[t]))))
+        k += 2
+    if k < k1:
+        x, y = S[k, :n], S[k, 1:n + 1]
+        e0_, f0, e1_, f1 = c0[k], d0[k], c1[k], d1[k]
+        for t in range(n):
+            a[t] = fmuladd(f0, y[t], fmuladd(e0_, x[t], a[t]))
+            b[t] = fmuladd(f1, y[t], fmuladd(e1_, x[t], b[t]))
+
+
+@njit(cache=True, inline="always")
+def real_state(p, c, w):
+    """:func:`modes_run`'s state ``(x_{-1}, x_0)`` of a mode (pole ``p``, unit ``c = Im p g``)
+    whose complex state is ``w``: ``x_0 = Im w / c`` and ``x_{-1} = Im b_{-1} / c``, ``b_{-1}
+    = w / p`` (``w = p b_{-1}``)."""
+    x = w / c
+    return (x / p).imag, x.imag
+
+
+@njit(cache=True, inline="always")
+def complex_state(p, c, u, v):
+    """The complex state ``w_L = p b_{L-1}`` of a mode from :func:`modes_run`'s last two
+    values ``(u, v) = (x_{L-1}, x_L)``: ``Im b_{L-1} = c u``, ``Re b_{L-1} = c (v - Re p u) /
+    Im p`` (:func:`modes_heard`)."""
+    return p * complex((v - p.real * u) / p.imag, u) * c
+
+
+@njit(cache=True, inline="always")
+def heard_factors(p, c, h):
+    """:func:`modes_heard`'s factors ``(A, B)`` of a mode (pole ``p``, unit ``c``) heard as
+    ``Im(h b)``: ``B = c Im h / Im p``, ``A = c Re h - B Re p``."""
+    hc = h * c
+    B = hc.imag / p.imag
+    return hc.real - B * p.real, B
 
 
 @njit(cache=True, inline="always")
@@ -266,16 +333,24 @@ def broadband_resonant(view, act, lw, bg, track, n0, F, fresh):
     pushed in the last block: ``bg.level`` 1) runs one more block without force, faded out
     linearly over it, and stops. Returns the largest delay written [samples].
 
-    Every body's modes run together, four at a time (:func:`modes_run`: a lone mode's
-    recursion is bound by its latency, four overlap), over chunks of :data:`CHUNK` samples;
-    each body's are heard from the chunk, two microphones at a time at its own delays, into
-    one buffer per microphone (:func:`modes_heard_pair`, :func:`modes_heard`), which goes
-    into the ring once (:func:`ring_add`).
+    Every body's modes run together, four at a time, each as the real recursion of ``Im w``
+    (:func:`modes_run`: a lone mode's recursion is bound by its latency, four overlap; the
+    complex state is made from the real one's last two values at the block's end, ``w_L =
+    p b_{L-1}``, and the real one from ``w`` at its start, ``Im w_0`` and ``Im(w_0 / p)``),
+    over chunks of :data:`CHUNK` samples; each body's are heard from the chunk, two
+    microphones at a time at its own delays, into one buffer per microphone
+    (:func:`modes_heard_pair`, :func:`modes_heard`), which goes into the ring once
+    (:func:`ring_add`). The real form's rounding differs from the complex recursion's by a
+    few ulps of the state per sample (``tests/test_drive_broadband.py``: within 1e-12 of it;
+    on Ant-v5 and FetchPickAndPlace-v4 the audio within 1e-15 of the complex recursion's);
+    it divides by ``Im p``, which the synthesizer's modes never make 0 (it keeps the
+    underdamped modes below ``0.45 fs``).
 
     A block with no mode running costs a pass over the flags (``bg.keep``, ``bg.level``):
     the rest (:func:`resonant_run`) unpacks the records, whose arrays' reference counts
     cost more than that pass, and allocates five arrays (the modes' parameters and indices,
-    the bodies' forces, the chunk's states, the microphones' buffers)."""
+    the bodies' forces, the chunk's states, the microphones' buffers) and, with modes
+    ringing out, two more (their pole's powers, the fade)."""
     sidx, keep, z, level = act.sidx, bg.keep, bg.z, bg.level
     nb, nmax = keep.shape
     K = 0
@@ -314,13 +389,14 @@ def pole_powers(pw, p):
 
 
 @njit(cache=True, fastmath=FAST)
-def free_heard(o, pw, pc, u, fade):
+def free_heard(out, m, e, pw, pc, u, fade):
     """Add a free mode's ring-out heard at one microphone, ``Im(u p^q) fade[q]`` for
     ``0 <= q < L`` (``L = fade.shape[0]``; ``u = h w``, ``w`` its state at the block's start),
-    into ``o[:L]``: over chunks of ``T = pw.shape[1]`` samples, ``p^t`` (``t < T``) from
+    into ``out[m, e:e + L]``: over chunks of ``T = pw.shape[1]`` samples, ``p^t`` (``t < T``) from
     :func:`pole_powers` and ``u`` carried from chunk to chunk by ``pc = p^T``."""
     L, T = fade.shape[0], pw.shape[1]
     re, im = pw[0], pw[1]
+    o = out[m, e:e + L]
     for s in range(0, L, T):
         n = min(T, L - s)
         a, fd = o[s:s + n], fade[s:s + n]
@@ -342,16 +418,18 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
     state carried from chunk to chunk by ``p^{CHUNK}``."""
     acc, rec = track.acc, track.rec
     sidx, sign, ptr, rows, exact = act.sidx, act.sign, act.ptr, act.rows, lw.exact
-    keep, z, level, D, Fd = bg.keep, bg.z, bg.level, bg.D, bg.Fd
-    nb, M, nmax = bg.gr.shape
+    keep, z, level, D, Fd, gin, gout = bg.keep, bg.z, bg.level, bg.D, bg.Fd, bg.gin, bg.gout
+    a0, a1j = act.a0, act.a1
+    table, poles, mode_off, order, channels = view.table, view.poles, view.mode_off, view.order, view.channels
+    nb, M, nmax = bg.gr.shape  # (the records' arrays taken once: each taking adds to and drops from a count)
     M = min(M, acc.shape[0])
     J, L = F.shape
     first = rec[0].start
-    I = np.zeros(4 * K + 3 * nb + 1 + 2 * M, np.int64)
-    idx, body, row, steady = I[:K], I[K:2 * K], I[2 * K:3 * K], I[3 * K:4 * K]
-    forced, heard = I[4 * K:4 * K + nb], I[4 * K + nb:4 * K + 2 * nb]
-    kb = I[4 * K + 2 * nb:4 * K + 3 * nb + 1]  # (body b's forced modes: kb[b]:kb[b + 1])
-    lo_d, hi_d = I[4 * K + 3 * nb + 1:4 * K + 3 * nb + 1 + M], I[4 * K + 3 * nb + 1 + M:]
+    I = np.zeros(3 * K + 3 + 3 * nb + 1 + 2 * M, np.int64)
+    idx, body, row = I[:K], I[K:2 * K], I[2 * K:3 * K + 3]  # (row: the forced modes' and their group's fillers')
+    forced, heard = I[3 * K + 3:3 * K + 3 + nb], I[3 * K + 3 + nb:3 * K + 3 + 2 * nb]
+    kb = I[3 * K + 3 + 2 * nb:3 * K + 3 + 3 * nb + 1]  # (body b's forced modes: kb[b]:kb[b + 1])
+    lo_d, hi_d = I[3 * K + 3 + 3 * nb + 1:3 * K + 3 + 3 * nb + 1 + M], I[3 * K + 3 + 3 * nb + 1 + M:]
     Ks = 0  # (the forced modes, every body's in one run)
     nf = 0  # (the bodies with forced modes: their forces, rows of f)
     for b in range(nb):
@@ -360,7 +438,7 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
         if sign[b] != 0.0:
             for i in range(ptr[b], ptr[b + 1]):
                 j = rows[i] // 2
-                if exact[j] and not (act.a0[j] == 0.0 and act.a1[j] == 0.0):
+                if exact[j] and not (a0[j] == 0.0 and a1j[j] == 0.0):
                     forced[b] = 1
         c = 0
         for k in range(nmax):
@@ -371,9 +449,10 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
         Ks += c
         nf += 1 if c > 0 else 0
     Kp = (Ks + 3) // 4 * 4  # (groups of four: the rest filled with silent modes)
-    P = np.zeros((5 + 2 * M, Kp))  # (rows: pole re, im, input gain, state re, im; per microphone h re, im)
-    pr, pi, gin, wr, wi, h = P[0], P[1], P[2], P[3], P[4], P[5:]
-    f = np.zeros((nf, L))
+    P = np.zeros((7 + 2 * M, Kp))  # (rows: pole re, im, the recursion's a1, a2, its unit c, state u, v; per microphone A, B)
+    pr, pi, a1, a2, ein, u, v, h = P[0], P[1], P[2], P[3], P[4], P[5], P[6], P[7:]
+    nf_all = nf
+    f = np.zeros((nf + 1, L))  # (the last row: zeros, the input of a mode with no input gain)
     Ks = 0
     nf = 0
     for b in range(nb):
@@ -389,37 +468,41 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
         fb = f[nf]
         for i in range(ptr[b], ptr[b + 1]):
             j = rows[i] // 2
-            if not exact[j] or (act.a0[j] == 0.0 and act.a1[j] == 0.0):
+            if not exact[j] or (a0[j] == 0.0 and a1j[j] == 0.0):
                 continue
             coef = sign[b] * (1.0 if rows[i] % 2 == 0 else -1.0)
             Fj = F[j]
             for q in range(L):
                 fb[q] += coef * Fj[q]
-        o = view.table[s].obj
-        m0 = view.mode_off[o]
-        directional = view.order[o] >= 0
+        o = table[s].obj
+        m0 = mode_off[o]
+        directional = order[o] >= 0
         for k in range(nmax):
             if not keep[b, k]:
                 continue
-            p = view.poles[m0 + k]
+            p = poles[m0 + k]
             idx[Ks] = k
             body[Ks] = b
             row[Ks] = nf
             pr[Ks] = p.real
             pi[Ks] = p.imag
-            steady[Ks] = 1
-            gin[Ks] = bg.gin[b, k]
-            wr[Ks] = z[b, k].real
-            wi[Ks] = z[b, k].imag
+            a1[Ks], a2[Ks] = real_coefficients(p)
+            unit = p.imag * gin[b, k]  # (modes_run's c: x = sigma / c, the input's gain 1)
+            if unit == 0.0:
+                unit = 1.0
+                row[Ks] = nf_all  # (no input: the row of zeros)
+            ein[Ks] = unit
+            u[Ks], v[Ks] = real_state(p, unit, z[b, k])
             for m in range(M):
-                hm = bg.gout[b, m, k]
-                if directional and view.channels[m].owner == AIR:
+                hm = gout[b, m, k]
+                if directional and channels[m].owner == AIR:
                     hm *= Fd[b, m, k]
-                h[2 * m, Ks] = hm.real
-                h[2 * m + 1, Ks] = hm.imag
+                h[2 * m, Ks], h[2 * m + 1, Ks] = heard_factors(p, unit, hm)
             Ks += 1
         nf += 1
     kb[nb] = Ks
+    for r in range(Ks, Kp):
+        row[r] = nf_all  # (the fillers: no input)
     # each microphone's samples from its nearest body's delay on, every body at its own
     for m in range(M):
         lo_d[m] = 1 << 62
@@ -434,21 +517,21 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
     out = np.zeros((M, L + spread))
     CH = min(L, CHUNK)
     if Ks > 0:
-        X = np.empty((2 * Kp, CH))
+        S = np.empty((Kp, CH + 1))  # (x_{s+t}, 0 <= t <= n: modes_run)
         for s in range(0, L, CHUNK):  # (a chunk's states stay in the first-level cache)
             n = min(CHUNK, L - s)
-            modes_run(X, f, s, n, row, pr, pi, gin, wr, wi)
+            modes_run(S, f, s, n, row, a1, a2, u, v)
             for b in range(nb):
                 if kb[b + 1] > kb[b]:
                     for m in range(0, M - 1, 2):
                         e0 = D[b, m] - lo_d[m] + s
                         e1 = D[b, m + 1] - lo_d[m + 1] + s
-                        modes_heard_pair(out[m, e0:], out[m + 1, e1:], X, n, kb[b], kb[b + 1], h, m, steady, s, L)
+                        modes_heard_pair(out, m, e0, e1, S, n, kb[b], kb[b + 1], h)
                     if M % 2 == 1:
                         m = M - 1
                         e = D[b, m] - lo_d[m] + s
-                        modes_heard(out[m, e:e + n], X, n, kb[b], kb[b + 1], h[2 * m], h[2 * m + 1], steady, s, L)
-    if Ks < K:  # (the free modes: ringing out, faded as modes_heard fades them)
+                        modes_heard(out, m, e, S, n, kb[b], kb[b + 1], h)
+    if Ks < K:  # (the free modes: ringing out, faded linearly over the block)
         pw = np.empty((2, CHUNK))
         fade = np.empty(L)
         inv = 1.0 / L
@@ -457,24 +540,24 @@ def resonant_run(view, act, lw, bg, track, n0, F, K):
         for b in range(nb):
             if heard[b] == 0:
                 continue
-            o = view.table[sidx[b]].obj
-            m0 = view.mode_off[o]
-            directional = view.order[o] >= 0
+            o = table[sidx[b]].obj
+            m0 = mode_off[o]
+            directional = order[o] >= 0
             for k in range(nmax):
                 if not (keep[b, k] or level[b, k] > 0.0) or (forced[b] == 1 and keep[b, k]):
                     continue
-                pc = pole_powers(pw, view.poles[m0 + k])
+                pc = pole_powers(pw, poles[m0 + k])
                 for m in range(M):
-                    hm = bg.gout[b, m, k]
-                    if directional and view.channels[m].owner == AIR:
+                    hm = gout[b, m, k]
+                    if directional and channels[m].owner == AIR:
                         hm *= Fd[b, m, k]
-                    free_heard(out[m, D[b, m] - lo_d[m]:], pw, pc, hm * z[b, k], fade)
+                    free_heard(out, m, D[b, m] - lo_d[m], pw, pc, hm * z[b, k], fade)
                 level[b, k] = 0.0  # (faded out: it stops)
                 z[b, k] = 0.0
     for r in range(Ks):
         b, k = body[r], idx[r]
         level[b, k] = 1.0
-        z[b, k] = complex(wr[r], wi[r])
+        z[b, k] = complex_state(complex(pr[r], pi[r]), ein[r], u[r], v[r])
     rr = rec[0]
     dmax = 0
     for m in range(M):
