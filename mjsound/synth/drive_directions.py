@@ -19,6 +19,11 @@ cheaper here:
   (16 sums, fused multiply-adds): the harmonics read once per four modes and half the
   memory of float64 (in Ant-v5 82 kB a block instead of 130 kB, the padding included).
 
+**Reference counts**: :func:`direction_factors` and its helpers are compiled without numba's
+reference counting (``_nrt=False``: they allocate nothing; :mod:`.drive_gains`' docstring):
+a call otherwise adds one to and drops one from the count of each array of the scene's
+view it is handed, once per driven body and block.
+
 **Error.** Each factor is a float32 sum of ``(L + 1)^2`` terms: its error is of the order of
 ``1e-7`` of the mode's RMS factor (``tests/test_drive_directions.py`` bounds it against the
 float64 fit at ``1e-5``, at order 16), three orders of magnitude under the fits' own error
@@ -97,7 +102,7 @@ def drive_directions(dr, mode_off) -> DriveDirections:
                            np.zeros(4 * CHUNK, np.float32))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def sh_pair(L, x0, y0, z0, x1, y1, z1, tab, Y0, Y1):
     """The real orthonormal harmonics up to degree ``L`` at the unit vectors ``(x0, y0, z0)``
     and ``(x1, y1, z1)`` into ``Y0`` and ``Y1`` (float32; ``Y[l^2 + l + m]``):
@@ -164,7 +169,7 @@ def sh_pair(L, x0, y0, z0, x1, y1, z1, tab, Y0, Y1):
             Y1[i - m] = pb * rsb
 
 
-@njit_inner(cache=True, fastmath=FAST)
+@njit_inner(cache=True, fastmath=FAST, _nrt=False)
 def _chunk_factors(Y0, Y1, C, K, F):
     """One block's four modes' factors at two directions, ``F[4 q + 2 d + (0, 1)]`` the real
     and imaginary parts of mode ``q`` at direction ``d``: ``sum_i Y_d[i] C[q, i]``, ``C[4 + q, i]``
@@ -217,7 +222,7 @@ def _floored(fr, fi, floor):
     return complex(fr, fi)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def direction_factors(xr, xi, n, o, view, U, Fd, heard):
     """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
     each mode's direction factor towards air microphone ``m`` now, as

@@ -12,7 +12,10 @@ summed over the modes of the (up to two) bodies an actuator pushes, each with it
 delay beyond the microphone's own as the phase ``e^{-j theta dD}``; the broadband part is
 heard through the static response ``Im H(0)``, and where its resonant part matters the modes
 that hold it are kept to run (:mod:`.drive_broadband`). The full derivation, and what the
-lines leave out, is in :mod:`.drive_lines`.
+lines leave out, is in :mod:`.drive_lines`. The per-body helpers (:func:`_transfer_sums`,
+:func:`_phase_steps`, the direction factors) allocate nothing and are compiled without
+reference counting (``_nrt=False``, :mod:`.drive_gains`' docstring); :func:`line_weights`
+allocates one scratch array a block.
 """
 
 from __future__ import annotations
@@ -191,7 +194,7 @@ def line_weights(view, act, lw, bg, fs):
     return dmax
 
 
-@njit_inner(cache=True)
+@njit_inner(cache=True, _nrt=False)
 def _phase_steps(tones, comp_off, w, fs, limit, th, cth, sth):
     """Each component's phase step per sample ``t = order w / fs`` into ``th`` (0 where
     ``|t| >= limit``: above the cut-off) and ``cos t``, ``sin t`` into ``cth, sth``; a
@@ -218,7 +221,7 @@ def _phase_steps(tones, comp_off, w, fs, limit, th, cth, sth):
                 sth[c] = math.sin(t)
 
 
-@njit_inner(cache=True, fastmath=FAST, error_model="numpy")
+@njit_inner(cache=True, fastmath=FAST, error_model="numpy", _nrt=False)
 def _transfer_sums(pr, pi, n, cth, sth, th, c0, c1, xr, xi, ab, hs):
     """One body's ``2 W`` at each microphone for components ``c0 .. c1`` (phase steps ``th``,
     their cosines and sines ``cth, sth``; 0: none) into ``hs[0] + j hs[1]`` (c - c0, m), from
