@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .bank_loops import fma
 from .drive_tones import aim_at_drive
 from .records import AIR
 from .streams import nearest_sorted
@@ -63,22 +64,25 @@ _EVEN = np.array([1.0 / math.factorial(2 * i) for i in range(FACTOR_TERMS)])
 _ODD = np.array([1.0 / math.factorial(2 * i + 1) for i in range(FACTOR_TERMS)])
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always")
 def _even_odd(u, sgn):
     """``(cos u, sin u)`` (``sgn = -1``) or ``(cosh u, sinh u)`` (``sgn = 1``) for ``|u| <= 1``,
     by their series ``sum_i (sgn t)^i / (2 i)!`` and ``u sum_i (sgn t)^i / (2 i + 1)!``,
-    ``t = u^2``, to :data:`FACTOR_TERMS` terms in Horner's form (a fused multiply-add a term:
-    a loop over many ``u`` vectorises)."""
+    ``t = u^2``, to :data:`FACTOR_TERMS` terms in Horner's form, a fused multiply-add a term
+    (:func:`.bank_loops.fma`, explicit: a kernel inlined into another is compiled with the
+    caller's flags, so ``fastmath={"contract"}`` here was lost in :func:`bodies_gains`, which
+    multiplied and added apart: twice the operations and the latency); a loop over many ``u``
+    vectorises."""
     t = sgn * u * u
     ev = _EVEN[FACTOR_TERMS - 1]
     od = _ODD[FACTOR_TERMS - 1]
     for i in range(FACTOR_TERMS - 2, -1, -1):
-        ev = _EVEN[i] + t * ev
-        od = _ODD[i] + t * od
+        ev = fma(t, ev, _EVEN[i])
+        od = fma(t, od, _ODD[i])
     return ev, u * od
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always")
 def exp_in_place(z):
     """``z = e^z`` for each of ``z`` ((n,) complex128, written in place): where every ``|Re z|,
     |Im z| <= ``:data:`FACTOR_RANGE`, by scaling and squaring,
