@@ -1,6 +1,6 @@
 """The motor housing's direct airborne part (mjsound.synth.drive_housing): a monopole at the
 joint's anchor whose pressure is the drive's force times ``housing / r``, delayed ``r / c``;
-air microphones only."""
+air and image microphones (times the reflection), not contact ones."""
 
 import math
 from dataclasses import replace
@@ -120,11 +120,14 @@ def test_housing_coefficients_and_bad_input():
 
 
 def test_housing_weights_match_the_plain_formula():
-    """The kernel against the plain float64 formula, ``W_cm += K A_c e^{-j t_c (r fs / c - D_m)}
-    / r``, ``t_c = o_c w / fs``, ``B_jm += K / r``, on a made-up state: gear-mesh harmonics (2x,
-    3x of earlier orders, made as powers of their base's phasor), an order of no base, one
-    above 0.45 fs (left out), a silent housing, a contact, an image and a too-near microphone,
-    delays longer than a sample beyond the microphone's: within 1e-13 of each term."""
+    """The kernel against the plain float64 formula, ``W_cm += K A_c R_m(f_c) e^{-j t_c (r fs /
+    c - D_m)} / r``, ``t_c = o_c w / fs``, ``f_c = |t_c| fs / 2 pi``, ``B_jm += K R_m(f_n /
+    sqrt 2) / r`` (``R_m`` an image microphone's reflection, log-linear between its points,
+    constant outside; 1 at a plain one; ``f_n`` the noise's corner), on a made-up state:
+    gear-mesh harmonics (2x, 3x of earlier orders, made as powers of their base's phasor), an
+    order of no base, one above 0.45 fs (left out), a silent housing, an image, a contact and a
+    too-near microphone, delays longer than a sample beyond the microphone's: within 1e-13 of
+    each term."""
     from collections import namedtuple
 
     from mjsound.synth.drive_housing import housing_weights
@@ -156,21 +159,86 @@ def test_housing_weights_match_the_plain_formula():
                     z(J, np.bool_), z(J), w1, z(J), z(J), housing)
     M = len(mics)
     Dm = np.array([1, 3, 7, 0])
+    band_f, band_g = np.array([125.0, 500.0, 2000.0]), np.array([0.9, 0.6, 0.3])
+    response = np.zeros((M, 2, 3))
+    response[:, 0] = np.inf  # (rows 0, 1, 3: no points)
+    response[2] = band_f, band_g
     lw = LineWeights(z((len(tones), M), complex), z((len(tones), M), complex) + 0.5j, z((J, M)), z((J, M)) + 0.25,
-                     Dm, z(J, np.bool_), z((J, 2)))
+                     Dm, z(J, np.bool_), z((J, 2)), response=response)
     housing_weights(KS(consts, mics, channels), act, lw, anchor, fs)
     W, B = 0.5j + np.zeros((len(tones), M), complex), 0.25 + np.zeros((J, M))
+
+    def R(m, f):  # (the image's reflection; 1 elsewhere)
+        return float(np.interp(np.log(f), np.log(band_f), band_g)) if m == 2 else 1.0
+
     for j in range(J):
-        for m in range(2):  # (the air microphones; not the image or contact one)
+        for m in range(3):  # (the air microphones and the image; not the contact one)
             if housing[j] == 0.0:
                 continue
             r = max(np.linalg.norm(mics[m] - anchor[j]), rmin)
-            B[j, m] += housing[j] / r
+            fn = min(abs(w1[j]) * tones["order"][comp_off[j]] / (2 * np.pi), 0.45 * fs)
+            B[j, m] += housing[j] / r * R(m, fn / np.sqrt(2))
             for q in range(comp_off[j], comp_off[j + 1]):
                 t = tones["order"][q] * w1[j] / fs
                 if abs(t) < 2 * np.pi * 0.45:
-                    W[q, m] += housing[j] / r * tones["amp"][q] * np.exp(-1j * t * (r * fs / c - Dm[m]))
+                    W[q, m] += housing[j] / r * R(m, abs(t) * fs / (2 * np.pi)) * tones["amp"][q] * np.exp(
+                        -1j * t * (r * fs / c - Dm[m]))
     assert np.abs(lw.W1 - W).max() < 1e-13 * np.abs(W - 0.5j).max()
-    assert np.array_equal(lw.W1[:, 2:], W[:, 2:]) and np.array_equal(lw.B1[:, 2:], B[:, 2:])
+    assert np.array_equal(lw.W1[:, 3:], W[:, 3:]) and np.array_equal(lw.B1[:, 3:], B[:, 3:])
     assert np.abs(lw.B1 - B).max() < 1e-15
-    assert np.count_nonzero(lw.W1[:, :2] - 0.5j) == 2 * (len(tones) - 1 - 2)  # (one above 0.45 fs, a silent pair)
+    assert np.count_nonzero(lw.W1[:, :3] - 0.5j) == 3 * (len(tones) - 1 - 2)  # (one above 0.45 fs, a silent pair)
+    # (the image's factors span the table's inside and both ends)
+    fq = np.abs(tones["order"] * np.repeat(w1, np.diff(comp_off))) / (2 * np.pi)
+    assert fq.min() < band_f[0] and fq[fq < 0.45 * fs].max() > band_f[-1]
+
+
+def test_reflection_at_reads_the_channel_response():
+    """``reflection_at`` against the synthesizer's own ``response_at`` (log-linear, constant
+    outside), padding ``inf`` ignored, and 1 without points."""
+    from mjsound.synth.drive_housing import reflection_at
+    from mjsound.synth.synthesizer import Synthesizer
+
+    f, g = np.array([125.0, 250.0, 1000.0, 4000.0]), np.array([0.99, 0.8, 0.5, 0.45])
+    resp = np.full((2, 6), np.inf)
+    resp[:, :4] = f, g
+    for x in (10.0, 125.0, 180.0, 250.0, 700.0, 3999.0, 4000.0, 9000.0):
+        assert abs(reflection_at(resp, x) - float(Synthesizer.response_at(f, g, x))) < 1e-14, x
+    assert reflection_at(np.full((2, 3), np.inf), 300.0) == 1.0
+
+
+def test_the_floor_reflects_the_housing():
+    """Above a floor, the housing's tone at the microphone's output (on minus off: the links'
+    part cancels) is the direct monopole plus its image, ``K a A (e^{-jk r1} / r1 + R(f)
+    e^{-jk r2} / r2)``, ``r2`` the distance to the microphone's mirror image and ``R`` the
+    floor's reflection at the tone's frequency: within 1 % in magnitude."""
+    xml = arm_xml().replace("<worldbody>", '<worldbody><geom name="floor" type="plane" size="5 5 .1"/>')
+
+    def run(preset):
+        m = mujoco.MjModel.from_xml_string(xml)
+        d = mujoco.MjData(m)
+        sim = AudioSimulator(m, d, microphones=MICS[:1], progress=False, sample_rate=FS, quality="draft",
+                             actuators={"m": preset})
+        out, qv, fa = [], [], []
+        for _ in range(STEPS):
+            d.ctrl[0] = 2.0
+            mujoco.mj_step(m, d)
+            out.append(sim.step())
+            qv.append(d.qvel[0])
+            fa.append(d.actuator_force[0])
+        return sim, np.concatenate(out, axis=1).astype(np.float64)[0], float(np.mean(qv[-500:])), float(
+            np.mean(fa[-500:]))
+
+    sim, on, qd, force = run(ONE_TONE)
+    _, off, _, _ = run(replace(ONE_TONE, housing=0.0))
+    assert sim.synth.n_channels == 2  # (the microphone and its floor image)
+    f = 10.0 * 100.0 * qd / (2 * math.pi)
+    a = abs(force) / 0.01
+    Rf = float(sim.synth.response_at(*sim.synth.channel_response(1), f))
+    assert 0.0 < Rf < 1.0
+    r1, r2 = 0.5, 1.1 + 0.6  # (the microphone 1.1 m above the floor, the anchor 0.6 m)
+    k = 2 * math.pi * f / SPEED_OF_SOUND
+    expect = K * a * 0.05 * abs(1.0 / r1 + Rf * np.exp(-1j * k * (r2 - r1)) / r2)
+    got = abs(projection(on - off, f))
+    assert abs(got / expect - 1.0) < 0.01, (got, expect)
+    # (without the image the level would be K a A / r1: the two differ by more than the bound)
+    assert abs(K * a * 0.05 / r1 / expect - 1.0) > 0.05

@@ -47,7 +47,7 @@ from ..synth.drive_tones import DRIVE, NOISE, TONE, drive_tones, streams_write
 
 __all__ = ["ActuatorPreset", "PRESETS", "HOUSING_POINTS", "housing_coefficient", "housing_level_dba",
            "a_weighting_db", "ACTUATOR_TEXT_PREFIX", "GATE_RAD_S", "DRIVE_BLOCK_S", "RENDERINGS",
-           "ActuatorSound", "actuator_config"]
+           "ActuatorSound", "actuator_config", "channel_responses"]
 
 #: MJCF custom text prefix naming an actuator's preset.
 ACTUATOR_TEXT_PREFIX = "mjsound-actuator:"
@@ -237,6 +237,21 @@ def actuator_config(model, actuators=None) -> dict:
     return out
 
 
+def channel_responses(synth, M: int) -> np.ndarray:
+    """``(M, 2, k)``: each of the synthesizer's first ``M`` channels' response
+    (:meth:`mjsound.synth.synthesizer.Synthesizer.channel_response`: an image microphone's
+    reflection), frequencies [Hz] padded with ``inf`` and gains; a channel without one has no
+    points (all ``inf``): what :func:`mjsound.synth.drive_housing.reflection_at` reads."""
+    rs = [synth.channel_response(m) for m in range(M)]
+    k = max([len(r[0]) for r in rs if r is not None], default=0)
+    out = np.zeros((M, 2, k))
+    out[:, 0, :] = np.inf
+    for m, r in enumerate(rs):
+        if r is not None:
+            out[m, 0, :len(r[0])], out[m, 1, :len(r[1])] = r
+    return out
+
+
 class ActuatorSound:
     """The sounding actuators of a simulator and their state (phases, noise, last speeds).
 
@@ -417,7 +432,7 @@ class ActuatorSound:
         #: arrays (blocks of up to twice the cadence allocate none)
         self.weights = LineWeights(z((C, M), np.complex128), z((C, M), np.complex128), z((J, M)), z((J, M)),
                                    z(M, np.int64), z(J, np.bool_), z((J, 2)), lines_scratch(C, M, 2 * self.cadence, J),
-                                   z(J, np.int64))
+                                   z(J, np.int64), channel_responses(self._sim.synth, M))
         self._last = None  # (the next block starts from its own state)
 
     def _body_gains(self, state) -> BodyGains:
@@ -458,6 +473,12 @@ class ActuatorSound:
             return self._args
         if self.weights.W1.shape[1] != synth.n_channels:  # (microphones added or removed)
             self._weights_for(synth.n_channels)
+        else:  # (the images' reflections may have been set since: the same array where it fits)
+            resp = channel_responses(synth, synth.n_channels)
+            if resp.shape == self.weights.response.shape:
+                self.weights.response[...] = resp
+            else:
+                self.weights = self.weights._replace(response=resp)
         self._streams(synth)
         ks, dr = synth.kernel_state(), synth._bank.direction  # (after the streams: they may replace the table)
         if self._dv_of is not d:

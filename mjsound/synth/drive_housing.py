@@ -21,8 +21,12 @@ each actuator's static broadband gain ``B_jm += K_j / r`` (the noise heard at th
 microphone's delay ``D_m``, not its own: the low-passed noise is shifted by the difference,
 under a millisecond where the housing is within 30 cm of the nearest driven body's centre).
 
-Only air microphones hear it: not contact microphones (their channels are bit for bit those
-without it) and not image microphones (the room's reflections of the housing are left out).
+Air microphones hear it, and image microphones too (the floor's and a room's reflections,
+:mod:`mjsound.sim.images`: the image's position in ``r``, its surfaces' reflection factor
+``R(f)`` (its channel response, log-linear between the bands, ``lw.response``) on each tone
+at the tone's frequency and on the broadband gain at ``f_n / sqrt(2)``, ``f_n`` the noise's
+corner, the top octave below which its power lies); not contact microphones (their
+channels are bit for bit those without it).
 The weights are added after :func:`.drive_weights.line_weights` has decided which broadband
 parts ring the modes, so that decision, too, is the one without the housing. The modal
 rendering (``ActuatorSound.rendering == "modal"``) has no housing part.
@@ -33,15 +37,40 @@ from __future__ import annotations
 import math
 
 from ..jit import njit
+from .drive_tones import noise_cutoff_hz
 from .records import AIR
 
-__all__ = ["housing_weights"]
+__all__ = ["housing_weights", "reflection_at"]
+
+
+@njit(cache=True, _nrt=False)
+def reflection_at(resp, f):
+    """An image microphone's reflection factor at ``f`` [Hz] from its response ``resp`` (2, k):
+    frequencies [Hz] (increasing; padded with ``inf``) and gains, linear in log frequency
+    between them and constant outside, as the synthesizer's channel response
+    (:meth:`mjsound.synth.synthesizer.Synthesizer.response_at`); 1 without points."""
+    k = resp.shape[1]
+    n = 0
+    while n < k and resp[0, n] < math.inf:
+        n += 1
+    if n == 0:
+        return 1.0
+    if not f > resp[0, 0]:
+        return resp[1, 0]
+    i = 1
+    while i < n and resp[0, i] < f:
+        i += 1
+    if i >= n:
+        return resp[1, n - 1]
+    a = math.log(f / resp[0, i - 1]) / math.log(resp[0, i] / resp[0, i - 1])
+    return resp[1, i - 1] + a * (resp[1, i] - resp[1, i - 1])
 
 
 @njit(cache=True, _nrt=False)  # (no reference counts: .drive_gains' docstring)
 def housing_weights(ks, act, lw, anchor, fs):
     """Add each actuator's housing part (module docstring) to the lines' weights ``lw.W1``
-    (C, M) and static broadband gains ``lw.B1`` (J, M) at the air microphones, at the rotor
+    (C, M) and static broadband gains ``lw.B1`` (J, M) at the air and image microphones (an
+    image's reflection from ``lw.response``, :func:`reflection_at`), at the rotor
     speeds ``act.w1`` and with the microphones' delays ``lw.Dm`` (both as
     :func:`.drive_weights.line_weights` left them). An actuator with ``act.housing[j] == 0``
     changes nothing.
@@ -59,7 +88,7 @@ def housing_weights(ks, act, lw, anchor, fs):
     1 m from the anchor whose delay is the housing's: ``W += 0.01 * 0.05 / 1``, real.
     """
     housing, comp_off, tones, w, drives = act.housing, act.comp_off, act.tones, act.w1, act.drives
-    W, B, Dm = lw.W1, lw.B1, lw.Dm
+    W, B, Dm, resp = lw.W1, lw.B1, lw.Dm, lw.response
     cst = ks.consts[0]
     c, rmin = cst.c, cst.rmin
     mics, channels = ks.mics, ks.channels
@@ -71,8 +100,9 @@ def housing_weights(ks, act, lw, anchor, fs):
             continue
         jt = drives[j].joint
         for m in range(M):
-            if channels[m].owner != AIR or channels[m].w_off >= 0:  # (contact and image microphones)
+            if channels[m].owner != AIR:  # (contact microphones)
                 continue
+            image = channels[m].w_off >= 0 and m < resp.shape[0]  # (an image microphone: its reflection)
             dx = mics[m, 0] - anchor[jt, 0]
             dy = mics[m, 1] - anchor[jt, 1]
             dz = mics[m, 2] - anchor[jt, 2]
@@ -83,7 +113,11 @@ def housing_weights(ks, act, lw, anchor, fs):
                 continue
             g = K / r
             dd = r * fs / c - Dm[m]  # (samples of delay beyond the microphone's)
-            B[j, m] += g
+            if image:
+                fn = noise_cutoff_hz(tones, comp_off, j, w[j], fs)
+                B[j, m] += g * reflection_at(resp[m], fn / math.sqrt(2.0))
+            else:
+                B[j, m] += g
             o1 = o2 = math.nan  # (the last two components' orders and phasors: a harmonic's base; NaN: none)
             c1 = s1 = c2 = s2 = 0.0
             for q in range(comp_off[j], comp_off[j + 1]):
@@ -106,4 +140,5 @@ def housing_weights(ks, act, lw, anchor, fs):
                     cr, ci = math.cos(x), math.sin(x)
                 o2, c2, s2 = o1, c1, s1
                 o1, c1, s1 = order, cr, ci
-                W[q, m] += g * tones[q].amp * complex(cr, ci)
+                gq = g * reflection_at(resp[m], abs(t) * fs / (2.0 * math.pi)) if image else g
+                W[q, m] += gq * tones[q].amp * complex(cr, ci)

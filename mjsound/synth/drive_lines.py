@@ -146,6 +146,8 @@ def _scratch_made(C, M, L, J):
                         np.zeros(L), lanes)
 #: ``LineWeights.held`` of no hold (the route follows each block's share alone).
 NO_HOLD = np.zeros(0, np.int64)
+#: ``LineWeights.response`` of no image microphone (:mod:`.drive_housing`).
+NO_RESPONSE = np.zeros((0, 2, 0))
 
 
 class LineWeights(NamedTuple):
@@ -161,6 +163,7 @@ class LineWeights(NamedTuple):
     power: np.ndarray  # (J, 2) float64: its resonant power and everything heard, per unit force scale
     scratch: LinesScratch = NO_SCRATCH  # (lines_render's working arrays: lines_scratch)
     held: np.ndarray = NO_HOLD  # (J,) int64: samples the resonant share has been low while on (.drive_broadband.broadband_route; length 0: no hold)
+    response: np.ndarray = NO_RESPONSE  # (M, 2, k) float64: each image microphone's reflection, frequencies [Hz] and gains (.drive_housing)
 
 
 class BodyGains(NamedTuple):

@@ -318,6 +318,12 @@ class Synthesizer(ImpactMethods, ForcingSources, StreamMethods):
             self._responses[m] = (f.copy(), g.copy())
         self._dirty = True
 
+    def channel_response(self, channel: int):
+        """``(frequencies [Hz], gains)`` of air channel ``channel``'s response
+        (:meth:`set_channel_response`; copies), or None for a plain microphone."""
+        r = self._responses.get(int(channel))
+        return None if r is None else (r[0].copy(), r[1].copy())
+
     @staticmethod
     def response_at(frequencies, gains, f) -> np.ndarray:
         """The gain of a channel response (:meth:`set_channel_response`) at frequencies ``f``
