@@ -162,7 +162,7 @@ def test_housing_weights_match_the_plain_formula():
     band_f, band_g = np.array([125.0, 500.0, 2000.0]), np.array([0.9, 0.6, 0.3])
     response = np.zeros((M, 2, 3))
     response[:, 0] = np.inf  # (rows 0, 1, 3: no points)
-    response[2] = band_f, band_g
+    response[2] = np.log(band_f), band_g
     lw = LineWeights(z((len(tones), M), complex), z((len(tones), M), complex) + 0.5j, z((J, M)), z((J, M)) + 0.25,
                      Dm, z(J, np.bool_), z((J, 2)), response=response)
     housing_weights(KS(consts, mics, channels), act, lw, anchor, fs)
@@ -193,14 +193,15 @@ def test_housing_weights_match_the_plain_formula():
 
 
 def test_reflection_at_reads_the_channel_response():
-    """``reflection_at`` against the synthesizer's own ``response_at`` (log-linear, constant
-    outside), padding ``inf`` ignored, and 1 without points."""
+    """``reflection_at`` (its table in log frequencies) against the synthesizer's own
+    ``response_at`` (log-linear, constant outside), padding ``inf`` ignored, and 1 without
+    points."""
     from mjsound.synth.drive_housing import reflection_at
     from mjsound.synth.synthesizer import Synthesizer
 
     f, g = np.array([125.0, 250.0, 1000.0, 4000.0]), np.array([0.99, 0.8, 0.5, 0.45])
     resp = np.full((2, 6), np.inf)
-    resp[:, :4] = f, g
+    resp[:, :4] = np.log(f), g
     for x in (10.0, 125.0, 180.0, 250.0, 700.0, 3999.0, 4000.0, 9000.0):
         assert abs(reflection_at(resp, x) - float(Synthesizer.response_at(f, g, x))) < 1e-14, x
     assert reflection_at(np.full((2, 3), np.inf), 300.0) == 1.0

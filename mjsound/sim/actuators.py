@@ -240,15 +240,16 @@ def actuator_config(model, actuators=None) -> dict:
 def channel_responses(synth, M: int) -> np.ndarray:
     """``(M, 2, k)``: each of the synthesizer's first ``M`` channels' response
     (:meth:`mjsound.synth.synthesizer.Synthesizer.channel_response`: an image microphone's
-    reflection), frequencies [Hz] padded with ``inf`` and gains; a channel without one has no
-    points (all ``inf``): what :func:`mjsound.synth.drive_housing.reflection_at` reads."""
+    reflection), the logarithms of its frequencies [Hz] padded with ``inf`` and its gains; a
+    channel without one has no points (all ``inf``): what
+    :func:`mjsound.synth.drive_housing.reflection_at` reads."""
     rs = [synth.channel_response(m) for m in range(M)]
     k = max([len(r[0]) for r in rs if r is not None], default=0)
     out = np.zeros((M, 2, k))
     out[:, 0, :] = np.inf
     for m, r in enumerate(rs):
         if r is not None:
-            out[m, 0, :len(r[0])], out[m, 1, :len(r[1])] = r
+            out[m, 0, :len(r[0])], out[m, 1, :len(r[1])] = np.log(r[0]), r[1]
     return out
 
 

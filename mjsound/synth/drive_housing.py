@@ -46,23 +46,25 @@ __all__ = ["housing_weights", "reflection_at"]
 @njit(cache=True, _nrt=False)
 def reflection_at(resp, f):
     """An image microphone's reflection factor at ``f`` [Hz] from its response ``resp`` (2, k):
-    frequencies [Hz] (increasing; padded with ``inf``) and gains, linear in log frequency
-    between them and constant outside, as the synthesizer's channel response
-    (:meth:`mjsound.synth.synthesizer.Synthesizer.response_at`); 1 without points."""
+    the natural logarithms of its frequencies [Hz] (increasing; padded with ``inf``) and its
+    gains, linear in log frequency between them and constant outside, as the synthesizer's
+    channel response (:meth:`mjsound.synth.synthesizer.Synthesizer.response_at`); 1 without
+    points. (The table in logarithms: one logarithm a call.)"""
     k = resp.shape[1]
     n = 0
     while n < k and resp[0, n] < math.inf:
         n += 1
     if n == 0:
         return 1.0
-    if not f > resp[0, 0]:
+    lf = math.log(f) if f > 0.0 else -math.inf
+    if not lf > resp[0, 0]:
         return resp[1, 0]
     i = 1
-    while i < n and resp[0, i] < f:
+    while i < n and resp[0, i] < lf:
         i += 1
     if i >= n:
         return resp[1, n - 1]
-    a = math.log(f / resp[0, i - 1]) / math.log(resp[0, i] / resp[0, i - 1])
+    a = (lf - resp[0, i - 1]) / (resp[0, i] - resp[0, i - 1])
     return resp[1, i - 1] + a * (resp[1, i] - resp[1, i - 1])
 
 

@@ -163,7 +163,7 @@ class LineWeights(NamedTuple):
     power: np.ndarray  # (J, 2) float64: its resonant power and everything heard, per unit force scale
     scratch: LinesScratch = NO_SCRATCH  # (lines_render's working arrays: lines_scratch)
     held: np.ndarray = NO_HOLD  # (J,) int64: samples the resonant share has been low while on (.drive_broadband.broadband_route; length 0: no hold)
-    response: np.ndarray = NO_RESPONSE  # (M, 2, k) float64: each image microphone's reflection, frequencies [Hz] and gains (.drive_housing)
+    response: np.ndarray = NO_RESPONSE  # (M, 2, k) float64: each image microphone's reflection, log frequencies [ln Hz] and gains (.drive_housing)
 
 
 class BodyGains(NamedTuple):
