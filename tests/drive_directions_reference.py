@@ -2,12 +2,10 @@
 (:func:`mjsound.synth.drive_directions.direction_factors`): the reference the tests compare
 them with (the fits' sums at each microphone's direction, :mod:`mjsound.synth.directivity`)."""
 
-import numpy as np
 from numba import njit
 
 from mjsound.synth.directivity import _factor, real_sh
-from mjsound.synth.drive_directions import _floored
-from mjsound.synth.records import AIR
+from mjsound.synth.drive_directions import _floored, apply_factors, turned_directions
 
 
 @njit(cache=True, fastmath=True)
@@ -40,33 +38,14 @@ def direction_factors_f64(xr, xi, n, o, m0, view, U, Fd, heard):
     microphones whose direction turned are made two at a time, each mode's coefficients read
     once for both (:func:`_factor_pair`), each microphone's harmonics in its own row of the
     synthesizer's scratch."""
-    mics, pos, R, channels = view.mics, view.pos, view.R, view.channels
     msh_off, cfr, cfi, Y, tab = view.msh_off, view.coef_r, view.coef_i, view.sh, view.sh_tab
-    prm = view.params[0]
-    floor = prm.floor
-    cos_step = prm.cos_step
+    floor = view.params[0].floor
     L = view.order[o]
-    M = min(xr.shape[0], mics.shape[0], Y.shape[0])
+    M = min(xr.shape[0], view.mics.shape[0], Y.shape[0])
+    turned_directions(view, o, M, U, heard)
     for m in range(M):
-        heard[m] = 0.0
-        if channels[m].owner != AIR:
-            continue
-        dx = mics[m, 0] - pos[o, 0]
-        dy = mics[m, 1] - pos[o, 1]
-        dz = mics[m, 2] - pos[o, 2]
-        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-        if not r > 0.0:
-            continue
-        ux = (R[o, 0, 0] * dx + R[o, 1, 0] * dy + R[o, 2, 0] * dz) / r
-        uy = (R[o, 0, 1] * dx + R[o, 1, 1] * dy + R[o, 2, 1] * dz) / r
-        uz = (R[o, 0, 2] * dx + R[o, 1, 2] * dy + R[o, 2, 2] * dz) / r
-        heard[m] = 1.0
-        if not ux * U[m, 0] + uy * U[m, 1] + uz * U[m, 2] >= cos_step:  # (NaN: never made)
-            U[m, 0] = ux
-            U[m, 1] = uy
-            U[m, 2] = uz
-            real_sh(L, ux, uy, uz, Y[m], tab)
-            heard[m] = 2.0
+        if heard[m] == 2.0:
+            real_sh(L, U[m, 0], U[m, 1], U[m, 2], Y[m], tab)
     m = 0
     while m < M:
         while m < M and heard[m] != 2.0:
@@ -99,12 +78,4 @@ def direction_factors_f64(xr, xi, n, o, m0, view, U, Fd, heard):
                 else:
                     Fd[m, k] = 1.0
         m = m1 + 1
-    for m in range(M):
-        if heard[m] == 0.0:
-            continue
-        for k in range(n):
-            f = Fd[m, k]
-            gr = xr[m, k]
-            gj = xi[m, k]
-            xr[m, k] = gr * f.real - gj * f.imag
-            xi[m, k] = gr * f.imag + gj * f.real
+    apply_factors(xr, xi, n, M, Fd, heard)

@@ -43,7 +43,8 @@ from .bank_loops import FAST, fmuladd
 from .directivity import sh_tables
 from .records import AIR
 
-__all__ = ["CHUNK", "DriveDirections", "drive_directions", "sh_pair", "direction_factors"]
+__all__ = ["CHUNK", "DriveDirections", "drive_directions", "sh_pair", "turned_directions", "apply_factors",
+           "direction_factors"]
 
 #: Modes per block of the float32 coefficients.
 CHUNK = 4
@@ -222,22 +223,15 @@ def _floored(fr, fi, floor):
     return complex(fr, fi)
 
 
-@njit(cache=True, _nrt=False)
-def direction_factors(xr, xi, n, o, view, U, Fd, heard):
-    """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
-    each mode's direction factor towards air microphone ``m`` now, as
-    the float64 fits' sums (the tests' reference, ``tests/drive_directions_reference.py``: the same directions, step, floor and cache
-    ``U``, ``Fd``; ``heard`` (>= M,) scratch), the factors from the float32 blocks
-    ``view.dd`` (:class:`DriveDirections`): the microphones whose direction turned two at a
-    time (:func:`sh_pair`, :func:`_chunk_factors`; an odd one paired with itself)."""
-    mics, pos, R, channels, dd = view.mics, view.pos, view.R, view.channels, view.dd
-    prm = view.params[0]
-    floor = prm.floor
-    cos_step = prm.cos_step
-    L = view.order[o]
-    coef, K, s0 = dd.coef, dd.K[o], dd.off[o]
-    Y, F = dd.sh, dd.F
-    M = min(xr.shape[0], mics.shape[0])
+@njit_inner(cache=True, _nrt=False)
+def turned_directions(view, o, M, U, heard):
+    """Which of the first ``M`` microphones hear object ``o``'s direction factors, and whose
+    direction turned: ``heard[m]`` 0 (not an air microphone, or at the object's centre), 1
+    (the factors made for ``U[m]`` are kept) or 2 (``u = R^T (mic - pos) / r`` turned by more
+    than the step ``view.params[0].cos_step`` since ``U[m]``, or none was made: NaN; ``U[m]``
+    set to ``u``, the factors to be made again). ``view``: a :class:`.drive_lines.SceneView`."""
+    mics, pos, R, channels = view.mics, view.pos, view.R, view.channels
+    cos_step = view.params[0].cos_step
     for m in range(M):
         heard[m] = 0.0
         if channels[m].owner != AIR:
@@ -257,6 +251,38 @@ def direction_factors(xr, xi, n, o, view, U, Fd, heard):
             U[m, 1] = uy
             U[m, 2] = uz
             heard[m] = 2.0
+
+
+@njit_inner(cache=True, _nrt=False)
+def apply_factors(xr, xi, n, M, Fd, heard):
+    """``xr + j xi`` (M, :n) times the direction factors ``Fd`` (M, :n) at each microphone that
+    hears them (``heard[m] != 0``: :func:`turned_directions`)."""
+    for m in range(M):
+        if heard[m] == 0.0:
+            continue
+        for k in range(n):
+            f = Fd[m, k]
+            gr = xr[m, k]
+            gj = xi[m, k]
+            xr[m, k] = gr * f.real - gj * f.imag
+            xi[m, k] = gr * f.imag + gj * f.real
+
+
+@njit(cache=True, _nrt=False)
+def direction_factors(xr, xi, n, o, view, U, Fd, heard):
+    """``xr + j xi`` (M, :n) (object ``o``'s modes, the first at ``m0`` of the flat order) times
+    each mode's direction factor towards air microphone ``m`` now, as
+    the float64 fits' sums (the tests' reference, ``tests/drive_directions_reference.py``: the same directions, step, floor and cache
+    ``U``, ``Fd``; ``heard`` (>= M,) scratch), the factors from the float32 blocks
+    ``view.dd`` (:class:`DriveDirections`): the microphones whose direction turned two at a
+    time (:func:`sh_pair`, :func:`_chunk_factors`; an odd one paired with itself)."""
+    mics, dd = view.mics, view.dd
+    floor = view.params[0].floor
+    L = view.order[o]
+    coef, K, s0 = dd.coef, dd.K[o], dd.off[o]
+    Y, F = dd.sh, dd.F
+    M = min(xr.shape[0], mics.shape[0])
+    turned_directions(view, o, M, U, heard)
     m = 0
     while m < M:
         while m < M and heard[m] != 2.0:
@@ -275,12 +301,4 @@ def direction_factors(xr, xi, n, o, view, U, Fd, heard):
                 Fd[m, k0 + q] = _floored(np.float64(F[4 * q]), np.float64(F[4 * q + 1]), floor)
                 Fd[mb, k0 + q] = _floored(np.float64(F[4 * q + 2]), np.float64(F[4 * q + 3]), floor)
         m = m1 + 1
-    for m in range(M):
-        if heard[m] == 0.0:
-            continue
-        for k in range(n):
-            f = Fd[m, k]
-            gr = xr[m, k]
-            gj = xi[m, k]
-            xr[m, k] = gr * f.real - gj * f.imag
-            xi[m, k] = gr * f.imag + gj * f.real
+    apply_factors(xr, xi, n, M, Fd, heard)

@@ -101,6 +101,7 @@ def housing_weights(ks, act, lw, anchor, fs):
         if K == 0.0:
             continue
         jt = drives[j].joint
+        fb = noise_cutoff_hz(tones, comp_off, j, w[j], fs) / math.sqrt(2.0)  # (where an image reads the broadband's reflection)
         for m in range(M):
             if channels[m].owner != AIR:  # (contact microphones)
                 continue
@@ -115,11 +116,7 @@ def housing_weights(ks, act, lw, anchor, fs):
                 continue
             g = K / r
             dd = r * fs / c - Dm[m]  # (samples of delay beyond the microphone's)
-            if image:
-                fn = noise_cutoff_hz(tones, comp_off, j, w[j], fs)
-                B[j, m] += g * reflection_at(resp[m], fn / math.sqrt(2.0))
-            else:
-                B[j, m] += g
+            B[j, m] += g * reflection_at(resp[m], fb) if image else g
             o1 = o2 = math.nan  # (the last two components' orders and phasors: a harmonic's base; NaN: none)
             c1 = s1 = c2 = s2 = 0.0
             for q in range(comp_off[j], comp_off[j + 1]):
