@@ -179,10 +179,45 @@ def test_configuration_errors_name_the_input():
     <tendon><fixed name="t"><joint joint="a" coef="1"/></fixed></tendon>
     <actuator><motor name="tm" tendon="t"/></actuator></mujoco>"""
     with pytest.raises(ValueError, match="'tm' does not drive a hinge or slide joint"):
-        actuator_config(mujoco.MjModel.from_xml_string(tendon), "servo")
+        actuator_config(mujoco.MjModel.from_xml_string(tendon), {"tm": "servo"})
+    with pytest.warns(RuntimeWarning, match="none of this model's 1 actuators is a motor on a hinge or slide joint"):
+        assert actuator_config(mujoco.MjModel.from_xml_string(tendon), "servo") == {}
     assert actuator_config(mujoco.MjModel.from_xml_string(tendon), "none") == {}
     assert actuator_config(m) == {}  # off unless a preset is named
     assert actuator_config(m, "qdd") == {0: PRESETS["qdd"]}
+
+
+MIXED = """<mujoco><worldbody><body><joint name="a" axis="0 0 1"/><geom size=".1"/>
+  <body pos=".3 0 0"><joint name="b" axis="0 0 1"/><geom size=".1"/></body></body></worldbody>
+<custom>{texts}</custom>
+<tendon><fixed name="t"><joint joint="a" coef="1"/></fixed></tendon>
+<actuator><motor name="m" joint="a"/><motor name="tm" tendon="t"/><muscle name="mus" joint="b" lengthrange="-1 1"/></actuator></mujoco>"""
+
+
+@pytest.mark.parametrize("how", ["python", "mjcf"])
+def test_a_preset_for_every_motor_leaves_muscles_and_tendons_silent_unless_named(how):
+    """A preset for all (``"servo"``, ``{"*": ...}``, MJCF ``mjsound-actuator:*``) reaches the
+    motors on hinge and slide joints only: the tendon's actuator and the muscle stay silent
+    without an error; the muscle named sounds as asked."""
+    texts = '<text name="mjsound-actuator:*" data="servo"/>' if how == "mjcf" else ""
+    m = mujoco.MjModel.from_xml_string(MIXED.format(texts=texts))
+    every = None if how == "mjcf" else "servo"
+    assert actuator_config(m, every) == {0: PRESETS["servo"]}
+    assert actuator_config(m, {"*": "servo"}) == {0: PRESETS["servo"]}
+    assert actuator_config(m, {"*": "qdd", "mus": "harmonic"}) == {0: PRESETS["qdd"], 2: PRESETS["harmonic"]}
+    with pytest.raises(ValueError, match="'tm' does not drive a hinge or slide joint"):
+        actuator_config(m, {"tm": "qdd"})
+
+
+def test_drives_without_a_sounding_body_are_named_even_unnamed():
+    """An unnamed actuator whose bodies have no sounding geom is named by its index in the warning."""
+    xml = """<mujoco><worldbody><body pos="0 0 1"><joint axis="0 0 1"/>
+      <geom size=".1" contype="0" conaffinity="0"/></body></worldbody>
+    <actuator><motor joint="0"/></actuator></mujoco>"""
+    xml = xml.replace('joint="0"', 'joint="j"').replace("<joint axis", '<joint name="j" axis')
+    m = mujoco.MjModel.from_xml_string(xml)
+    with pytest.warns(RuntimeWarning, match=r"actuators \['#0'\] drive no sounding geom"):
+        AudioSimulator(m, mujoco.MjData(m), progress=False, sample_rate=FS, quality="draft", actuators="servo")
 
 
 def test_the_parent_of_a_driven_joint_hears_its_reaction_and_a_link_sums_its_drives():

@@ -197,24 +197,61 @@ def _preset(value, where):
                      "ActuatorPreset")
 
 
-def actuator_config(model, actuators=None) -> dict:
-    """``{actuator id: ActuatorPreset}`` of the actuators that sound: MJCF custom texts
-    ``mjsound-actuator:NAME`` (``*``: every actuator) first, then ``actuators`` (a preset for
-    all, or ``{name: preset}``, ``"*"`` for all) over them. Unknown names and presets raise
-    ``ValueError``; an actuator on a tendon, site or body, or on a ball / free joint, that
-    names a preset raises too (only hinge and slide joints are driven)."""
+def _actuator_name(model, i: int) -> str:
+    """Actuator ``i``'s MJCF name, or ``#i`` for an unnamed one."""
     import mujoco
 
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}"
+
+
+def _not_a_motor(model, i: int) -> str:
+    """Why actuator ``i`` has no drive-train sound of its own ('' where it has one): it does not
+    drive a hinge or slide joint (a tendon, site, body, ball or free joint), or it is a muscle
+    (MuJoCo's muscle dynamics, gain or bias)."""
+    import mujoco
+
+    if int(model.actuator_trntype[i]) != int(mujoco.mjtTrn.mjTRN_JOINT) or int(
+            model.jnt_type[model.actuator_trnid[i, 0]]) not in (int(mujoco.mjtJoint.mjJNT_HINGE),
+                                                                int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        return "does not drive a hinge or slide joint"
+    if (int(model.actuator_dyntype[i]) == int(mujoco.mjtDyn.mjDYN_MUSCLE)
+            or int(model.actuator_gaintype[i]) == int(mujoco.mjtGain.mjGAIN_MUSCLE)
+            or int(model.actuator_biastype[i]) == int(mujoco.mjtBias.mjBIAS_MUSCLE)):
+        return "is a muscle"
+    return ""
+
+
+def actuator_config(model, actuators=None) -> dict:
+    """``{actuator id: ActuatorPreset}`` of the actuators that sound: MJCF custom texts
+    ``mjsound-actuator:NAME`` (``*``: every motor) first, then ``actuators`` (a preset for
+    every motor, or ``{name: preset}``, ``"*"`` for every motor) over them.
+
+    "Every motor" (``*``, or one preset for all) is every actuator on a hinge or slide joint
+    that is not a muscle: the others (tendons, sites, bodies, ball and free joints; muscles)
+    are left silent, and a warning says so where that leaves nothing to hear. An actuator
+    *named* with a preset sounds as asked: a muscle on a hinge or slide joint too; one that
+    does not drive a hinge or slide joint raises ``ValueError`` (it has no rotor speed to
+    hear). Unknown names and presets raise ``ValueError``.
+
+    Examples
+    --------
+    >>> actuator_config(model, "servo")  # doctest: +SKIP  (a model of 3 motors and a tendon actuator)
+    {0: ActuatorPreset(...), 1: ActuatorPreset(...), 2: ActuatorPreset(...)}
+    """
     from .objects import custom_texts
 
-    names = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}": i for i in range(model.nu)}
+    names = {_actuator_name(model, i): i for i in range(model.nu)}
     chosen: dict[int, ActuatorPreset | None] = {}
+    every: list[str] = []  # (where a preset for every motor was given)
 
     def apply(mapping, where):
         if "*" in mapping:
             p = _preset(mapping["*"], f"{where} '*'")
             for i in range(model.nu):
-                chosen[i] = p
+                if not _not_a_motor(model, i):
+                    chosen[i] = p
+            if p is not None:
+                every.append(where)
         for key, value in mapping.items():
             if key == "*":
                 continue
@@ -229,11 +266,21 @@ def actuator_config(model, actuators=None) -> dict:
     for i, p in chosen.items():
         if p is None:
             continue
-        if int(model.actuator_trntype[i]) != int(mujoco.mjtTrn.mjTRN_JOINT) or int(
-                model.jnt_type[model.actuator_trnid[i, 0]]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            raise ValueError(f"actuator {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i)!r} does not drive a "
-                             "hinge or slide joint: only those have a drive-train sound; set it to 'none'")
+        why = _not_a_motor(model, i)
+        if why and why != "is a muscle":
+            raise ValueError(f"actuator {_actuator_name(model, i)!r} {why}: only those have a drive-train sound; "
+                             "set it to 'none'")
         out[i] = p
+    if every and not out and model.nu:
+        import warnings
+
+        from ..user_frame import user_stacklevel
+
+        skipped = {_actuator_name(model, i): _not_a_motor(model, i) for i in range(model.nu)}
+        warnings.warn(f"mjsound: {every[-1]} gives every motor a preset, but none of this model's {model.nu} "
+                      f"actuators is a motor on a hinge or slide joint (e.g. {next(iter(skipped))!r} "
+                      f"{next(iter(skipped.values()))}): nothing is heard; name an actuator on a hinge or slide "
+                      "joint to hear it", RuntimeWarning, stacklevel=user_stacklevel())
     return out
 
 
@@ -310,8 +357,7 @@ class ActuatorSound:
 
             from ..user_frame import user_stacklevel
 
-            silent = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(self.ids[j]))
-                      for j in range(J) if j not in heard]
+            silent = [_actuator_name(m, int(self.ids[j])) for j in range(J) if j not in heard]
             warnings.warn(f"mjsound: actuators {silent} drive no sounding geom (neither the joint's body nor its "
                           "parent has one with an audible mode): they are silent; give those bodies' geoms a "
                           "material (materials=..., MJCF 'mjsound:GEOM') or a higher sample_rate to hear them", RuntimeWarning, stacklevel=user_stacklevel())
