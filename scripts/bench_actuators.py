@@ -47,19 +47,25 @@ def main():
     ap.add_argument("--sample-rate", type=int, default=16000, help="AudioObservation's sample rate [Hz]")
     ap.add_argument("--materials", default="", help="GEOM=MATERIAL,... for both envs (sim_kwargs materials)")
     args = ap.parse_args()
-    kw = {"materials": dict(kv.split("=", 1) for kv in args.materials.split(","))} if args.materials else {}
-    sr = args.sample_rate
-    envs = {"off": AudioObservation(make(args.env), sample_rate=sr, sim_kwargs=dict(kw)),
-            "on": AudioObservation(make(args.env), sample_rate=sr, sim_kwargs={**kw, "actuators": args.preset})}
+    print(json.dumps(measure(args.env, args.preset, args.rounds, args.steps, args.sample_rate, args.materials)))
+
+
+def measure(name, preset, rounds, steps, sr, materials=""):
+    """The benchmark's figures for env ``name`` with ``preset`` on every actuator (module
+    docstring): a dict of the env, the preset, its actuators, the sample rate, the materials,
+    the median CPU times per step off and on [ms] and the median of their ratio."""
+    kw = {"materials": dict(kv.split("=", 1) for kv in materials.split(","))} if materials else {}
+    envs = {"off": AudioObservation(make(name), sample_rate=sr, sim_kwargs=dict(kw)),
+            "on": AudioObservation(make(name), sample_rate=sr, sim_kwargs={**kw, "actuators": preset})}
     rng = np.random.default_rng(0)
     space = envs["off"].action_space
-    acts = rng.uniform(space.low, space.high, (args.steps, space.shape[0]))
+    acts = rng.uniform(space.low, space.high, (steps, space.shape[0]))
     times = {k: [] for k in envs}
     for k, env in envs.items():  # (warm-up: numba, first streams)
         env.reset(seed=0)
         for a in acts[:20]:
             env.step(a)
-    for _ in range(args.rounds):
+    for _ in range(rounds):
         for k, env in envs.items():
             env.reset(seed=0)
             t = time.process_time()
@@ -69,11 +75,9 @@ def main():
                     env.reset(seed=0)
             times[k].append((time.process_time() - t) / len(acts))
     off, on = np.array(times["off"]), np.array(times["on"])
-    print(json.dumps({"env": args.env, "preset": args.preset, "actuators": int(envs["on"].unwrapped.model.nu),
-                      "sample_rate": sr, "materials": args.materials,
-                      "off_ms": 1e3 * float(np.median(off)), "on_ms": 1e3 * float(np.median(on)),
-                      "ratio": float(np.median(on / off))}))
-
+    return {"env": name, "preset": preset, "actuators": int(envs["on"].unwrapped.model.nu), "sample_rate": sr,
+            "materials": materials, "off_ms": 1e3 * float(np.median(off)), "on_ms": 1e3 * float(np.median(on)),
+            "ratio": float(np.median(on / off))}
 
 if __name__ == "__main__":
     main()
