@@ -145,10 +145,10 @@ class MyoStepping(GymMujocoStepping):
 
         env = self.owner
         model, data = env.model, env.data
-        step, forward = sim.stepper(), mujoco.mj_forward
+        substeps, forward = sim.driver.substeps, mujoco.mj_forward
 
         def _step_physics(nstep=None):
-            step(env.frame_skip if nstep is None else nstep)
+            substeps(int(env.frame_skip if nstep is None else nstep), False, True)  # (nstep, render, keep)
             forward(model, data)
 
         self._set(env, "_step_physics", _step_physics)

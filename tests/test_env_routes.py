@@ -5,6 +5,8 @@ beyond mjsound.compat. No modal analysis (default_material=None): the impacts cl
 
 from __future__ import annotations
 
+import warnings
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -98,12 +100,15 @@ def test_myosuite_is_heard_with_its_frame_skip_window():
 
     from mjsound.env_stepping import MyoStepping
 
-    env = AudioObservation(gym.make("myoChallengeDieReorientP1-v0"), sample_rate=16000, default_material=None,
-                           progress=False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = AudioObservation(gym.make("myoChallengeDieReorientP1-v0"), sample_rate=16000, default_material=None,
+                               progress=False)
+        samples, impacts, simulated, heard = own_loop_run(env, 20)
+    assert not [w for w in caught if "AudioSimulator" in str(w.message)]  # (the route uses no deprecated call)
     u = env.unwrapped
     assert isinstance(env._route, MyoStepping) and getattr(u, "dt", None) is None
     assert env.window == round(u.frame_skip * u.model.opt.timestep * 16000) == 160  # (was 32: one physics step)
-    samples, impacts, simulated, heard = own_loop_run(env, 20)
     assert samples == round(simulated * 16000) == 20 * 160 and heard == 20 * u.frame_skip
     assert impacts > 0  # the die in the hand
     env.close()
