@@ -58,7 +58,11 @@ from mjsound.wrappers import AudioObservation  # noqa: E402
 
 @njit
 def _gains(ks, act, bg, anchor, axis, k0, regain, n):
+    table = ks.streams.table
     for _ in range(n):
+        for s in act.sidx:  # (each call makes the gains: a stream's last making after k0 marks them due;
+            if s >= 0:      # else every call after the first would time the path that skips them)
+                table[s].gupd = k0 + 1
         bodies_gains(ks, act, bg, anchor, axis, k0, regain)
 
 
