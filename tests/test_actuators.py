@@ -191,22 +191,33 @@ MIXED = """<mujoco><worldbody><body><joint name="a" axis="0 0 1"/><geom size=".1
   <body pos=".3 0 0"><joint name="b" axis="0 0 1"/><geom size=".1"/></body></body></worldbody>
 <custom>{texts}</custom>
 <tendon><fixed name="t"><joint joint="a" coef="1"/></fixed></tendon>
-<actuator><motor name="m" joint="a"/><motor name="tm" tendon="t"/><muscle name="mus" joint="b" lengthrange="-1 1"/></actuator></mujoco>"""
+<actuator><motor name="m" joint="a"/><motor name="tm" tendon="t"/><muscle name="mus" joint="b" lengthrange="-1 1"/>
+ <motor name="mp" jointinparent="b"/></actuator></mujoco>"""
 
 
 @pytest.mark.parametrize("how", ["python", "mjcf"])
 def test_a_preset_for_every_motor_leaves_muscles_and_tendons_silent_unless_named(how):
     """A preset for all (``"servo"``, ``{"*": ...}``, MJCF ``mjsound-actuator:*``) reaches the
-    motors on hinge and slide joints only: the tendon's actuator and the muscle stay silent
-    without an error; the muscle named sounds as asked."""
+    motors on hinge and slide joints only (``joint`` or ``jointinparent``): the tendon's
+    actuator and the muscle stay silent without an error; the muscle named sounds as asked."""
     texts = '<text name="mjsound-actuator:*" data="servo"/>' if how == "mjcf" else ""
     m = mujoco.MjModel.from_xml_string(MIXED.format(texts=texts))
     every = None if how == "mjcf" else "servo"
-    assert actuator_config(m, every) == {0: PRESETS["servo"]}
-    assert actuator_config(m, {"*": "servo"}) == {0: PRESETS["servo"]}
-    assert actuator_config(m, {"*": "qdd", "mus": "harmonic"}) == {0: PRESETS["qdd"], 2: PRESETS["harmonic"]}
+    assert actuator_config(m, every) == {0: PRESETS["servo"], 3: PRESETS["servo"]}
+    assert actuator_config(m, {"*": "servo"}) == {0: PRESETS["servo"], 3: PRESETS["servo"]}
+    assert actuator_config(m, {"*": "qdd", "mus": "harmonic"}) == {0: PRESETS["qdd"], 2: PRESETS["harmonic"],
+                                                                   3: PRESETS["qdd"]}
     with pytest.raises(ValueError, match="'tm' does not drive a hinge or slide joint"):
         actuator_config(m, {"tm": "qdd"})
+
+
+def test_a_joint_in_parent_drive_sounds_as_its_joint():
+    """``jointinparent`` on a hinge is the same transmission as ``joint``: the same sound, bit for bit."""
+    a, _, _ = run(arm_xml(), lambda i: 2.0, "servo", steps=300)
+    b, _, _ = run(arm_xml().replace('<velocity name="m" joint="j"', '<velocity name="m" jointinparent="j"'),
+                  lambda i: 2.0, "servo", steps=300)
+    assert np.abs(a[1]).max() > 0
+    assert np.array_equal(a, b)
 
 
 def test_drives_without_a_sounding_body_are_named_even_unnamed():

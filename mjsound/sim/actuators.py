@@ -210,7 +210,8 @@ def _not_a_motor(model, i: int) -> str:
     (MuJoCo's muscle dynamics, gain or bias)."""
     import mujoco
 
-    if int(model.actuator_trntype[i]) != int(mujoco.mjtTrn.mjTRN_JOINT) or int(
+    # (a joint "in parent" is the joint itself for a hinge or slide: it differs for ball joints alone)
+    if int(model.actuator_trntype[i]) not in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)) or int(
             model.jnt_type[model.actuator_trnid[i, 0]]) not in (int(mujoco.mjtJoint.mjJNT_HINGE),
                                                                 int(mujoco.mjtJoint.mjJNT_SLIDE)):
         return "does not drive a hinge or slide joint"
