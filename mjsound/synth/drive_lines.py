@@ -55,13 +55,13 @@ import numpy as np
 
 from ..jit import njit
 from .bandlimited import ring_add
-from .bank_loops import FAST, fma
+from .bank_loops import FAST
 from .drive_lanes import LaneScratch, cpow, lane_scratch, lanes_for, lines_pass, turn
 from .drive_broadband import broadband_force, broadband_modes, broadband_resonant, broadband_route
 from .drive_directions import DriveDirections, drive_directions
 from .drive_gains import bodies_gains
 from .drive_housing import housing_weights
-from .drive_tones import audible_span, noise_cutoff_hz
+from .drive_tones import advance_phase, audible_span, noise_cutoff_hz, wrap_phase
 from .drive_weights import line_weights
 from .packing import unpack
 from .streams import SQRT3, noise_draw
@@ -256,23 +256,6 @@ def drive_read(rd, act, qvel, force, fresh):
     return live
 
 
-@njit(cache=True, inline="always")
-def _wrap(x):
-    """``x % (2 pi)`` (in ``[0, 2 pi)``) without libm's ``fmod``: ``x - k 2 pi``, ``k =
-    floor(x / 2 pi)`` (one up or down where the division rounded across an integer), in one
-    rounding (:func:`.bank_loops.fma`): exact where the remainder is (as ``fmod``'s), so
-    the same as ``%`` for ``x >= 0``; for ``x < 0`` ``%`` rounds ``fmod(x, 2 pi) + 2 pi``,
-    this the exact ``x - k 2 pi`` (a last bit apart at most)."""
-    two_pi = 2.0 * math.pi
-    k = float(math.floor(x / two_pi))
-    r = fma(-k, two_pi, x)
-    if r < 0.0:
-        r = fma(-(k - 1.0), two_pi, x)
-    elif r >= two_pi:
-        r = fma(-(k + 1.0), two_pi, x)
-    return r if r < two_pi else 0.0
-
-
 @njit(cache=True, fastmath=FAST, _nrt=False)
 def _ramp_fill(out, y0, dy):
     """``out[q] = y0 + dy q`` (by adding ``dy`` a sample, as :func:`_ramp_add`)."""
@@ -356,7 +339,7 @@ def lines_render_in(track, act, lw, sc, n0, L, fs, F):
             s0 = tones[c].order * w0[j] / fs
             ds = tones[c].order * dw / fs
             ph = tones[c].phase
-            tones[c].phase = _wrap(ph + s0 * L + ds * (0.5 * L * (L - 1)))  # (drive_tones.advance_phase)
+            tones[c].phase = advance_phase(ph, s0, ds, L)
             if silent:
                 continue
             lo, hi = audible_span(s0, ds, limit, L)
@@ -388,7 +371,7 @@ def lines_render_in(track, act, lw, sc, n0, L, fs, F):
                 cr, ci = cpow(S[0, ib], S[1, ib], h)
                 tr, ti = cpow(S[2, ib], S[3, ib], h)
                 fr, fi = cpow(S[4, ib], S[5, ib], h)
-                er, ei = turn(_wrap(ph - h * ph_of[ib] + math.pi) - math.pi)
+                er, ei = turn(wrap_phase(ph - h * ph_of[ib] + math.pi) - math.pi)
                 cr, ci = cr * er - ci * ei, cr * ei + ci * er
             else:
                 cr, ci = math.cos(ph), math.sin(ph)

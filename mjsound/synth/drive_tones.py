@@ -36,9 +36,10 @@ import math
 import numpy as np
 
 from ..jit import njit
+from .bank_loops import fma
 from .streams import SQRT3, noise_draw, ring_need, stream_aim, stream_written
 
-__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "aim_at_drive", "advance_phase",
+__all__ = ["audible_span", "tone_add", "drive_tones", "drive_direction", "aim_at_drive", "advance_phase", "wrap_phase",
            "noise_cutoff_hz", "streams_write", "DRIVE", "TONE", "NOISE"]
 
 #: A tonal component of an actuator's force: its multiple of the rotor's rate, its amplitude
@@ -225,11 +226,28 @@ def aim_at_drive(rec, row, drives, axis, anchor, k0, regain, nrm):
 
 
 @njit(cache=True, inline="always")
+def wrap_phase(x):
+    """``x % (2 pi)`` (in ``[0, 2 pi)``) without libm's ``fmod``: ``x - k 2 pi``, ``k =
+    floor(x / 2 pi)`` (one up or down where the division rounded across an integer), in one
+    rounding (:func:`.bank_loops.fma`): exact where the remainder is (as ``fmod``'s), so
+    the same as ``%`` for ``x >= 0``; for ``x < 0`` ``%`` rounds ``fmod(x, 2 pi) + 2 pi``,
+    this the exact ``x - k 2 pi`` (a last bit apart at most)."""
+    two_pi = 2.0 * math.pi
+    k = float(math.floor(x / two_pi))
+    r = fma(-k, two_pi, x)
+    if r < 0.0:
+        r = fma(-(k - 1.0), two_pi, x)
+    elif r >= two_pi:
+        r = fma(-(k + 1.0), two_pi, x)
+    return r if r < two_pi else 0.0
+
+
+@njit(cache=True, inline="always")
 def advance_phase(phase, s0, ds, L):
     """A component's phase [rad] after ``L`` samples of its chirp (``s0`` [rad / sample] at
     the first, growing by ``ds`` a sample): ``phase + sum_{k < L} (s0 + k ds)``, exact, wrapped
-    to [0, 2 pi)."""
-    return (phase + s0 * L + ds * (0.5 * L * (L - 1))) % (2.0 * math.pi)
+    to [0, 2 pi) (:func:`wrap_phase`)."""
+    return wrap_phase(phase + s0 * L + ds * (0.5 * L * (L - 1)))
 
 
 @njit(cache=True, inline="always")
