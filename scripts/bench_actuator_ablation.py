@@ -37,6 +37,9 @@ import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+
+import bench_actuators  # noqa: E402  (its options and measurement; compiles nothing when imported)
 
 VARIANTS = ("full", "no-kernel", "no-line-samples", "no-resonant", "no-directions", "per-block-only")
 
@@ -77,20 +80,13 @@ def take_out(variant: str) -> None:
 
 def child(args) -> None:
     take_out(args.child)
-    sys.path.insert(0, HERE)
-    import bench_actuators
-
-    out = bench_actuators.measure(args.env, args.preset, args.rounds, args.steps, args.sample_rate)
+    out = bench_actuators.measure(*(getattr(args, k) for k in bench_actuators.OPTIONS))
     print(json.dumps({"variant": args.child, **out}), flush=True)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--env", default="Ant-v5")
-    ap.add_argument("--preset", default="qdd")
-    ap.add_argument("--rounds", type=int, default=8)
-    ap.add_argument("--steps", type=int, default=100)
-    ap.add_argument("--sample-rate", type=int, default=16000)
+    bench_actuators.add_arguments(ap, rounds=8)
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -101,8 +97,9 @@ def main():
         with tempfile.TemporaryDirectory(prefix="mjsound-ablation-") as cache:
             env = dict(os.environ, NUMBA_CACHE_DIR=cache, MJSOUND_SHIPPED_KERNELS="0",
                        PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
-            cmd = [sys.executable, os.path.abspath(__file__), "--child", v, "--env", args.env, "--preset", args.preset,
-                   "--rounds", str(args.rounds), "--steps", str(args.steps), "--sample-rate", str(args.sample_rate)]
+            cmd = [sys.executable, os.path.abspath(__file__), "--child", v]
+            for k in bench_actuators.OPTIONS:
+                cmd += ["--" + k.replace("_", "-"), str(getattr(args, k))]
             res = subprocess.run(cmd, env=env, capture_output=True, text=True)
         line = [ln for ln in res.stdout.splitlines() if ln.startswith("{")]
         if res.returncode or not line:

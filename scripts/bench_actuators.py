@@ -38,14 +38,24 @@ def make(name):
     return gym.make(name)
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+#: The options :func:`add_arguments` declares, as ``measure``'s arguments (``scripts/
+#: bench_actuator_ablation.py`` hands them on to its variants' processes).
+OPTIONS = ("env", "preset", "rounds", "steps", "sample_rate", "materials")
+
+
+def add_arguments(ap, rounds=6):
+    """The benchmark's options (:data:`OPTIONS`) on the parser ``ap``."""
     ap.add_argument("--env", default="Ant-v5")
     ap.add_argument("--preset", default="qdd")
-    ap.add_argument("--rounds", type=int, default=6)
+    ap.add_argument("--rounds", type=int, default=rounds)
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--sample-rate", type=int, default=16000, help="AudioObservation's sample rate [Hz]")
     ap.add_argument("--materials", default="", help="GEOM=MATERIAL,... for both envs (sim_kwargs materials)")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_arguments(ap)
     args = ap.parse_args()
     print(json.dumps(measure(args.env, args.preset, args.rounds, args.steps, args.sample_rate, args.materials)))
 

@@ -31,11 +31,15 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import bench_actuators  # noqa: E402
+import check_env_families  # noqa: E402
 
 ENVS = ["Ant-v5", "HalfCheetah-v5", "Hopper-v5", "Walker2d-v5", "Humanoid-v5", "Reacher-v5", "Pusher-v5",
         "FetchPickAndPlace-v4", "HandManipulateBlock-v1", "AdroitHandDoor-v1",
         "dmc:cheetah-run", "dmc:walker-walk", "dmc:humanoid-walk", "dmc:manipulator-bring_ball", "dmc:finger-spin",
-        "robosuite:Lift", "so101", "myosuite"]
+        "robosuite", "so101", "myosuite"]
 
 
 class DmcAsGym:
@@ -62,8 +66,6 @@ class DmcAsGym:
 
 def make(name: str, **kw):
     """The env ``name`` wrapped at 16 kHz with the wrapper options ``kw``."""
-    import gymnasium as gym
-
     from mjsound.wrappers import AudioObservation
 
     if name.startswith("dmc:"):
@@ -74,32 +76,10 @@ def make(name: str, **kw):
         domain, task = name[4:].split("-")
         return DmcAsGym(AudioEnvironment(suite.load(domain, task, task_kwargs={"random": 0}), seed=0,
                                          sample_rate=16000, progress=False, **kw))
-    if name.startswith("robosuite:"):
-        from mjsound.compat import patch_robosuite
-
-        patch_robosuite()
-        import robosuite
-        from robosuite.wrappers import GymWrapper
-
-        inner = GymWrapper(robosuite.make(name.split(":")[1], robots="Panda", has_renderer=False,
-                                          has_offscreen_renderer=False, use_camera_obs=False, seed=0))
-    elif name == "so101":
-        import lerobot_env_so101
-
-        inner = gym.make(lerobot_env_so101.ENV_ID)
-    elif name == "myosuite":
-        import myosuite  # noqa: F401
-
-        inner = gym.make("myoChallengeDieReorientP1-v0")
+    if name in ("robosuite", "so101", "myosuite"):
+        inner = check_env_families.make(name, seed=0)  # (robosuite seeded: its cube's place)
     else:
-        if name not in gym.registry:
-            import gymnasium_robotics
-
-            from mjsound.compat import patch_gymnasium_robotics
-
-            patch_gymnasium_robotics()
-            gym.register_envs(gymnasium_robotics)
-        inner = gym.make(name)
+        inner = bench_actuators.make(name)  # (gymnasium-robotics registered where needed)
     env = AudioObservation(inner, sample_rate=16000, progress=False, **kw)
     env.action_space.seed(0)
     return env

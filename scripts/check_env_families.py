@@ -34,7 +34,9 @@ import numpy as np  # noqa: E402
 from mjsound.wrappers import AudioObservation  # noqa: E402
 
 
-def make(name):
+def make(name, seed=None):
+    """The inner env of family ``name`` (``seed``: robosuite's own generator, which places its
+    cube; None: unseeded, as robosuite's default)."""
     if name == "myosuite":
         import myosuite  # noqa: F401
 
@@ -51,7 +53,7 @@ def make(name):
         from robosuite.wrappers import GymWrapper
 
         return GymWrapper(robosuite.make("Lift", robots="Panda", has_renderer=False, has_offscreen_renderer=False,
-                                         use_camera_obs=False))
+                                         use_camera_obs=False, seed=seed))
     raise ValueError(name)
 
 

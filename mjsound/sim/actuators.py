@@ -277,10 +277,9 @@ def actuator_config(model, actuators=None) -> dict:
 
         from ..user_frame import user_stacklevel
 
-        skipped = {_actuator_name(model, i): _not_a_motor(model, i) for i in range(model.nu)}
         warnings.warn(f"mjsound: {every[-1]} gives every motor a preset, but none of this model's {model.nu} "
-                      f"actuators is a motor on a hinge or slide joint (e.g. {next(iter(skipped))!r} "
-                      f"{next(iter(skipped.values()))}): nothing is heard; name an actuator on a hinge or slide "
+                      f"actuators is a motor on a hinge or slide joint (e.g. {_actuator_name(model, 0)!r} "
+                      f"{_not_a_motor(model, 0)}): nothing is heard; name an actuator on a hinge or slide "
                       "joint to hear it", RuntimeWarning, stacklevel=user_stacklevel())
     return out
 
